@@ -34,7 +34,7 @@ def rotation(theta: float) -> NDArray[np.float64]:
 
 
 def compose(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
-    """SE(2) composition a ⊕ b of poses (x, y, θ): b expressed in a's frame, returned in a's parent."""
+    """SE(2) composition a ⊕ b of poses (x, y, θ): b is given in a's frame."""
     ax, ay, at = np.asarray(a, dtype=float)
     bx, by, bt = np.asarray(b, dtype=float)
     c, s = math.cos(at), math.sin(at)

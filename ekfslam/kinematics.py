@@ -96,7 +96,7 @@ def wheels_to_twist(wheels: ArrayLike, geometry: MecanumGeometry) -> NDArray[np.
 
 
 def twist_to_wheels(twist: ArrayLike, geometry: MecanumGeometry) -> NDArray[np.float64]:
-    """Wheel speeds (rad/s, order FL, FR, RL, RR) for a body twist (vx, vy, ωz); shape (3,) or (N, 3)."""
+    """Wheel speeds (rad/s; FL, FR, RL, RR) for a body twist (vx, vy, ωz), shape (3,) or (N, 3)."""
     v = np.asarray(twist, dtype=float)
     if v.shape[-1] != 3:
         raise ValueError(f"a body twist has 3 components (vx, vy, wz), got shape {v.shape}")
@@ -106,7 +106,7 @@ def twist_to_wheels(twist: ArrayLike, geometry: MecanumGeometry) -> NDArray[np.f
 def wheel_noise_to_twist_covariance(
     wheel_sigma: float | ArrayLike, geometry: MecanumGeometry
 ) -> NDArray[np.float64]:
-    """Covariance (3x3) of (vx, vy, ωz) from independent wheel-speed noise of std `wheel_sigma` rad/s.
+    """Covariance (3x3) of (vx, vy, ωz) from independent wheel-speed noise (std in rad/s).
 
     This is how the seed's "independent noise in these speeds" maps onto its proxy variables.
     """

@@ -91,7 +91,9 @@ def observation(pose: ArrayLike, landmark: ArrayLike) -> Array:
     dy = landmark[1] - pose[1]
     q = dx * dx + dy * dy
     if not q > MIN_RANGE_SQUARED:
-        raise DegenerateGeometry(f"landmark at ({landmark[0]:.6g}, {landmark[1]:.6g}) sits on the robot")
+        raise DegenerateGeometry(
+            f"landmark at ({landmark[0]:.6g}, {landmark[1]:.6g}) sits on the robot"
+        )
     return np.array([math.sqrt(q), wrap_angle(math.atan2(dy, dx) - float(pose[2]))])
 
 
@@ -105,7 +107,9 @@ def observation_jacobians(pose: ArrayLike, landmark: ArrayLike) -> tuple[Array, 
     dy = landmark[1] - pose[1]
     q = dx * dx + dy * dy
     if not q > MIN_RANGE_SQUARED:
-        raise DegenerateGeometry(f"landmark at ({landmark[0]:.6g}, {landmark[1]:.6g}) sits on the robot")
+        raise DegenerateGeometry(
+            f"landmark at ({landmark[0]:.6g}, {landmark[1]:.6g}) sits on the robot"
+        )
     r = math.sqrt(q)
     a, b = dx / r, dy / r
     c, d = dy / q, dx / q

@@ -1,0 +1,387 @@
+"""The EKF-SLAM filter: the seed's algorithm (eqs. 1-16), touching only the blocks it needs.
+
+State (eq. 1): mu = (x, y, θ, m1x, m1y, ..., mnx, mny), shape (3 + 2n,), and its covariance
+Sigma, shape (3 + 2n, 3 + 2n). Landmarks get a slot the first time their id is seen; slot j
+occupies indices 3 + 2j and 4 + 2j.
+
+Index ranges, after Solà's toolbox: ``r`` = the pose (0:3), ``l`` = one landmark (3+2j : 5+2j),
+``m`` = everything in use (0 : 3+2n). The seed writes the same steps with the lift matrices F_x
+(eq. 8) and F_x,j (eq. 14); `ekfslam.reference` is that literal form, kept as the test oracle.
+
+Cost per step with n landmarks: prediction O(n) (only the pose rows and columns change), update
+O(n^2) (one symmetric rank-2 correction of the used block), landmark initialisation O(n).
+
+Storage is pre-allocated and grows geometrically, so adding a landmark never copies the matrix
+(except on the rare doubling of the capacity).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ekfslam.history import (
+    ACCEPTED,
+    INITIALISED,
+    OBSERVE,
+    PREDICT,
+    REFUSED,
+    REJECTED,
+    History,
+    Recorder,
+)
+from ekfslam.models import MIN_RANGE_SQUARED, inverse_observation, inverse_observation_jacobians
+
+Array = NDArray[np.float64]
+
+#: chi-square(2 dof) 99% quantile: the default Mahalanobis gate on (r, φ) innovations.
+CHI2_2DOF_99 = 9.21034037197618
+
+
+@dataclass(frozen=True)
+class FilterConfig:
+    """Choices that change how the filter behaves (noise levels are passed per step).
+
+    init : "inverse" (default) initialises a new landmark through the inverse observation
+        eq. (12) with its full cross-covariance; "seed" reproduces the report: eq. (12) for the
+        mean, eq. (3)'s "infinite" covariance as `seed_init_variance`, then the update eq. (15)-(16)
+        with the same observation.
+    seed_init_variance : m^2. The finite stand-in for eq. (3)'s ∞.
+    gate : Mahalanobis threshold on the NIS νᵀS⁻¹ν (default chi²(2) 99% = 9.21); None disables.
+    gate_after : the gate applies to a landmark once it has this many accepted sightings
+        (its initialisation counts as one); before that it has no estimate worth gating against.
+    initial_capacity : landmarks to pre-allocate for (the storage doubles when full).
+    """
+
+    init: Literal["inverse", "seed"] = "inverse"
+    seed_init_variance: float = 1e6
+    gate: float | None = CHI2_2DOF_99
+    gate_after: int = 2
+    initial_capacity: int = 16
+
+    def __post_init__(self) -> None:
+        if self.init not in ("inverse", "seed"):
+            raise ValueError(f"init must be 'inverse' or 'seed', got {self.init!r}")
+        if not self.seed_init_variance > 0:
+            raise ValueError("seed_init_variance must be positive")
+        if self.gate is not None and not self.gate > 0:
+            raise ValueError("gate must be positive or None")
+        if self.gate_after < 1:
+            raise ValueError("gate_after must be at least 1")
+        if self.initial_capacity < 1:
+            raise ValueError("initial_capacity must be at least 1")
+
+
+@dataclass(frozen=True)
+class FilterCounts:
+    """How many steps of each kind the filter took; nothing is dropped without being counted."""
+
+    predictions: int
+    initialised: int
+    accepted: int
+    rejected: int
+    refused: int
+
+
+def _wrap(a: float) -> float:
+    a = (a + math.pi) % (2.0 * math.pi) - math.pi
+    return -math.pi if a >= math.pi else a
+
+
+class EKFSLAM:
+    """Landmark EKF SLAM with a growing state.
+
+    Parameters
+    ----------
+    pose : array (3,)
+        Initial pose (x, y, θ) in m, m, rad: μ0 of eq. (1).
+    pose_covariance : array (3, 3), optional
+        Σ0 of eq. (2); zero (a known start, as in the seed) by default.
+    config : FilterConfig
+    record : bool
+        Keep a `History` (default). Turn off for benchmarks of the bare filter.
+    """
+
+    def __init__(
+        self,
+        pose: ArrayLike,
+        pose_covariance: ArrayLike | None = None,
+        config: FilterConfig | None = None,
+        record: bool = True,
+    ) -> None:
+        self.config = config or FilterConfig()
+        cap = 3 + 2 * self.config.initial_capacity
+        self._mu = np.zeros(cap)
+        self._Sigma = np.zeros((cap, cap))
+        self._dim = 3
+        self._mu[:3] = np.asarray(pose, dtype=float)
+        self._mu[2] = _wrap(float(self._mu[2]))
+        if pose_covariance is not None:
+            P0 = np.asarray(pose_covariance, dtype=float)
+            self._Sigma[:3, :3] = 0.5 * (P0 + P0.T)
+        self._ids: list[int] = []
+        self.slot: dict[int, int] = {}
+        self._sightings: list[int] = []
+        self._counts = dict.fromkeys(FilterCounts.__dataclass_fields__, 0)
+        self._recorder = Recorder() if record else None
+        self._t = 0.0
+
+    # ------------------------------------------------------------------ views
+    @property
+    def mu(self) -> Array:
+        """The state mean (3 + 2n,), eq. (1). A view: do not resize."""
+        return self._mu[: self._dim]
+
+    @property
+    def Sigma(self) -> Array:
+        """The state covariance (3 + 2n, 3 + 2n). A view into pre-allocated storage."""
+        return self._Sigma[: self._dim, : self._dim]
+
+    @property
+    def pose(self) -> Array:
+        """(x, y, θ), a copy."""
+        return self._mu[:3].copy()
+
+    @property
+    def pose_covariance(self) -> Array:
+        """The 3x3 pose block of Sigma, a copy."""
+        return self._Sigma[:3, :3].copy()
+
+    @property
+    def n_landmarks(self) -> int:
+        return len(self._ids)
+
+    @property
+    def landmark_ids(self) -> list[int]:
+        """Landmark ids in slot order."""
+        return list(self._ids)
+
+    @property
+    def capacity(self) -> int:
+        """How many landmarks fit before the storage doubles."""
+        return (self._mu.shape[0] - 3) // 2
+
+    @property
+    def counts(self) -> FilterCounts:
+        return FilterCounts(**self._counts)
+
+    def landmark(self, landmark_id: int) -> tuple[Array, Array]:
+        """Mean (2,) and covariance (2, 2) of one landmark, by id (copies)."""
+        l = 3 + 2 * self.slot[landmark_id]
+        return self._mu[l : l + 2].copy(), self._Sigma[l : l + 2, l : l + 2].copy()
+
+    def landmark_map(self) -> dict[int, Array]:
+        """{landmark id: mean (2,)}, the estimated map."""
+        return {i: self._mu[3 + 2 * j : 5 + 2 * j].copy() for j, i in enumerate(self._ids)}
+
+    def history(self) -> History:
+        """Everything recorded so far (raises if the filter was built with record=False)."""
+        if self._recorder is None:
+            raise RuntimeError("this filter was built with record=False")
+        return self._recorder.finish()
+
+    # ------------------------------------------------------------- prediction
+    def predict(self, u: ArrayLike, R: ArrayLike, t: float | None = None) -> None:
+        """Move the pose by the body-frame increment u, eqs. (6), (7) and (9).
+
+        Parameters
+        ----------
+        u : array (3,)
+            (Δux, Δuy, Δθ) in m, m, rad, eq. (4).
+        R : array (3, 3)
+            Motion noise covariance in the state (x, y, θ) for this step; see
+            `ekfslam.models.motion_noise` to build it from a control-noise covariance.
+        t : float, optional
+            Time after the step, s, for the history.
+
+        Only the pose block and the pose-landmark cross blocks change:
+        Σ_rr <- G Σ_rr Gᵀ + R and Σ_rm <- G Σ_rm, which is eq. (9) with its lifts done right.
+        """
+        mu, S, d = self._mu, self._Sigma, self._dim
+        dux, duy, dth = float(u[0]), float(u[1]), float(u[2])
+        th = float(mu[2])
+        c, s = math.cos(th), math.sin(th)
+        # G = I except its third column (g0, g1, 1): eq. (7)'s 3x3 block
+        g0 = -dux * s - duy * c
+        g1 = dux * c - duy * s
+        mu[0] += dux * c - duy * s
+        mu[1] += dux * s + duy * c
+        mu[2] = _wrap(th + dth)
+        G = np.array([[1.0, 0.0, g0], [0.0, 1.0, g1], [0.0, 0.0, 1.0]])
+        Srr = G @ S[:3, :3] @ G.T + R
+        S[:3, :3] = 0.5 * (Srr + Srr.T)
+        if d > 3:
+            row2 = S[2, 3:d]
+            S[0, 3:d] += g0 * row2
+            S[1, 3:d] += g1 * row2
+            S[3:d, :3] = S[:3, 3:d].T
+        self._counts["predictions"] += 1
+        if t is not None:
+            self._t = t
+        if self._recorder is not None:
+            self._recorder.event(self._t, PREDICT, mu, S)
+
+    # -------------------------------------------------------------- correction
+    def update(self, landmark_id: int, z: ArrayLike, Q: ArrayLike, t: float | None = None) -> str:
+        """Use one range-bearing observation z = (r, φ) of a landmark, eqs. (10)-(16).
+
+        A landmark seen for the first time is added to the state (eq. 12, see `FilterConfig.init`).
+        Otherwise the innovation ν = z - ẑ (eq. 13, bearing wrapped) is gated on its NIS, and
+        accepted ones update the state with the gain of eq. (15).
+
+        Parameters
+        ----------
+        landmark_id : int
+        z : array (2,)  range (m) and bearing (rad).
+        Q : array (2, 2)  observation noise covariance, eq. (11).
+        t : float, optional  time of the observation, s.
+
+        Returns
+        -------
+        str
+            "initialised", "accepted", "rejected" (failed the gate) or "refused" (cannot be
+            linearised: the landmark, or the observation, sits on the robot). Each is counted.
+        """
+        if t is not None:
+            self._t = t
+        z = np.asarray(z, dtype=float)
+        Q = np.asarray(Q, dtype=float)
+        if not (np.isfinite(z).all() and np.isfinite(Q).all()):
+            raise ValueError(f"non-finite observation {z} or noise {Q} for landmark {landmark_id}")
+        j = self.slot.get(landmark_id)
+        if j is None:
+            if z[0] * z[0] <= MIN_RANGE_SQUARED:
+                return self._finish(landmark_id, z, None, None, None, math.nan, REFUSED, None)
+            j = self._add_landmark(landmark_id, z, Q)
+            if self.config.init == "inverse":
+                l = 3 + 2 * j
+                return self._finish(landmark_id, z, None, None, None, math.nan, INITIALISED, l)
+            return self._correct(landmark_id, j, z, Q, gated=False, fresh=True)
+        gated = self.config.gate is not None and self._sightings[j] >= self.config.gate_after
+        return self._correct(landmark_id, j, z, Q, gated=gated, fresh=False)
+
+    def _correct(
+        self, landmark_id: int, j: int, z: Array, Q: Array, gated: bool, fresh: bool
+    ) -> str:
+        mu, S, d = self._mu, self._Sigma, self._dim
+        l = 3 + 2 * j
+        x, y, th = float(mu[0]), float(mu[1]), float(mu[2])
+        dx = float(mu[l]) - x
+        dy = float(mu[l + 1]) - y
+        q = dx * dx + dy * dy
+        if not q > MIN_RANGE_SQUARED:
+            return self._finish(landmark_id, z, None, None, None, math.nan, REFUSED, l)
+        r = math.sqrt(q)
+        z_hat = np.array([r, _wrap(math.atan2(dy, dx) - th)])
+        # eq. (14)'s two non-zero blocks
+        H_r = np.array([[-dx / r, -dy / r, 0.0], [dy / q, -dx / q, -1.0]])
+        H_l = np.array([[dx / r, dy / r], [-dy / q, dx / q]])
+        # PHt = Σ Hᵀ, built from the rows r and l of the symmetric Σ (contiguous reads), (2, d)
+        PHt = H_r @ S[:3, :d] + H_l @ S[l : l + 2, :d]
+        Sm = PHt[:, :3] @ H_r.T + PHt[:, l : l + 2] @ H_l.T + Q
+        Sm = 0.5 * (Sm + Sm.T)
+        nu = z - z_hat
+        nu[1] = _wrap(float(nu[1]))
+        a, b, c = Sm[0, 0], Sm[0, 1], Sm[1, 1]
+        det = a * c - b * b
+        if not (a > 0.0 and det > 0.0):
+            return self._finish(landmark_id, z, z_hat, nu, Sm, math.nan, REFUSED, l)
+        Sinv_nu = np.array([c * nu[0] - b * nu[1], a * nu[1] - b * nu[0]]) / det
+        nis = float(nu @ Sinv_nu)
+        if gated and nis > self.config.gate:
+            return self._finish(landmark_id, z, z_hat, nu, Sm, nis, REJECTED, l)
+        # eq. (15)-(16): μ += K ν with K = Σ Hᵀ S⁻¹
+        mu[:d] += Sinv_nu @ PHt
+        mu[2] = _wrap(float(mu[2]))
+        # Σ -= K S Kᵀ = (L⁻¹ PHt)ᵀ (L⁻¹ PHt) with S = L Lᵀ. For the optimal gain this equals
+        # Joseph's form (I-KH)Σ(I-KH)ᵀ + KQKᵀ; a product WᵀW is symmetric to the last bit.
+        l00 = math.sqrt(a)
+        l10 = b / l00
+        l11 = math.sqrt(c - l10 * l10)
+        W = np.empty_like(PHt)
+        W[0] = PHt[0] / l00
+        W[1] = (PHt[1] - l10 * W[0]) / l11
+        _subtract_gram(S, W, d)
+        if not fresh:
+            self._sightings[j] += 1
+        return self._finish(landmark_id, z, z_hat, nu, Sm, nis, ACCEPTED, l)
+
+    def _add_landmark(self, landmark_id: int, z: Array, Q: Array) -> int:
+        """Append a landmark slot, eq. (12) for the mean; covariance by `config.init`."""
+        j = len(self._ids)
+        d = self._dim
+        if d + 2 > self._mu.shape[0]:
+            self._grow()
+        mu, S = self._mu, self._Sigma
+        l = d
+        pose = mu[:3]
+        mu[l : l + 2] = inverse_observation(pose, z)
+        if self.config.init == "inverse":
+            G_p, G_z = inverse_observation_jacobians(pose, z)
+            cross = G_p @ S[:3, :d]  # cov(m_new, everything) = G_p Σ_r,m
+            S[l : l + 2, :d] = cross
+            S[:d, l : l + 2] = cross.T
+            Sll = cross[:, :3] @ G_p.T + G_z @ Q @ G_z.T
+            S[l : l + 2, l : l + 2] = 0.5 * (Sll + Sll.T)
+        else:  # eq. (3): nothing known, no correlation
+            S[l : l + 2, :d] = 0.0
+            S[:d, l : l + 2] = 0.0
+            S[l : l + 2, l : l + 2] = self.config.seed_init_variance * np.eye(2)
+        self._dim = d + 2
+        self._ids.append(landmark_id)
+        self.slot[landmark_id] = j
+        self._sightings.append(1)
+        return j
+
+    def _grow(self) -> None:
+        d = self._dim
+        cap = 3 + 2 * (2 * self.capacity)
+        mu = np.zeros(cap)
+        S = np.zeros((cap, cap))
+        mu[:d] = self._mu[:d]
+        S[:d, :d] = self._Sigma[:d, :d]
+        self._mu, self._Sigma = mu, S
+
+    def _finish(
+        self,
+        landmark_id: int,
+        z: Array,
+        z_hat: Array | None,
+        nu: Array | None,
+        Sm: Array | None,
+        nis: float,
+        outcome: int,
+        l: int | None,
+    ) -> str:
+        name = ("initialised", "accepted", "rejected", "refused")[outcome]
+        self._counts[name] += 1
+        if self._recorder is not None:
+            mu, S = self._mu, self._Sigma
+            self._recorder.event(self._t, OBSERVE, mu, S)
+            if l is None:
+                lm, lc = np.full(2, np.nan), np.full((2, 2), np.nan)
+            else:
+                lm, lc = mu[l : l + 2].copy(), S[l : l + 2, l : l + 2].copy()
+            self._recorder.observation(
+                self._t, landmark_id, z.copy(), z_hat, nu, Sm, nis, outcome, lm, lc
+            )
+        return name
+
+
+#: Rows of Σ updated per block in `_subtract_gram`: the temporary stays in cache (~256 KiB).
+_BLOCK_BYTES = 1 << 18
+
+
+def _subtract_gram(S: Array, W: Array, d: int) -> None:
+    """S[:d, :d] -= Wᵀ W in place, in row blocks so the temporary never is n x n."""
+    rows = max(1, _BLOCK_BYTES // (8 * d))
+    if rows >= d:
+        S[:d, :d] -= W.T @ W
+        return
+    for i0 in range(0, d, rows):
+        i1 = min(d, i0 + rows)
+        S[i0:i1, :d] -= W[:, i0:i1].T @ W

@@ -1,0 +1,139 @@
+"""The seed's equations written literally, with the lift matrices F_x and F_x,j and full-size G, H.
+
+This is a teaching artefact and the test oracle for `ekfslam.filter`: every product here is
+(3 + 2n) wide, so a step costs O(n^3). Read it next to the report; never use it for real runs.
+
+Where the seed's printed shapes are wrong (eqs. 7 and 9 write F_x R F_x^T, which is 3x3), this
+uses the lift that type-checks: G = I + F_xᵀ (g - I) F_x and R lifted as F_xᵀ R F_x.
+The covariance update is Joseph's form (I - KH) Σ (I - KH)ᵀ + K Q Kᵀ, which for the optimal gain
+equals the seed's eq. (16) (I - KH) Σ but stays symmetric and positive semi-definite.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ekfslam.derivations import landmark_lift_matrix_numeric, lift_matrix_numeric
+from ekfslam.filter import FilterConfig, FilterCounts
+from ekfslam.geometry import wrap_angle
+from ekfslam.models import (
+    MIN_RANGE_SQUARED,
+    inverse_observation,
+    inverse_observation_jacobians,
+    motion,
+    motion_jacobian,
+    observation,
+    observation_jacobians,
+)
+
+
+class LiteralEKFSLAM:
+    """Same interface as `ekfslam.filter.EKFSLAM` (predict, update, mu, Sigma, landmark_map)."""
+
+    def __init__(
+        self,
+        pose: ArrayLike,
+        pose_covariance: ArrayLike | None = None,
+        config: FilterConfig | None = None,
+    ) -> None:
+        self.config = config or FilterConfig()
+        self.mu = np.asarray(pose, dtype=float).copy()
+        self.mu[2] = wrap_angle(float(self.mu[2]))
+        self.Sigma = (
+            np.zeros((3, 3)) if pose_covariance is None else np.array(pose_covariance, dtype=float)
+        )
+        self.slot: dict[int, int] = {}
+        self._sightings: list[int] = []
+        self._counts = dict.fromkeys(FilterCounts.__dataclass_fields__, 0)
+
+    @property
+    def n_landmarks(self) -> int:
+        return len(self.slot)
+
+    @property
+    def counts(self) -> FilterCounts:
+        return FilterCounts(**self._counts)
+
+    def landmark_map(self) -> dict[int, np.ndarray]:
+        return {i: self.mu[3 + 2 * j : 5 + 2 * j].copy() for i, j in self.slot.items()}
+
+    def predict(self, u: ArrayLike, R: ArrayLike, t: float | None = None) -> None:
+        """Eqs. (6), (7), (9) with F_x (eq. 8)."""
+        n = self.n_landmarks
+        F_x = lift_matrix_numeric(n)  # 3 x (2n+3)
+        I = np.eye(3 + 2 * n)
+        pose = self.mu[:3]
+        g = motion_jacobian(pose, u)
+        G = I + F_x.T @ (g - np.eye(3)) @ F_x
+        step = motion(pose, u) - pose
+        step[2] = wrap_angle(float(step[2]))
+        self.mu = self.mu + F_x.T @ step
+        self.mu[2] = wrap_angle(float(self.mu[2]))
+        self.Sigma = G @ self.Sigma @ G.T + F_x.T @ np.asarray(R, dtype=float) @ F_x
+        self._counts["predictions"] += 1
+
+    def update(self, landmark_id: int, z: ArrayLike, Q: ArrayLike, t: float | None = None) -> str:
+        """Eqs. (12)-(16) with F_x,j (eq. 14) and full-width H."""
+        z = np.asarray(z, dtype=float)
+        Q = np.asarray(Q, dtype=float)
+        j = self.slot.get(landmark_id)
+        if j is None:
+            if z[0] * z[0] <= MIN_RANGE_SQUARED:
+                return self._count("refused")
+            j = self._augment(landmark_id, z, Q)
+            if self.config.init == "inverse":
+                return self._count("initialised")
+            return self._correct(j, z, Q, gated=False, fresh=True)
+        gated = self.config.gate is not None and self._sightings[j] >= self.config.gate_after
+        return self._correct(j, z, Q, gated=gated, fresh=False)
+
+    def _augment(self, landmark_id: int, z: np.ndarray, Q: np.ndarray) -> int:
+        n = self.n_landmarks
+        pose = self.mu[:3]
+        m = inverse_observation(pose, z)
+        if self.config.init == "inverse":
+            G_p, G_z = inverse_observation_jacobians(pose, z)
+            G_x = G_p @ lift_matrix_numeric(n)  # 2 x (2n+3): the new landmark against the state
+            top = np.hstack([self.Sigma, self.Sigma @ G_x.T])
+            bottom = np.hstack([G_x @ self.Sigma, G_x @ self.Sigma @ G_x.T + G_z @ Q @ G_z.T])
+            self.Sigma = np.vstack([top, bottom])
+        else:  # eq. (3)
+            big = self.config.seed_init_variance * np.eye(2)
+            d = self.Sigma.shape[0]
+            self.Sigma = np.block([[self.Sigma, np.zeros((d, 2))], [np.zeros((2, d)), big]])
+        self.mu = np.concatenate([self.mu, m])
+        self.slot[landmark_id] = n
+        self._sightings.append(1)
+        return n
+
+    def _correct(self, j: int, z: np.ndarray, Q: np.ndarray, gated: bool, fresh: bool) -> str:
+        n = self.n_landmarks
+        pose = self.mu[:3]
+        landmark = self.mu[3 + 2 * j : 5 + 2 * j]
+        d = landmark - pose[:2]
+        if not float(d @ d) > MIN_RANGE_SQUARED:
+            return self._count("refused")
+        z_hat = observation(pose, landmark)
+        H_p, H_l = observation_jacobians(pose, landmark)
+        H = np.hstack([H_p, H_l]) @ landmark_lift_matrix_numeric(n, j)  # eq. (14)
+        S = H @ self.Sigma @ H.T + Q
+        nu = z - z_hat
+        nu[1] = wrap_angle(float(nu[1]))
+        if not np.all(np.linalg.eigvalsh(S) > 0):
+            return self._count("refused")
+        nis = float(nu @ np.linalg.solve(S, nu))
+        if gated and nis > self.config.gate:
+            return self._count("rejected")
+        K = self.Sigma @ H.T @ np.linalg.inv(S)  # eq. (15)
+        self.mu = self.mu + K @ nu  # eq. (16)
+        self.mu[2] = wrap_angle(float(self.mu[2]))
+        IKH = np.eye(self.Sigma.shape[0]) - K @ H
+        self.Sigma = IKH @ self.Sigma @ IKH.T + K @ Q @ K.T
+        if not fresh:
+            self._sightings[j] += 1
+        return self._count("accepted")
+
+    def _count(self, name: str) -> str:
+        self._counts[name] += 1
+        return name

@@ -1,0 +1,240 @@
+"""The efficient filter against the literal reference, and its numerical properties."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ekfslam.filter import CHI2_2DOF_99, EKFSLAM, FilterConfig
+from ekfslam.history import OUTCOMES
+from ekfslam.models import motion, observation, observation_noise
+from ekfslam.reference import LiteralEKFSLAM
+
+
+def random_run(rng: np.random.Generator, steps: int, n_landmarks: int, outlier_rate: float = 0.0):
+    """Yield ("predict", u, R) and ("update", id, z, Q) events of a robot wandering among landmarks.
+
+    Landmarks are seen only within 2 m, so they enter the state over time.
+    """
+    landmarks = rng.uniform(-3, 3, size=(n_landmarks, 2))
+    ids = rng.permutation(1000)[:n_landmarks]
+    pose = np.array([0.0, 0.0, rng.uniform(-math.pi, math.pi)])
+    M = np.diag([0.01, 0.005, 0.01]) ** 2
+    Q = observation_noise(0.05, 0.03)
+    for _ in range(steps):
+        u = np.array([rng.uniform(0.0, 0.1), rng.uniform(-0.03, 0.03), rng.uniform(-0.3, 0.3)])
+        if np.hypot(*pose[:2]) > 2.5:  # turn back towards the middle
+            u[2] = 0.6
+        pose = motion(pose, u + rng.multivariate_normal(np.zeros(3), M))
+        R = M  # increments are small: the body-frame noise is close enough for a test run
+        yield ("predict", u, R)
+        for k in range(n_landmarks):
+            z = observation(pose, landmarks[k])
+            if z[0] > 2.0 or rng.random() < 0.5:
+                continue
+            z = z + rng.normal(0, [0.05, 0.03])
+            if rng.random() < outlier_rate:
+                z[0] += rng.uniform(0.5, 1.5)
+            z[1] = (z[1] + math.pi) % (2 * math.pi) - math.pi
+            yield ("update", int(ids[k]), z, Q)
+
+
+def drive(filters, events):
+    outcomes = []
+    for event in events:
+        for f in filters:
+            if event[0] == "predict":
+                f.predict(event[1], event[2])
+            else:
+                outcomes.append(f.update(event[1], event[2], event[3]))
+    return outcomes
+
+
+@pytest.mark.parametrize("init", ["inverse", "seed"])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_efficient_filter_agrees_with_literal_reference(init, seed):
+    rng = np.random.default_rng(seed)
+    # eq. (3)'s "infinite" variance costs digits: after the first update the landmark block is
+    # big - big²/(big + σ²), which loses about log10(big/σ²) digits in both implementations, in
+    # different places. A moderate stand-in keeps the comparison at 1e-9 meaningful.
+    config = FilterConfig(init=init, initial_capacity=2, seed_init_variance=1e2)
+    fast = EKFSLAM([0.1, -0.2, 0.3], np.diag([1e-4, 1e-4, 1e-5]), config)
+    slow = LiteralEKFSLAM([0.1, -0.2, 0.3], np.diag([1e-4, 1e-4, 1e-5]), config)
+    outcomes = []
+    for event in random_run(rng, 150, 12, outlier_rate=0.05):
+        if event[0] == "predict":
+            fast.predict(event[1], event[2])
+            slow.predict(event[1], event[2])
+        else:
+            a = fast.update(event[1], event[2], event[3])
+            b = slow.update(event[1], event[2], event[3])
+            assert a == b
+            outcomes.append(a)
+    assert fast.n_landmarks == slow.n_landmarks >= 5
+    assert fast.capacity >= fast.n_landmarks > 2
+    np.testing.assert_allclose(fast.mu, slow.mu, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fast.Sigma, slow.Sigma, rtol=0, atol=1e-9)
+    # the run exercised every path the oracle checks
+    assert outcomes.count("accepted") > 50
+    assert outcomes.count("rejected") > 0
+    assert fast.counts == slow.counts
+
+
+def test_predict_touches_only_pose_rows_and_columns():
+    rng = np.random.default_rng(3)
+    f = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(gate=None))
+    drive([f], random_run(rng, 60, 8))
+    before = f.Sigma.copy()
+    f.predict([0.05, 0.01, 0.2], np.diag([1e-4, 1e-4, 1e-4]))
+    after = f.Sigma
+    np.testing.assert_array_equal(after[3:, 3:], before[3:, 3:])
+    assert not np.array_equal(after[:3, 3:], before[:3, 3:])
+
+
+def test_storage_is_not_copied_per_new_landmark():
+    f = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(initial_capacity=4))
+    Q = observation_noise(0.05, 0.03)
+    buffers = set()
+    for k in range(20):
+        f.update(k, [1.0 + 0.1 * k, 0.1 * k - 1.0], Q)
+        buffers.add(id(f._Sigma))
+    # 4 -> 8 -> 16 -> 32 landmarks: three doublings, not twenty copies
+    assert len(buffers) == 4  # the first buffer and three doublings
+    assert f.capacity == 32 and f.n_landmarks == 20
+
+
+def test_sigma_symmetric_and_psd_over_ten_thousand_steps():
+    rng = np.random.default_rng(7)
+    f = EKFSLAM([0.0, 0.0, 0.0], record=False)
+    steps = 0
+    for event in random_run(rng, 4500, 15, outlier_rate=0.02):
+        if event[0] == "predict":
+            f.predict(event[1], event[2])
+        else:
+            f.update(event[1], event[2], event[3])
+        steps += 1
+    assert steps >= 10_000
+    S = f.Sigma
+    assert np.max(np.abs(S - S.T)) <= 1e-12
+    assert np.linalg.eigvalsh(S).min() >= -1e-9 * np.trace(S)
+    assert np.isfinite(f.mu).all()
+
+
+def test_update_equals_josephs_form():
+    rng = np.random.default_rng(11)
+    f = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(gate=None))
+    drive([f], random_run(rng, 80, 10))
+    lid = f.landmark_ids[0]
+    j = f.slot[lid]
+    mu0, S0 = f.mu.copy(), f.Sigma.copy()
+    Q = observation_noise(0.05, 0.03)
+    z = observation(mu0[:3], mu0[3 + 2 * j : 5 + 2 * j]) + np.array([0.03, -0.02])
+    assert f.update(lid, z, Q) == "accepted"
+    # Joseph's form with a dense H, computed independently
+    from ekfslam.models import observation_jacobians
+
+    H = np.zeros((2, S0.shape[0]))
+    H_p, H_l = observation_jacobians(mu0[:3], mu0[3 + 2 * j : 5 + 2 * j])
+    H[:, :3], H[:, 3 + 2 * j : 5 + 2 * j] = H_p, H_l
+    K = S0 @ H.T @ np.linalg.inv(H @ S0 @ H.T + Q)
+    IKH = np.eye(S0.shape[0]) - K @ H
+    joseph = IKH @ S0 @ IKH.T + K @ Q @ K.T
+    np.testing.assert_allclose(f.Sigma, joseph, rtol=0, atol=1e-12)
+
+
+def test_gate_rejects_outliers_and_counts_them():
+    f = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(gate_after=1))
+    Q = observation_noise(0.02, 0.01)
+    assert f.update(5, [1.0, 0.0], Q) == "initialised"
+    assert f.update(5, [1.01, 0.005], Q) == "accepted"
+    assert f.update(5, [1.6, 0.0], Q) == "rejected"  # 0.6 m off, ~30 sigma
+    counts = f.counts
+    assert (counts.initialised, counts.accepted, counts.rejected) == (1, 1, 1)
+    h = f.history()
+    assert [OUTCOMES[k] for k in h.obs_outcome] == ["initialised", "accepted", "rejected"]
+    assert h.obs_nis[2] > CHI2_2DOF_99
+    # a rejected observation leaves the state alone
+    assert h.obs_landmark[2].tolist() == h.obs_landmark[1].tolist()
+
+
+def test_gate_waits_until_landmark_is_established():
+    Q = observation_noise(0.02, 0.01)
+    f = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(gate_after=2))
+    f.update(5, [1.0, 0.0], Q)
+    assert f.update(5, [1.6, 0.0], Q) == "accepted"  # only one sighting so far: no gate
+    g = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(gate=None, gate_after=1))
+    g.update(5, [1.0, 0.0], Q)
+    assert g.update(5, [1.6, 0.0], Q) == "accepted"  # gate off
+
+
+def test_degenerate_geometry_is_refused_and_counted_never_nan():
+    Q = observation_noise(0.02, 0.01)
+    f = EKFSLAM([0.0, 0.0, 0.0])
+    assert f.update(1, [0.0, 0.3], Q) == "refused"  # zero range: no landmark to place
+    assert f.n_landmarks == 0
+    f.update(2, [0.5, 0.0], Q)
+    f.predict([0.5, 0.0, 0.0], np.zeros((3, 3)))  # drive onto the landmark
+    assert f.update(2, [0.3, 0.0], Q) == "refused"
+    assert f.counts.refused == 2
+    assert np.isfinite(f.mu).all() and np.isfinite(f.Sigma).all()
+    with pytest.raises(ValueError, match="non-finite"):
+        f.update(2, [math.nan, 0.0], Q)
+
+
+def test_bearing_innovation_is_wrapped_across_pi():
+    Q = observation_noise(0.02, 0.02)
+    f = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(gate_after=1))
+    f.update(3, [1.0, math.pi - 0.01], Q)  # landmark behind the robot
+    # the same landmark measured just across the ±π seam: a small innovation, not 2π
+    assert f.update(3, [1.0, -math.pi + 0.01], Q) == "accepted"
+    h = f.history()
+    assert abs(h.obs_innovation[1, 1]) < 0.03
+    assert -math.pi <= f.mu[2] < math.pi
+
+
+def test_seed_initialisation_approaches_inverse_initialisation():
+    """Eq. (3)'s large variance then one update gives (nearly) the inverse-observation init."""
+    Q = observation_noise(0.05, 0.03)
+    P0 = np.diag([1e-3, 2e-3, 1e-3])
+    z = np.array([1.3, 0.7])
+    inv = EKFSLAM([0.2, 0.1, 0.4], P0, FilterConfig(init="inverse"))
+    inv.update(9, z, Q)
+    seed = EKFSLAM([0.2, 0.1, 0.4], P0, FilterConfig(init="seed", seed_init_variance=1e6))
+    assert seed.update(9, z, Q) == "accepted"
+    np.testing.assert_allclose(seed.mu, inv.mu, atol=1e-9)
+    np.testing.assert_allclose(seed.Sigma, inv.Sigma, rtol=1e-4, atol=1e-8)
+
+
+def test_history_records_every_event_without_n_squared_copies():
+    rng = np.random.default_rng(5)
+    f = EKFSLAM([0.0, 0.0, 0.0])
+    drive([f], random_run(rng, 50, 6))
+    h = f.history()
+    c = f.counts
+    n_obs = c.initialised + c.accepted + c.rejected + c.refused
+    assert len(h.t) == c.predictions + n_obs
+    assert h.pose_cov.shape == (len(h.t), 3, 3)
+    assert len(h.obs_id) == n_obs
+    np.testing.assert_array_equal(h.pose[-1], f.mu[:3])
+    accepted = h.outcome_mask("accepted")
+    assert np.isfinite(h.obs_nis[accepted]).all()
+    assert np.isnan(h.obs_nis[h.outcome_mask("initialised")]).all()
+
+
+def test_blocked_covariance_update_matches_one_block(monkeypatch):
+    """Large maps update Σ in row blocks; the result is the same as one big product."""
+    import ekfslam.filter as filter_module
+
+    def run():
+        f = EKFSLAM([0.0, 0.0, 0.0], record=False)
+        drive([f], random_run(np.random.default_rng(8), 300, 15))
+        return f
+
+    whole = run()
+    monkeypatch.setattr(filter_module, "_BLOCK_BYTES", 8 * 40 * 3)  # blocks of a few rows
+    blocked = run()
+    np.testing.assert_allclose(blocked.Sigma, whole.Sigma, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(blocked.mu, whole.mu, rtol=0, atol=1e-14)
+    assert np.max(np.abs(blocked.Sigma - blocked.Sigma.T)) <= 1e-15
