@@ -19,9 +19,9 @@ pattern seen from above, each wheel's speed positive when it rolls the robot for
     ωz =  r/(4 (lx+ly)) (-w1 + w2 - w3 + w4)
 
 Four wheel speeds have one more degree of freedom than a planar twist: the combination
-(w1 - w2 - w3 + w4) makes the wheels fight each other and moves nothing. `twist_to_wheels` never
-produces it, so twist -> wheels -> twist is exact, and wheels -> twist -> wheels is the projection
-that removes that component.
+(w1 + w2 - w3 - w4), front wheels against rear, makes them fight each other and moves nothing.
+`twist_to_wheels` never produces it, so twist -> wheels -> twist is exact, and
+wheels -> twist -> wheels is the projection that removes that component.
 """
 
 from __future__ import annotations
