@@ -201,29 +201,96 @@ class EKFSLAM:
         Only the pose block and the pose-landmark cross blocks change:
         Σ_rr <- G Σ_rr Gᵀ + R and Σ_rm <- G Σ_rm, which is eq. (9) with its lifts done right.
         """
+        R = np.asarray(R, dtype=float)
+        self._propagate(((u[0], u[1], u[2]),), None, R, (self._t if t is None else t,))
+
+    def predict_many(
+        self,
+        us: ArrayLike,
+        dts: ArrayLike,
+        ts: ArrayLike,
+        M: ArrayLike | None = None,
+        R: ArrayLike | None = None,
+    ) -> None:
+        """Several predictions in a row, exactly as many calls to `predict`, at O(n) once.
+
+        Every motion Jacobian of eq. (7) is I + g e₃ᵀ with g = (g0, g1, 0), so their product is
+        I + (Σ g) e₃ᵀ: the pose-landmark cross-covariance needs one update for the whole batch,
+        while the 3x3 pose block is stepped in plain floats.
+
+        Parameters
+        ----------
+        us : (K, 3) increments (Δux, Δuy, Δθ).
+        dts : (K,) s, the duration of each step (scales M).
+        ts : (K,) s, the time after each step, for the history.
+        M : (3, 3), control-increment covariance per second of driving: step k gets
+            R_k = V(θ_k) (M dt_k) V(θ_k)ᵀ (`ekfslam.models.motion_noise`), θ_k its start heading.
+        R : (3, 3), or a fixed state-space R for every step (the seed's way). Give M or R.
+        """
+        if (M is None) == (R is None):
+            raise ValueError("give exactly one of M (per second) or R (per step)")
+        us = np.asarray(us, dtype=float).tolist()
+        self._propagate(
+            us,
+            np.asarray(dts, dtype=float).tolist() if M is not None else None,
+            np.asarray(M if M is not None else R, dtype=float),
+            np.asarray(ts, dtype=float).tolist(),
+            per_second=M is not None,
+        )
+
+    def _propagate(self, us, dts, N: Array, ts, per_second: bool = False) -> None:
         mu, S, d = self._mu, self._Sigma, self._dim
-        dux, duy, dth = float(u[0]), float(u[1]), float(u[2])
-        th = float(mu[2])
-        c, s = math.cos(th), math.sin(th)
-        # G = I except its third column (g0, g1, 1): eq. (7)'s 3x3 block
-        g0 = -dux * s - duy * c
-        g1 = dux * c - duy * s
-        mu[0] += dux * c - duy * s
-        mu[1] += dux * s + duy * c
-        mu[2] = _wrap(th + dth)
-        G = np.array([[1.0, 0.0, g0], [0.0, 1.0, g1], [0.0, 0.0, 1.0]])
-        Srr = G @ S[:3, :3] @ G.T + R
-        S[:3, :3] = 0.5 * (Srr + Srr.T)
+        x, y, th = mu[:3].tolist()
+        (s00, s01, s02), (_, s11, s12), (_, _, s22) = S[:3, :3].tolist()
+        (n00, n01, n02), (_, n11, n12), (_, _, n22) = N.tolist()
+        A = B = 0.0  # Σ g0 and Σ g1 over the batch
+        rec = self._recorder
+        for k, (dux, duy, dth) in enumerate(us):
+            c, s = math.cos(th), math.sin(th)
+            # eq. (7): G = I + g e₃ᵀ with g = (g0, g1, 0)
+            g0 = -dux * s - duy * c
+            g1 = dux * c - duy * s
+            if per_second:  # R = V (M dt) Vᵀ with V the rotation of eq. (5)
+                dt = dts[k]
+                cc, ss, cs = c * c, s * s, c * s
+                r00 = (cc * n00 - 2.0 * cs * n01 + ss * n11) * dt
+                r01 = (cs * (n00 - n11) + (cc - ss) * n01) * dt
+                r11 = (ss * n00 + 2.0 * cs * n01 + cc * n11) * dt
+                r02 = (c * n02 - s * n12) * dt
+                r12 = (s * n02 + c * n12) * dt
+                r22 = n22 * dt
+            else:
+                r00, r01, r02, r11, r12, r22 = n00, n01, n02, n11, n12, n22
+            # eq. (9) on the pose block: G Σ Gᵀ + R, written out for G = I + g e₃ᵀ
+            s00, s01, s02, s11, s12 = (
+                s00 + 2.0 * g0 * s02 + g0 * g0 * s22 + r00,
+                s01 + g0 * s12 + g1 * s02 + g0 * g1 * s22 + r01,
+                s02 + g0 * s22 + r02,
+                s11 + 2.0 * g1 * s12 + g1 * g1 * s22 + r11,
+                s12 + g1 * s22 + r12,
+            )
+            s22 = s22 + r22
+            # eq. (6)
+            x += dux * c - duy * s
+            y += dux * s + duy * c
+            th = _wrap(th + dth)
+            A += g0
+            B += g1
+            if rec is not None:
+                rec.event(
+                    ts[k], PREDICT, (x, y, th),
+                    (s00, s01, s02, s01, s11, s12, s02, s12, s22),
+                )  # fmt: skip
+        mu[0], mu[1], mu[2] = x, y, th
+        S[:3, :3] = ((s00, s01, s02), (s01, s11, s12), (s02, s12, s22))
         if d > 3:
             row2 = S[2, 3:d]
-            S[0, 3:d] += g0 * row2
-            S[1, 3:d] += g1 * row2
+            S[0, 3:d] += A * row2
+            S[1, 3:d] += B * row2
             S[3:d, :3] = S[:3, 3:d].T
-        self._counts["predictions"] += 1
-        if t is not None:
-            self._t = t
-        if self._recorder is not None:
-            self._recorder.event(self._t, PREDICT, mu, S)
+        self._counts["predictions"] += len(us)
+        if len(ts):
+            self._t = ts[-1]
 
     # -------------------------------------------------------------- correction
     def update(self, landmark_id: int, z: ArrayLike, Q: ArrayLike, t: float | None = None) -> str:
@@ -248,15 +315,15 @@ class EKFSLAM:
         """
         if t is not None:
             self._t = t
-        z = np.asarray(z, dtype=float)
+        z = (float(z[0]), float(z[1]))
         Q = np.asarray(Q, dtype=float)
-        if not (np.isfinite(z).all() and np.isfinite(Q).all()):
+        if not (math.isfinite(z[0]) and math.isfinite(z[1]) and np.isfinite(Q).all()):
             raise ValueError(f"non-finite observation {z} or noise {Q} for landmark {landmark_id}")
         j = self.slot.get(landmark_id)
         if j is None:
             if z[0] * z[0] <= MIN_RANGE_SQUARED:
                 return self._finish(landmark_id, z, None, None, None, math.nan, REFUSED, None)
-            j = self._add_landmark(landmark_id, z, Q)
+            j = self._add_landmark(landmark_id, np.array(z), Q)
             if self.config.init == "inverse":
                 l = 3 + 2 * j
                 return self._finish(landmark_id, z, None, None, None, math.nan, INITIALISED, l)
@@ -265,50 +332,48 @@ class EKFSLAM:
         return self._correct(landmark_id, j, z, Q, gated=gated, fresh=False)
 
     def _correct(
-        self, landmark_id: int, j: int, z: Array, Q: Array, gated: bool, fresh: bool
+        self, landmark_id: int, j: int, z: tuple[float, float], Q: Array, gated: bool, fresh: bool
     ) -> str:
         mu, S, d = self._mu, self._Sigma, self._dim
         l = 3 + 2 * j
-        x, y, th = float(mu[0]), float(mu[1]), float(mu[2])
-        dx = float(mu[l]) - x
-        dy = float(mu[l + 1]) - y
+        x, y, th = mu[:3].tolist()
+        mx, my = mu[l : l + 2].tolist()
+        dx, dy = mx - x, my - y
         q = dx * dx + dy * dy
         if not q > MIN_RANGE_SQUARED:
             return self._finish(landmark_id, z, None, None, None, math.nan, REFUSED, l)
         r = math.sqrt(q)
-        z_hat = np.array([r, _wrap(math.atan2(dy, dx) - th)])
-        # eq. (14)'s two non-zero blocks
-        H_r = np.array([[-dx / r, -dy / r, 0.0], [dy / q, -dx / q, -1.0]])
-        H_l = np.array([[dx / r, dy / r], [-dy / q, dx / q]])
-        # PHt = Σ Hᵀ, built from the rows r and l of the symmetric Σ (contiguous reads), (2, d)
-        PHt = H_r @ S[:3, :d] + H_l @ S[l : l + 2, :d]
-        Sm = PHt[:, :3] @ H_r.T + PHt[:, l : l + 2] @ H_l.T + Q
-        Sm = 0.5 * (Sm + Sm.T)
-        nu = z - z_hat
-        nu[1] = _wrap(float(nu[1]))
-        a, b, c = Sm[0, 0], Sm[0, 1], Sm[1, 1]
-        det = a * c - b * b
-        if not (a > 0.0 and det > 0.0):
-            return self._finish(landmark_id, z, z_hat, nu, Sm, math.nan, REFUSED, l)
-        Sinv_nu = np.array([c * nu[0] - b * nu[1], a * nu[1] - b * nu[0]]) / det
-        nis = float(nu @ Sinv_nu)
+        z_hat = (r, _wrap(math.atan2(dy, dx) - th))
+        # eq. (14): [H_r | H_l] on the rows (x, y, θ, mx, my)
+        a, b, e, f = dx / r, dy / r, dy / q, dx / q
+        H = np.array([[-a, -b, 0.0, a, b], [e, -f, -1.0, -e, f]])
+        idx = [0, 1, 2, l, l + 1]
+        PHt = H @ S[idx, :d]  # Σ Hᵀ as (2, d), from the five rows of the symmetric Σ
+        (s00, s01), (_, s11) = (PHt[:, idx] @ H.T + Q).tolist()
+        nu0 = z[0] - z_hat[0]
+        nu1 = _wrap(z[1] - z_hat[1])
+        det = s00 * s11 - s01 * s01
+        S_innov = (s00, s01, s01, s11)
+        if not (s00 > 0.0 and det > 0.0):
+            return self._finish(landmark_id, z, z_hat, (nu0, nu1), S_innov, math.nan, REFUSED, l)
+        k0 = (s11 * nu0 - s01 * nu1) / det  # S⁻¹ ν
+        k1 = (s00 * nu1 - s01 * nu0) / det
+        nis = nu0 * k0 + nu1 * k1
         if gated and nis > self.config.gate:
-            return self._finish(landmark_id, z, z_hat, nu, Sm, nis, REJECTED, l)
+            return self._finish(landmark_id, z, z_hat, (nu0, nu1), S_innov, nis, REJECTED, l)
         # eq. (15)-(16): μ += K ν with K = Σ Hᵀ S⁻¹
-        mu[:d] += Sinv_nu @ PHt
+        mu[:d] += k0 * PHt[0] + k1 * PHt[1]
         mu[2] = _wrap(float(mu[2]))
         # Σ -= K S Kᵀ = (L⁻¹ PHt)ᵀ (L⁻¹ PHt) with S = L Lᵀ. For the optimal gain this equals
         # Joseph's form (I-KH)Σ(I-KH)ᵀ + KQKᵀ; a product WᵀW is symmetric to the last bit.
-        l00 = math.sqrt(a)
-        l10 = b / l00
-        l11 = math.sqrt(c - l10 * l10)
-        W = np.empty_like(PHt)
-        W[0] = PHt[0] / l00
-        W[1] = (PHt[1] - l10 * W[0]) / l11
+        l00 = math.sqrt(s00)
+        l10 = s01 / l00
+        l11 = math.sqrt(s11 - l10 * l10)
+        W = np.array([[1.0 / l00, 0.0], [-l10 / (l00 * l11), 1.0 / l11]]) @ PHt
         _subtract_gram(S, W, d)
         if not fresh:
             self._sightings[j] += 1
-        return self._finish(landmark_id, z, z_hat, nu, Sm, nis, ACCEPTED, l)
+        return self._finish(landmark_id, z, z_hat, (nu0, nu1), S_innov, nis, ACCEPTED, l)
 
     def _add_landmark(self, landmark_id: int, z: Array, Q: Array) -> int:
         """Append a landmark slot, eq. (12) for the mean; covariance by `config.init`."""
@@ -349,26 +414,25 @@ class EKFSLAM:
     def _finish(
         self,
         landmark_id: int,
-        z: Array,
-        z_hat: Array | None,
-        nu: Array | None,
-        Sm: Array | None,
+        z: tuple[float, float],
+        z_hat: tuple[float, float] | None,
+        nu: tuple[float, float] | None,
+        S_innov: tuple[float, ...] | None,
         nis: float,
         outcome: int,
         l: int | None,
     ) -> str:
         name = ("initialised", "accepted", "rejected", "refused")[outcome]
         self._counts[name] += 1
-        if self._recorder is not None:
+        rec = self._recorder
+        if rec is not None:
             mu, S = self._mu, self._Sigma
-            self._recorder.event(self._t, OBSERVE, mu, S)
+            rec.event(self._t, OBSERVE, mu[:3].tolist(), S[:3, :3].ravel().tolist())
             if l is None:
-                lm, lc = np.full(2, np.nan), np.full((2, 2), np.nan)
+                lm, lc = (math.nan, math.nan), (math.nan,) * 4
             else:
-                lm, lc = mu[l : l + 2].copy(), S[l : l + 2, l : l + 2].copy()
-            self._recorder.observation(
-                self._t, landmark_id, z.copy(), z_hat, nu, Sm, nis, outcome, lm, lc
-            )
+                lm, lc = mu[l : l + 2].tolist(), S[l : l + 2, l : l + 2].ravel().tolist()
+            rec.observation(self._t, landmark_id, z, z_hat, nu, S_innov, nis, outcome, lm, lc)
         return name
 
 

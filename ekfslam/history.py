@@ -6,6 +6,7 @@ observation's numbers), never a copy of the n x n covariance, so a long run cost
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -63,33 +64,27 @@ class History:
 
 
 class Recorder:
-    """Collects events as plain Python lists (cheap appends) and freezes them into a History."""
+    """Collects events as plain tuples (cheap appends) and freezes them into a History.
+
+    Poses come as 3 floats, covariances flattened row-major (9 or 4 floats); absent values
+    (a new landmark has no ẑ) as None.
+    """
 
     def __init__(self) -> None:
         self._t: list[float] = []
         self._event: list[int] = []
-        self._pose: list[Array] = []
-        self._pose_cov: list[Array] = []
+        self._pose: list = []
+        self._pose_cov: list = []
         self._obs: list[tuple] = []
 
-    def event(self, t: float, kind: int, mu: Array, Sigma: Array) -> None:
+    def event(self, t: float, kind: int, pose, pose_cov) -> None:
         self._t.append(t)
         self._event.append(kind)
-        self._pose.append(mu[:3].copy())
-        self._pose_cov.append(Sigma[:3, :3].copy())
+        self._pose.append(pose)
+        self._pose_cov.append(pose_cov)
 
     def observation(
-        self,
-        t: float,
-        landmark_id: int,
-        z: Array,
-        z_hat: Array | None,
-        innovation: Array | None,
-        S: Array | None,
-        nis: float,
-        outcome: int,
-        landmark: Array,
-        landmark_cov: Array,
+        self, t, landmark_id, z, z_hat, innovation, S, nis, outcome, landmark, landmark_cov
     ) -> None:
         self._obs.append(
             (t, len(self._t) - 1, landmark_id, z, z_hat, innovation, S, nis, outcome,
@@ -97,8 +92,13 @@ class Recorder:
         )  # fmt: skip
 
     def finish(self) -> History:
-        nan2, nan22 = np.full(2, np.nan), np.full((2, 2), np.nan)
+        nan2, nan4 = (math.nan,) * 2, (math.nan,) * 4
         obs = self._obs
+
+        def column(i: int, width: int, missing=None) -> Array:
+            values = [missing if o[i] is None else o[i] for o in obs]
+            return np.array(values, dtype=float).reshape(-1, width)
+
         return History(
             t=np.array(self._t, dtype=float),
             event=np.array(self._event, dtype=np.int8),
@@ -107,12 +107,12 @@ class Recorder:
             obs_t=np.array([o[0] for o in obs], dtype=float),
             obs_event=np.array([o[1] for o in obs], dtype=np.int64),
             obs_id=np.array([o[2] for o in obs], dtype=np.int64),
-            obs_z=np.array([o[3] for o in obs], dtype=float).reshape(-1, 2),
-            obs_z_hat=np.array([nan2 if o[4] is None else o[4] for o in obs]).reshape(-1, 2),
-            obs_innovation=np.array([nan2 if o[5] is None else o[5] for o in obs]).reshape(-1, 2),
-            obs_S=np.array([nan22 if o[6] is None else o[6] for o in obs]).reshape(-1, 2, 2),
+            obs_z=column(3, 2),
+            obs_z_hat=column(4, 2, nan2),
+            obs_innovation=column(5, 2, nan2),
+            obs_S=column(6, 4, nan4).reshape(-1, 2, 2),
             obs_nis=np.array([o[7] for o in obs], dtype=float),
             obs_outcome=np.array([o[8] for o in obs], dtype=np.int8),
-            obs_landmark=np.array([o[9] for o in obs], dtype=float).reshape(-1, 2),
-            obs_landmark_cov=np.array([o[10] for o in obs], dtype=float).reshape(-1, 2, 2),
+            obs_landmark=column(9, 2),
+            obs_landmark_cov=column(10, 4).reshape(-1, 2, 2),
         )

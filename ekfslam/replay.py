@@ -19,8 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.filter import EKFSLAM, FilterConfig, FilterCounts
 from ekfslam.history import History
-from ekfslam.kinematics import wheels_to_twist
-from ekfslam.models import motion_control_jacobian, observation_noise
+from ekfslam.models import observation_noise
 from ekfslam.runlog import RunLog
 
 Array = NDArray[np.float64]
@@ -96,16 +95,6 @@ class ReplayResult:
     config: FilterConfig = field(default_factory=FilterConfig)
 
 
-def control_twist(run: RunLog) -> Array:
-    """The controls as body twists (N, 3): (vx, vy, ωz) in m/s, m/s, rad/s."""
-    controls = run.controls
-    if controls.kind == "twist":
-        return np.asarray(controls.values, dtype=float)
-    if run.meta.robot is None:
-        raise ValueError(f"run {run.meta.name!r} has wheel-speed controls but no robot geometry")
-    return wheels_to_twist(controls.values, run.meta.robot)
-
-
 def replay(
     run: RunLog,
     noise: NoiseConfig | None = None,
@@ -129,51 +118,40 @@ def replay(
     config = config or FilterConfig()
     pose0 = run.meta.nominal_start if start_pose is None else start_pose
     ekf = EKFSLAM(pose0, start_covariance, config)
-    twist = control_twist(run)
+    twist = run.control_twist()
+    if len(twist) == 0:
+        raise ValueError(f"run {run.meta.name!r} has no controls")
     t_ctrl = np.asarray(run.controls.t, dtype=float)
     det = run.detections
     Q = noise.Q
     fixed_R = None if noise.R_per_step is None else np.asarray(noise.R_per_step, dtype=float)
     density = noise.motion_density()
 
-    def predict(k: int, t_from: float, t_to: float) -> None:
-        dt = t_to - t_from
-        if dt <= 0.0:
-            return
-        v = twist[k]
-        u = (v[0] * dt, v[1] * dt, v[2] * dt)
-        if fixed_R is not None:
-            R = fixed_R
-        else:
-            V = motion_control_jacobian(ekf._mu)
-            R = (V * (density.diagonal() * dt)) @ V.T
-        ekf.predict(u, R, t_to)
-
     started = time.perf_counter()
-    n_ctrl = len(t_ctrl)
-    t_now = float(t_ctrl[0]) if n_ctrl else 0.0
-    if len(det.t):
-        t_now = min(t_now, float(det.t[0]))
-    k = -1  # the control row in force at t_now (-1: before the first row, standing still)
-    det_t = det.t.tolist()
+    # The prediction pieces: every control interval, split at the detection times inside it.
+    det_t = np.asarray(det.t, dtype=float)
+    t_first = min(t_ctrl[0], det_t[0]) if len(det_t) else t_ctrl[0]
+    t_end = max(t_ctrl[-1], det_t[-1]) if len(det_t) else t_ctrl[-1]
+    cuts = np.unique(np.concatenate([t_ctrl, det_t, [t_first, t_end]]))
+    starts, ends = cuts[:-1], cuts[1:]
+    row = np.searchsorted(t_ctrl, starts, side="right") - 1  # the control row in force
+    moving = row >= 0  # before the first control the robot stands still
+    starts, ends, row = starts[moving], ends[moving], row[moving]
+    dts = ends - starts
+    us = twist[row] * dts[:, None]
+    # before detection i, predict through every piece that ends at or before its time
+    upto = np.searchsorted(ends, det_t, side="right")
+    pred_kw = {"R": fixed_R} if fixed_R is not None else {"M": density}
+    done = 0
     det_id = det.tag_id.tolist()
-    det_z = np.column_stack([det.range, det.bearing])
-    for i, td in enumerate(det_t):
-        # drive forward to td, one control interval at a time
-        while k + 1 < n_ctrl and t_ctrl[k + 1] <= td:
-            if k >= 0:
-                predict(k, t_now, float(t_ctrl[k + 1]))
-            k += 1
-            t_now = max(t_now, float(t_ctrl[k]))
-        if k >= 0:
-            predict(k, t_now, td)
-        t_now = max(t_now, td)
-        ekf.update(det_id[i], det_z[i], Q, td)
-    while k + 1 < n_ctrl:
-        if k >= 0:
-            predict(k, t_now, float(t_ctrl[k + 1]))
-        k += 1
-        t_now = max(t_now, float(t_ctrl[k]))
+    det_z = np.column_stack([det.range, det.bearing]).tolist()
+    for i, p in enumerate(upto.tolist()):
+        if p > done:
+            ekf.predict_many(us[done:p], dts[done:p], ends[done:p], **pred_kw)
+            done = p
+        ekf.update(det_id[i], det_z[i], Q, det_t[i])
+    if done < len(us):
+        ekf.predict_many(us[done:], dts[done:], ends[done:], **pred_kw)
     seconds = time.perf_counter() - started
 
     ids = ekf.landmark_ids

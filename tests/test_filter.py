@@ -96,10 +96,11 @@ def test_predict_touches_only_pose_rows_and_columns():
 def test_storage_is_not_copied_per_new_landmark():
     f = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(initial_capacity=4))
     Q = observation_noise(0.05, 0.03)
-    buffers = set()
+    buffers = []  # keep them alive: an id() of a freed buffer can be reused
     for k in range(20):
         f.update(k, [1.0 + 0.1 * k, 0.1 * k - 1.0], Q)
-        buffers.add(id(f._Sigma))
+        if not any(b is f._Sigma for b in buffers):
+            buffers.append(f._Sigma)
     # 4 -> 8 -> 16 -> 32 landmarks: three doublings, not twenty copies
     assert len(buffers) == 4  # the first buffer and three doublings
     assert f.capacity == 32 and f.n_landmarks == 20

@@ -10,7 +10,7 @@ import pytest
 from ekfslam.filter import EKFSLAM, FilterConfig
 from ekfslam.history import OBSERVE, PREDICT
 from ekfslam.kinematics import MecanumGeometry, twist_to_wheels
-from ekfslam.replay import NoiseConfig, control_twist, replay
+from ekfslam.replay import NoiseConfig, replay
 from ekfslam.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta
 
 
@@ -121,7 +121,7 @@ def test_wheel_controls_are_turned_into_body_twists():
     geometry = MecanumGeometry()
     twist = [[0.1, 0.05, 0.3], [0.0, 0.0, 0.0]]
     run = make_run([0.0, 1.0], twist, [], [], np.zeros((0, 2)), kind="wheels", robot=geometry)
-    np.testing.assert_allclose(control_twist(run), twist, atol=1e-12)
+    np.testing.assert_allclose(run.control_twist(), twist, atol=1e-12)
     h = replay(run).history
     assert h.pose[-1] == pytest.approx([0.1, 0.05, 0.3])
 
