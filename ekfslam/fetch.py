@@ -125,6 +125,25 @@ def fetch_mrclam(
     return final
 
 
+def add_cli(subparsers) -> None:
+    """``python -m ekfslam fetch mrclam N [--cache DIR] [--url URL]``: prints the dataset's path."""
+    p = subparsers.add_parser("fetch", help="download a public dataset into the cache")
+    p.add_argument("dataset", choices=["mrclam"], help="which dataset family")
+    p.add_argument("number", type=int, help="MRCLAM dataset number, 1-9")
+    p.add_argument("--cache", type=Path, help="cache folder (default: $EKFSLAM_CACHE or ~/.cache)")
+    p.add_argument("--url", help="base URL holding MRCLAM<N>.zip (default: $EKFSLAM_MRCLAM_URL)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_fetch)
+
+
+def _cmd_fetch(args) -> int:
+    path = fetch_mrclam(
+        args.number, cache_dir=args.cache, base_url=args.url, progress=not args.quiet
+    )
+    print(path)
+    return 0
+
+
 def _check_number(n: int) -> int:
     if isinstance(n, bool) or not isinstance(n, int) or n not in DATASETS:
         raise FetchError(f"MRCLAM datasets are numbered 1 to 9, got {n!r}")

@@ -1,0 +1,151 @@
+"""Scores of a replay: the seed's Table 1 row (eq. 17 alignment) and trajectory error.
+
+`summarize` gathers everything the command line prints into one frozen `RunSummary`; its
+`as_dict` gives the nested JSON that ``python -m ekfslam run --json`` prints.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ekfslam.alignment import Alignment, align
+from ekfslam.errors import AlignmentError
+from ekfslam.geometry import wrap_angle
+from ekfslam.replay import ReplayResult
+from ekfslam.runlog import GroundTruth, RunLog
+
+Array = NDArray[np.float64]
+
+
+def interpolate_poses(groundtruth: GroundTruth, t: Array) -> tuple[Array, NDArray[np.bool_]]:
+    """True poses at times t (linear in x, y and in the unwrapped heading).
+
+    Returns the poses (len(t), 3) and a mask of the times inside the ground truth's span (poses
+    outside it are NaN: ground truth that ends early is not extrapolated).
+    """
+    gt_t = np.asarray(groundtruth.t, dtype=float)
+    pose = np.asarray(groundtruth.pose, dtype=float)
+    inside = (t >= gt_t[0]) & (t <= gt_t[-1])
+    out = np.full((len(t), 3), np.nan)
+    theta = np.unwrap(pose[:, 2])
+    for c, column in enumerate((pose[:, 0], pose[:, 1], theta)):
+        out[inside, c] = np.interp(t[inside], gt_t, column)
+    out[inside, 2] = wrap_angle(out[inside, 2])
+    return out, inside
+
+
+def ate_rmse(result: ReplayResult, groundtruth: GroundTruth) -> float:
+    """Absolute trajectory error: RMS position error of the estimate against ground truth.
+
+    Evaluated at every event time of the history that falls inside the ground truth's span, with
+    no alignment (the estimate and the truth must share a frame).
+    """
+    h = result.history
+    truth, inside = interpolate_poses(groundtruth, h.t)
+    if not inside.any():
+        return float("nan")
+    err = h.pose[inside, :2] - truth[inside, :2]
+    return float(np.sqrt(np.mean(np.sum(err**2, axis=1))))
+
+
+@dataclass(frozen=True, eq=False)
+class RunSummary:
+    """Everything the command line reports about one replay."""
+
+    name: str
+    alignment: Alignment | None
+    start_pose: Array | None
+    true_start: Array | None
+    landmarks_count: int
+    error_unaligned_mean: float | None
+    ate_rmse: float | None
+    predictions: int
+    accepted: int
+    rejected: int
+    refused: int
+    initialised: int
+    nis_mean: float | None
+    seconds: float
+
+    def as_dict(self) -> dict:
+        """Nested JSON-ready dict (``alignment.x0`` is ``{"alignment": {"x0": ...}}``)."""
+        a = self.alignment
+
+        def opt(x):
+            return None if x is None or not np.isfinite(x) else float(x)
+
+        return {
+            "name": self.name,
+            "alignment": None
+            if a is None
+            else {
+                "x0": a.x0,
+                "y0": a.y0,
+                "theta0": a.theta0,
+                "start_pose": [float(v) for v in self.start_pose],
+                "mean_error": a.mean_error,
+                "rmse": a.rmse,
+                "landmarks_matched": len(a.ids),
+            },
+            "true_start": None if self.true_start is None else [float(v) for v in self.true_start],
+            "landmarks": {
+                "count": self.landmarks_count,
+                "error_unaligned_mean": opt(self.error_unaligned_mean),
+            },
+            "updates": {
+                "accepted": self.accepted,
+                "rejected": self.rejected,
+                "refused": self.refused,
+                "initialised": self.initialised,
+            },
+            "predictions": self.predictions,
+            "trajectory": {"ate_rmse": opt(self.ate_rmse)},
+            "consistency": {"nis_mean": opt(self.nis_mean)},
+            "seconds": self.seconds,
+        }
+
+
+def summarize(run: RunLog, result: ReplayResult, method: str = "mean_distance") -> RunSummary:
+    """Score a replay against what the run knows: its tag map and its ground truth, if any."""
+    alignment = start_pose = None
+    unaligned = None
+    tag_map = run.meta.tag_map
+    if tag_map:
+        try:
+            alignment = align(result.landmarks, tag_map, method=method)
+        except AlignmentError:
+            alignment = None
+        if alignment is not None:
+            start_pose = alignment.start_pose(run.meta.nominal_start)
+        common = [i for i in result.landmarks if i in tag_map]
+        if common:
+            unaligned = float(
+                np.mean([np.linalg.norm(result.landmarks[i] - tag_map[i]) for i in common])
+            )
+    gt = run.groundtruth
+    true_start = None
+    ate = None
+    if gt is not None and len(gt.t):
+        true_start = np.asarray(gt.pose[0], dtype=float)
+        ate = ate_rmse(result, gt)
+    nis = result.history.nis_of_updates
+    c = result.counts
+    return RunSummary(
+        name=result.name,
+        alignment=alignment,
+        start_pose=start_pose,
+        true_start=true_start,
+        landmarks_count=len(result.landmarks),
+        error_unaligned_mean=unaligned,
+        ate_rmse=ate,
+        predictions=c.predictions,
+        accepted=c.accepted,
+        rejected=c.rejected,
+        refused=c.refused,
+        initialised=c.initialised,
+        nis_mean=float(np.mean(nis)) if len(nis) else None,
+        seconds=result.seconds,
+    )
