@@ -68,6 +68,14 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--laps", type=int, default=2)
     sim.add_argument("--size", type=float, help="side of the square / size of the octagon, m")
     sim.add_argument("--seed", type=int, default=1)
+    sim.add_argument(
+        "--start-error", type=float, nargs=3, metavar=("DX", "DY", "DTHETA"),
+        help="the robot's true placement error, m, m, rad (default: drawn from the seed)",
+    )  # fmt: skip
+    sim.add_argument(
+        "--wheel-scale-sigma", type=float,
+        help="std of a per-wheel calibration error (a fraction; default 0: none)",
+    )  # fmt: skip
     sim.add_argument("--out", type=Path, required=True, help="the run folder to write")
     sim.add_argument("--overwrite", action="store_true", help="replace an existing run folder")
     sim.set_defaults(func=cmd_simulate)
@@ -192,6 +200,10 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     kwargs = {"trajectory": args.trajectory, "laps": args.laps, "seed": args.seed}
     if args.size is not None:
         kwargs["size"] = args.size
+    if args.start_error is not None:
+        kwargs["start_error"] = tuple(args.start_error)
+    if args.wheel_scale_sigma is not None:
+        kwargs["wheel_scale_sigma"] = args.wheel_scale_sigma
     run = simulate(SimulationConfig(**kwargs))
     write_run(run, args.out, overwrite=args.overwrite)
     print(
