@@ -55,15 +55,25 @@ class FilterConfig:
     gate_after : the gate applies to a landmark once it has this many accepted sightings
         (its initialisation counts as one); before that it has no estimate worth gating against.
     initial_capacity : landmarks to pre-allocate for (the storage doubles when full).
+    linearization : "standard" evaluates every Jacobian at the latest estimate; "fej" is the
+        First-Estimates Jacobian EKF (Huang, Mourikis & Roumeliotis, IJRR 2010): the motion
+        Jacobian of eq. (7) uses the predicted positions p̂(k+1|k) - p̂(k|k-1) and the observation
+        Jacobian of eq. (14) the robot's predicted position and each landmark's first estimate,
+        so the filter does not gain spurious information about the global heading.
     """
 
     init: Literal["inverse", "seed"] = "inverse"
+    linearization: Literal["standard", "fej"] = "standard"
     seed_init_variance: float = 1e6
     gate: float | None = CHI2_2DOF_99
     gate_after: int = 2
     initial_capacity: int = 16
 
     def __post_init__(self) -> None:
+        if self.linearization not in ("standard", "fej"):
+            raise ValueError(
+                f"linearization must be 'standard' or 'fej', got {self.linearization!r}"
+            )
         if self.init not in ("inverse", "seed"):
             raise ValueError(f"init must be 'inverse' or 'seed', got {self.init!r}")
         if not self.seed_init_variance > 0:
@@ -129,6 +139,10 @@ class EKFSLAM:
         self._counts = dict.fromkeys(FilterCounts.__dataclass_fields__, 0)
         self._recorder = Recorder() if record else None
         self._t = 0.0
+        self._fej = self.config.linearization == "fej"
+        # FEJ: the robot's predicted position at the current step, and first landmark estimates
+        self._prior_xy = (float(self._mu[0]), float(self._mu[1]))
+        self._first: list[tuple[float, float]] = []
 
     # ------------------------------------------------------------------ views
     @property
@@ -245,11 +259,17 @@ class EKFSLAM:
         (n00, n01, n02), (_, n11, n12), (_, _, n22) = N.tolist()
         A = B = 0.0  # Σ g0 and Σ g1 over the batch
         rec = self._recorder
+        fej = self._fej
+        px, py = self._prior_xy  # FEJ: p̂(k|k-1), the first estimate of this step's position
         for k, (dux, duy, dth) in enumerate(us):
             c, s = math.cos(th), math.sin(th)
-            # eq. (7): G = I + g e₃ᵀ with g = (g0, g1, 0)
-            g0 = -dux * s - duy * c
-            g1 = dux * c - duy * s
+            # eq. (7): G = I + g e₃ᵀ with g = (g0, g1, 0) = (-Δy, Δx) of the step
+            if fej:  # Δ between the predicted positions, not from the updated one
+                g0 = -(y + dux * s + duy * c - py)
+                g1 = x + dux * c - duy * s - px
+            else:
+                g0 = -dux * s - duy * c
+                g1 = dux * c - duy * s
             if per_second:  # R = V (M dt) Vᵀ with V the rotation of eq. (5)
                 dt = dts[k]
                 cc, ss, cs = c * c, s * s, c * s
@@ -281,7 +301,9 @@ class EKFSLAM:
                     ts[k], PREDICT, (x, y, th),
                     (s00, s01, s02, s01, s11, s12, s02, s12, s22),
                 )  # fmt: skip
+            px, py = x, y
         mu[0], mu[1], mu[2] = x, y, th
+        self._prior_xy = (px, py)
         S[:3, :3] = ((s00, s01, s02), (s01, s11, s12), (s02, s12, s22))
         if d > 3:
             row2 = S[2, 3:d]
@@ -340,12 +362,19 @@ class EKFSLAM:
         mx, my = mu[l : l + 2].tolist()
         dx, dy = mx - x, my - y
         q = dx * dx + dy * dy
-        if not q > MIN_RANGE_SQUARED:
+        if self._fej:  # Jacobian at p̂(k|k-1) and the landmark's first estimate
+            (fx, fy), (px, py) = self._first[j], self._prior_xy
+            jx, jy = fx - px, fy - py
+        else:
+            jx, jy = dx, dy
+        jq = jx * jx + jy * jy
+        if not (q > MIN_RANGE_SQUARED and jq > MIN_RANGE_SQUARED):
             return self._finish(landmark_id, z, None, None, None, math.nan, REFUSED, l)
         r = math.sqrt(q)
         z_hat = (r, _wrap(math.atan2(dy, dx) - th))
         # eq. (14): [H_r | H_l] on the rows (x, y, θ, mx, my)
-        a, b, e, f = dx / r, dy / r, dy / q, dx / q
+        jr = math.sqrt(jq)
+        a, b, e, f = jx / jr, jy / jr, jy / jq, jx / jq
         H = np.array([[-a, -b, 0.0, a, b], [e, -f, -1.0, -e, f]])
         idx = [0, 1, 2, l, l + 1]
         PHt = H @ S[idx, :d]  # Σ Hᵀ as (2, d), from the five rows of the symmetric Σ
@@ -400,6 +429,7 @@ class EKFSLAM:
         self._ids.append(landmark_id)
         self.slot[landmark_id] = j
         self._sightings.append(1)
+        self._first.append((float(mu[l]), float(mu[l + 1])))
         return j
 
     def _grow(self) -> None:

@@ -45,6 +45,9 @@ class LiteralEKFSLAM:
         )
         self.slot: dict[int, int] = {}
         self._sightings: list[int] = []
+        self._fej = self.config.linearization == "fej"
+        self._prior = self.mu[:2].copy()  # FEJ: the predicted position at the current step
+        self._first: list[np.ndarray] = []  # FEJ: each landmark's first estimate
         self._counts = dict.fromkeys(FilterCounts.__dataclass_fields__, 0)
 
     @property
@@ -64,9 +67,14 @@ class LiteralEKFSLAM:
         F_x = lift_matrix_numeric(n)  # 3 x (2n+3)
         I = np.eye(3 + 2 * n)
         pose = self.mu[:3]
+        predicted = motion(pose, u)
         g = motion_jacobian(pose, u)
+        if self._fej:  # eq. (7) at the predicted positions p̂(k+1|k) and p̂(k|k-1)
+            g[0, 2] = -(predicted[1] - self._prior[1])
+            g[1, 2] = predicted[0] - self._prior[0]
+        self._prior = predicted[:2].copy()
         G = I + F_x.T @ (g - np.eye(3)) @ F_x
-        step = motion(pose, u) - pose
+        step = predicted - pose
         step[2] = wrap_angle(float(step[2]))
         self.mu = self.mu + F_x.T @ step
         self.mu[2] = wrap_angle(float(self.mu[2]))
@@ -103,6 +111,7 @@ class LiteralEKFSLAM:
             d = self.Sigma.shape[0]
             self.Sigma = np.block([[self.Sigma, np.zeros((d, 2))], [np.zeros((2, d)), big]])
         self.mu = np.concatenate([self.mu, m])
+        self._first.append(m.copy())
         self.slot[landmark_id] = n
         self._sightings.append(1)
         return n
@@ -111,11 +120,16 @@ class LiteralEKFSLAM:
         n = self.n_landmarks
         pose = self.mu[:3]
         landmark = self.mu[3 + 2 * j : 5 + 2 * j]
-        d = landmark - pose[:2]
-        if not float(d @ d) > MIN_RANGE_SQUARED:
-            return self._count("refused")
+        at_pose, at_landmark = pose, landmark
+        if self._fej:  # eq. (14) at the predicted position and the landmark's first estimate
+            at_pose = np.array([self._prior[0], self._prior[1], pose[2]])
+            at_landmark = self._first[j]
+        for p, m in ((pose, landmark), (at_pose, at_landmark)):
+            d = m - p[:2]
+            if not float(d @ d) > MIN_RANGE_SQUARED:
+                return self._count("refused")
         z_hat = observation(pose, landmark)
-        H_p, H_l = observation_jacobians(pose, landmark)
+        H_p, H_l = observation_jacobians(at_pose, at_landmark)
         H = np.hstack([H_p, H_l]) @ landmark_lift_matrix_numeric(n, j)  # eq. (14)
         S = H @ self.Sigma @ H.T + Q
         nu = z - z_hat

@@ -52,19 +52,28 @@ def drive(filters, events):
     return outcomes
 
 
+@pytest.mark.parametrize("linearization", ["standard", "fej"])
 @pytest.mark.parametrize("init", ["inverse", "seed"])
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_efficient_filter_agrees_with_literal_reference(init, seed):
+def test_efficient_filter_agrees_with_literal_reference(init, seed, linearization):
     rng = np.random.default_rng(seed)
     # eq. (3)'s "infinite" variance costs digits: after the first update the landmark block is
     # big - big²/(big + σ²), which loses about log10(big/σ²) digits in both implementations, in
     # different places. A moderate stand-in keeps the comparison at 1e-9 meaningful.
-    config = FilterConfig(init=init, initial_capacity=2, seed_init_variance=1e2)
+    config = FilterConfig(
+        init=init, initial_capacity=2, seed_init_variance=1e2, linearization=linearization
+    )
     fast = EKFSLAM([0.1, -0.2, 0.3], np.diag([1e-4, 1e-4, 1e-5]), config)
     slow = LiteralEKFSLAM([0.1, -0.2, 0.3], np.diag([1e-4, 1e-4, 1e-5]), config)
     outcomes = []
     for event in random_run(rng, 150, 12, outlier_rate=0.05):
         if event[0] == "predict":
+            if rng.random() < 0.3:  # some predictions in batches, as replay does
+                us = np.array([event[1] / 2, event[1] / 2])
+                fast.predict_many(us, [0.05, 0.05], [0.0, 0.0], R=np.asarray(event[2]))
+                slow.predict(us[0], event[2])
+                slow.predict(us[1], event[2])
+                continue
             fast.predict(event[1], event[2])
             slow.predict(event[1], event[2])
         else:
@@ -80,6 +89,24 @@ def test_efficient_filter_agrees_with_literal_reference(init, seed):
     assert outcomes.count("accepted") > 50
     assert outcomes.count("rejected") > 0
     assert fast.counts == slow.counts
+
+
+def test_fej_linearizes_elsewhere_than_the_standard_filter():
+    """FEJ changes Σ (the Jacobians) but not how ẑ is predicted; the oracle test needs both."""
+    events = list(random_run(np.random.default_rng(4), 120, 10))
+    standard = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(gate=None))
+    fej = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(gate=None, linearization="fej"))
+    drive([standard, fej], events)
+    assert np.max(np.abs(standard.Sigma - fej.Sigma)) > 1e-6
+    assert np.max(np.abs(standard.mu - fej.mu)) > 1e-6
+    # with no update between predictions the first estimates are the latest ones: identical
+    a = EKFSLAM([0.0, 0.0, 0.3], config=FilterConfig(linearization="fej"))
+    b = EKFSLAM([0.0, 0.0, 0.3])
+    for f in (a, b):
+        f.update(1, [1.0, 0.2], observation_noise(0.05, 0.03))
+        for _ in range(5):
+            f.predict([0.05, 0.01, 0.1], np.diag([1e-4, 1e-4, 1e-4]))
+    np.testing.assert_allclose(a.Sigma, b.Sigma, rtol=0, atol=1e-15)
 
 
 def test_predict_touches_only_pose_rows_and_columns():
