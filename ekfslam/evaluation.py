@@ -129,7 +129,9 @@ def summarize(run: RunLog, result: ReplayResult, method: str = "mean_distance") 
     true_start = None
     ate = None
     if gt is not None and len(gt.t):
-        true_start = np.asarray(gt.pose[0], dtype=float)
+        # the truth when the filter starts: MRCLAM's Vicon starts 6-9 s before the odometry
+        at_start, inside = interpolate_poses(gt, np.asarray(run.controls.t[:1], dtype=float))
+        true_start = at_start[0] if inside.all() else np.asarray(gt.pose[0], dtype=float)
         ate = ate_rmse(result, gt)
     nis = result.history.nis_of_updates
     c = result.counts
