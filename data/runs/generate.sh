@@ -8,3 +8,10 @@ python -m ekfslam simulate --trajectory square --laps 2 --seed 1 \
     --start-error -0.02 0.05 0.14 --out data/runs/square-2laps --overwrite
 python -m ekfslam simulate --trajectory octagon --laps 2 --seed 2 \
     --start-error -0.04 0.04 0.13 --out data/runs/octagon-2laps --overwrite
+# A run logged as camera frames (see "Runs logged as camera frames" in data/README.md).
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+python -m ekfslam simulate --trajectory square --laps 1 --seed 3 \
+    --start-error -0.03 0.04 0.12 --out "$tmp/square-1lap"
+python -m ekfslam render-frames "$tmp/square-1lap" --out data/runs/square-1lap-frames \
+    --name square-1lap-frames --mounting 0.06 0 0 --overwrite
