@@ -14,14 +14,13 @@ import pytest
 
 from ekfslam.cli import main
 from ekfslam.evaluation import summarize
-from ekfslam.mrclam import (
+from ekfslam.mrclam import ROBOTS, load_mrclam
+from ekfslam.mrclam_tuning import (
     MRCLAM_CALIBRATION,
-    ROBOTS,
     CommandCalibration,
     RobotScore,
     calibrate_commands,
     fit_command_calibration,
-    load_mrclam,
     score_robots,
     scores_table,
     tune_noise,
