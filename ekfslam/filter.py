@@ -12,7 +12,12 @@ Cost per step with n landmarks: prediction O(n) (only the pose rows and columns 
 O(n^2) (one symmetric rank-2 correction of the used block), landmark initialisation O(n).
 
 Storage is pre-allocated and grows geometrically, so adding a landmark never copies the matrix
-(except on the rare doubling of the capacity).
+(except on the rare doubling of the capacity). The storage beyond the state is kept at zero, so
+the hot paths may work on whole (contiguous) rows of it.
+
+Speed: a step costs microseconds, most of it Python's and numpy's per-call overhead; the small
+2x2 and 3x3 algebra is therefore written out in plain floats, and the O(n²) covariance update
+runs in place in BLAS for larger maps. `python -m ekfslam bench` measures it all.
 """
 
 from __future__ import annotations
@@ -97,6 +102,11 @@ class FilterCounts:
     refused: int
 
 
+def _float_rows(values: ArrayLike) -> list:
+    """Values as (nested) lists of floats; lists pass through (replay slices its own lists)."""
+    return values if isinstance(values, list) else np.asarray(values, dtype=float).tolist()
+
+
 def _wrap(a: float) -> float:
     a = (a + math.pi) % (2.0 * math.pi) - math.pi
     return -math.pi if a >= math.pi else a
@@ -143,6 +153,10 @@ class EKFSLAM:
         # FEJ: the robot's predicted position at the current step, and first landmark estimates
         self._prior_xy = (float(self._mu[0]), float(self._mu[1]))
         self._first: list[tuple[float, float]] = []
+        # scratch for the small factors of each step (filled in place: no per-step allocation)
+        self._g_sum = np.zeros((2, 1))
+        self._H_l = np.empty((2, 2))
+        self._factors = np.zeros((3, 2))
 
     # ------------------------------------------------------------------ views
     @property
@@ -216,7 +230,7 @@ class EKFSLAM:
         Σ_rr <- G Σ_rr Gᵀ + R and Σ_rm <- G Σ_rm, which is eq. (9) with its lifts done right.
         """
         R = np.asarray(R, dtype=float)
-        self._propagate(((u[0], u[1], u[2]),), None, R, (self._t if t is None else t,))
+        self._propagate([(u[0], u[1], u[2])], None, R, [self._t if t is None else t])
 
     def predict_many(
         self,
@@ -243,34 +257,34 @@ class EKFSLAM:
         """
         if (M is None) == (R is None):
             raise ValueError("give exactly one of M (per second) or R (per step)")
-        us = np.asarray(us, dtype=float).tolist()
         self._propagate(
-            us,
-            np.asarray(dts, dtype=float).tolist() if M is not None else None,
+            _float_rows(us),
+            _float_rows(dts) if M is not None else None,
             np.asarray(M if M is not None else R, dtype=float),
-            np.asarray(ts, dtype=float).tolist(),
-            per_second=M is not None,
+            _float_rows(ts),
         )
 
-    def _propagate(self, us, dts, N: Array, ts, per_second: bool = False) -> None:
-        mu, S, d = self._mu, self._Sigma, self._dim
-        x, y, th = mu[:3].tolist()
-        (s00, s01, s02), (_, s11, s12), (_, _, s22) = S[:3, :3].tolist()
+    def _propagate(self, us: list, dts: list | None, N: Array, ts: list) -> None:
+        """Steps in plain floats, eqs. (6), (7) and (9): N is M (per second) when dts is given."""
+        x, y, th = self._mu[:3].tolist()
+        (s00, s01, s02), (_, s11, s12), (_, _, s22) = self._Sigma[:3, :3].tolist()
         (n00, n01, n02), (_, n11, n12), (_, _, n22) = N.tolist()
+        r00, r01, r02, r11, r12, r22 = n00, n01, n02, n11, n12, n22
         A = B = 0.0  # Σ g0 and Σ g1 over the batch
-        rec = self._recorder
+        rows: list[float] = []  # the history's rows of this batch (`ekfslam.history.ROW`)
+        record = None if self._recorder is None else rows.extend
         fej = self._fej
         px, py = self._prior_xy  # FEJ: p̂(k|k-1), the first estimate of this step's position
         for k, (dux, duy, dth) in enumerate(us):
             c, s = math.cos(th), math.sin(th)
+            dx = dux * c - duy * s  # eq. (6): the step in the world frame
+            dy = dux * s + duy * c
             # eq. (7): G = I + g e₃ᵀ with g = (g0, g1, 0) = (-Δy, Δx) of the step
             if fej:  # Δ between the predicted positions, not from the updated one
-                g0 = -(y + dux * s + duy * c - py)
-                g1 = x + dux * c - duy * s - px
+                g0, g1 = -(y + dy - py), x + dx - px
             else:
-                g0 = -dux * s - duy * c
-                g1 = dux * c - duy * s
-            if per_second:  # R = V (M dt) Vᵀ with V the rotation of eq. (5)
+                g0, g1 = -dy, dx
+            if dts is not None:  # R = V (M dt) Vᵀ with V the rotation of eq. (5)
                 dt = dts[k]
                 cc, ss, cs = c * c, s * s, c * s
                 r00 = (cc * n00 - 2.0 * cs * n01 + ss * n11) * dt
@@ -279,39 +293,40 @@ class EKFSLAM:
                 r02 = (c * n02 - s * n12) * dt
                 r12 = (s * n02 + c * n12) * dt
                 r22 = n22 * dt
-            else:
-                r00, r01, r02, r11, r12, r22 = n00, n01, n02, n11, n12, n22
             # eq. (9) on the pose block: G Σ Gᵀ + R, written out for G = I + g e₃ᵀ
-            s00, s01, s02, s11, s12 = (
+            s00, s01, s02, s11, s12, s22 = (
                 s00 + 2.0 * g0 * s02 + g0 * g0 * s22 + r00,
                 s01 + g0 * s12 + g1 * s02 + g0 * g1 * s22 + r01,
                 s02 + g0 * s22 + r02,
                 s11 + 2.0 * g1 * s12 + g1 * g1 * s22 + r11,
                 s12 + g1 * s22 + r12,
+                s22 + r22,
             )
-            s22 = s22 + r22
-            # eq. (6)
-            x += dux * c - duy * s
-            y += dux * s + duy * c
-            th = _wrap(th + dth)
+            x += dx
+            y += dy
+            th += dth
+            if not -math.pi <= th < math.pi:
+                th = _wrap(th)
             A += g0
             B += g1
-            if rec is not None:
-                rec.event(
-                    ts[k], PREDICT, (x, y, th),
-                    (s00, s01, s02, s01, s11, s12, s02, s12, s22),
-                )  # fmt: skip
+            if record is not None:
+                record((ts[k], x, y, th, s00, s01, s02, s11, s12, s22))
             px, py = x, y
+        if record is not None:
+            self._recorder.events(PREDICT, rows)
+        mu, S, d = self._mu, self._Sigma, self._dim
         mu[0], mu[1], mu[2] = x, y, th
         self._prior_xy = (px, py)
-        S[:3, :3] = ((s00, s01, s02), (s01, s11, s12), (s02, s12, s22))
         if d > 3:
-            row2 = S[2, 3:d]
-            S[0, 3:d] += A * row2
-            S[1, 3:d] += B * row2
+            g = self._g_sum
+            g[0, 0], g[1, 0] = A, B
+            # Σ_rm <- (Π G) Σ_rm: only the x and y rows change. Whole rows of the storage
+            # (their pose block is overwritten below, and they are zero beyond d) are contiguous.
+            S[:2] += g * S[2]
             S[3:d, :3] = S[:3, 3:d].T
+        S[:3, :3] = ((s00, s01, s02), (s01, s11, s12), (s02, s12, s22))
         self._counts["predictions"] += len(us)
-        if len(ts):
+        if ts:
             self._t = ts[-1]
 
     # -------------------------------------------------------------- correction
@@ -338,25 +353,26 @@ class EKFSLAM:
         if t is not None:
             self._t = t
         z = (float(z[0]), float(z[1]))
-        Q = np.asarray(Q, dtype=float)
-        if not (math.isfinite(z[0]) and math.isfinite(z[1]) and np.isfinite(Q).all()):
-            raise ValueError(f"non-finite observation {z} or noise {Q} for landmark {landmark_id}")
+        Qf = np.asarray(Q, dtype=float).tolist()
+        (q00, q01), (q10, q11) = Qf
+        if not all(map(math.isfinite, (*z, q00, q01, q10, q11))):
+            raise ValueError(f"non-finite observation {z} or noise {Qf} for landmark {landmark_id}")
         j = self.slot.get(landmark_id)
         if j is None:
             if z[0] * z[0] <= MIN_RANGE_SQUARED:
                 return self._finish(landmark_id, z, None, None, None, math.nan, REFUSED, None)
-            j = self._add_landmark(landmark_id, np.array(z), Q)
+            j = self._add_landmark(landmark_id, np.array(z), np.asarray(Q, dtype=float))
             if self.config.init == "inverse":
                 l = 3 + 2 * j
                 return self._finish(landmark_id, z, None, None, None, math.nan, INITIALISED, l)
-            return self._correct(landmark_id, j, z, Q, gated=False, fresh=True)
+            return self._correct(landmark_id, j, z, Qf, gated=False, fresh=True)
         gated = self.config.gate is not None and self._sightings[j] >= self.config.gate_after
-        return self._correct(landmark_id, j, z, Q, gated=gated, fresh=False)
+        return self._correct(landmark_id, j, z, Qf, gated=gated, fresh=False)
 
     def _correct(
-        self, landmark_id: int, j: int, z: tuple[float, float], Q: Array, gated: bool, fresh: bool
+        self, landmark_id: int, j: int, z: tuple[float, float], Q, gated: bool, fresh: bool
     ) -> str:
-        mu, S, d = self._mu, self._Sigma, self._dim
+        mu, S, d = self._mu, self._Sigma, self._dim  # storage: zero beyond the state's d
         l = 3 + 2 * j
         x, y, th = mu[:3].tolist()
         mx, my = mu[l : l + 2].tolist()
@@ -370,36 +386,51 @@ class EKFSLAM:
         jq = jx * jx + jy * jy
         if not (q > MIN_RANGE_SQUARED and jq > MIN_RANGE_SQUARED):
             return self._finish(landmark_id, z, None, None, None, math.nan, REFUSED, l)
-        r = math.sqrt(q)
-        z_hat = (r, _wrap(math.atan2(dy, dx) - th))
-        # eq. (14): [H_r | H_l] on the rows (x, y, θ, mx, my)
-        jr = math.sqrt(jq)
-        a, b, e, f = jx / jr, jy / jr, jy / jq, jx / jq
-        H = np.array([[-a, -b, 0.0, a, b], [e, -f, -1.0, -e, f]])
-        idx = [0, 1, 2, l, l + 1]
-        PHt = H @ S[idx, :d]  # Σ Hᵀ as (2, d), from the five rows of the symmetric Σ
-        (s00, s01), (_, s11) = (PHt[:, idx] @ H.T + Q).tolist()
+        z_hat = (math.sqrt(q), _wrap(math.atan2(dy, dx) - th))
         nu0 = z[0] - z_hat[0]
         nu1 = _wrap(z[1] - z_hat[1])
-        det = s00 * s11 - s01 * s01
+        # eq. (14) on the rows (x, y, θ, mx, my) is H = [-H_l | -e₂ | H_l] with
+        # H_l = [[a, b], [-e, f]]: the observation sees only the landmark relative to the robot.
+        # So H Σ = H_l (Σ_l - Σ_xy) - e₂ Σ_θ, from five rows of Σ: O(n), no lift, no n x n work.
+        # Whole rows of the storage (zero beyond the state) keep every array contiguous.
+        jr = math.sqrt(jq)
+        a, b, e, f = jx / jr, jy / jr, jy / jq, jx / jq
+        H_l = self._H_l
+        H_l[0, 0], H_l[0, 1], H_l[1, 0], H_l[1, 1] = a, b, -e, f
+        HS = H_l.dot(S[l : l + 2] - S[:2])  # H Σ, (2, capacity)
+        HS[1] -= S[2]
+        # S = H Σ Hᵀ + Q (eq. 15's innovation covariance), the same way from H Σ's columns
+        (p0x, p0y, p0t), (p1x, p1y, p1t) = HS[:, :3].tolist()
+        (p0m, p0n), (p1m, p1n) = HS[:, l : l + 2].tolist()
+        s00 = a * (p0m - p0x) + b * (p0n - p0y) + Q[0][0]
+        s01 = -e * (p0m - p0x) + f * (p0n - p0y) - p0t + Q[0][1]
+        s11 = -e * (p1m - p1x) + f * (p1n - p1y) - p1t + Q[1][1]
         S_innov = (s00, s01, s01, s11)
+        # S = L Lᵀ (Cholesky, 2x2); w = L⁻¹ ν makes the NIS νᵀ S⁻¹ ν = |w|²
+        det = s00 * s11 - s01 * s01
         if not (s00 > 0.0 and det > 0.0):
             return self._finish(landmark_id, z, z_hat, (nu0, nu1), S_innov, math.nan, REFUSED, l)
-        k0 = (s11 * nu0 - s01 * nu1) / det  # S⁻¹ ν
-        k1 = (s00 * nu1 - s01 * nu0) / det
-        nis = nu0 * k0 + nu1 * k1
-        if gated and nis > self.config.gate:
-            return self._finish(landmark_id, z, z_hat, (nu0, nu1), S_innov, nis, REJECTED, l)
-        # eq. (15)-(16): μ += K ν with K = Σ Hᵀ S⁻¹
-        mu[:d] += k0 * PHt[0] + k1 * PHt[1]
-        mu[2] = _wrap(float(mu[2]))
-        # Σ -= K S Kᵀ = (L⁻¹ PHt)ᵀ (L⁻¹ PHt) with S = L Lᵀ. For the optimal gain this equals
-        # Joseph's form (I-KH)Σ(I-KH)ᵀ + KQKᵀ; a product WᵀW is symmetric to the last bit.
         l00 = math.sqrt(s00)
         l10 = s01 / l00
-        l11 = math.sqrt(s11 - l10 * l10)
-        W = np.array([[1.0 / l00, 0.0], [-l10 / (l00 * l11), 1.0 / l11]]) @ PHt
-        _subtract_gram(S, W, d)
+        l11 = math.sqrt(det) / l00  # = √(s11 - l10²)
+        w0 = nu0 / l00
+        w1 = (nu1 - l10 * w0) / l11
+        nis = w0 * w0 + w1 * w1
+        if gated and nis > self.config.gate:
+            return self._finish(landmark_id, z, z_hat, (nu0, nu1), S_innov, nis, REJECTED, l)
+        # eq. (15)-(16) with W = L⁻¹ H Σ: K = Σ Hᵀ S⁻¹ = Wᵀ L⁻¹, so K S Kᵀ = Wᵀ W and Σ -= Wᵀ W,
+        # which for the optimal gain equals Joseph's form (I-KH)Σ(I-KH)ᵀ + KQKᵀ and keeps Σ
+        # symmetric. One product gives W and (K ν)ᵀ = (S⁻¹ ν)ᵀ H Σ = (L⁻ᵀ w)ᵀ H Σ together.
+        F = self._factors  # rows: L⁻¹ (2x2), then (L⁻ᵀ w)ᵀ
+        F[0, 0], F[1, 0], F[1, 1] = 1.0 / l00, -l10 / (l00 * l11), 1.0 / l11
+        F[2, 1] = w1 / l11
+        F[2, 0] = (w0 - l10 * F[2, 1]) / l00
+        Y = F.dot(HS)  # (3, capacity): W, then (K ν)ᵀ
+        mu += Y[2]
+        th = mu.item(2)
+        if not -math.pi <= th < math.pi:
+            mu[2] = _wrap(th)
+        _subtract_gram(S, Y[:2], d)
         if not fresh:
             self._sightings[j] += 1
         return self._finish(landmark_id, z, z_hat, (nu0, nu1), S_innov, nis, ACCEPTED, l)
@@ -457,25 +488,42 @@ class EKFSLAM:
         rec = self._recorder
         if rec is not None:
             mu, S = self._mu, self._Sigma
-            rec.event(self._t, OBSERVE, mu[:3].tolist(), S[:3, :3].ravel().tolist())
             if l is None:
-                lm, lc = (math.nan, math.nan), (math.nan,) * 4
+                lm, lc = (math.nan, math.nan), ((math.nan, math.nan), (math.nan, math.nan))
             else:
-                lm, lc = mu[l : l + 2].tolist(), S[l : l + 2, l : l + 2].ravel().tolist()
+                lm, lc = mu[l : l + 2].tolist(), S[l : l + 2, l : l + 2].tolist()
+            (s00, s01, s02), (_, s11, s12), (_, _, s22) = S[:3, :3].tolist()
+            rec.event(OBSERVE, (self._t, *mu[:3].tolist(), s00, s01, s02, s11, s12, s22))
             rec.observation(self._t, landmark_id, z, z_hat, nu, S_innov, nis, outcome, lm, lc)
         return name
 
 
-#: Rows of Σ updated per block in `_subtract_gram`: the temporary stays in cache (~256 KiB).
-_BLOCK_BYTES = 1 << 18
+#: Bytes of Σ's rows per BLAS call in `_subtract_gram`.
+_BLOCK_BYTES = 1 << 19
+#: Up to this state size (about 20 landmarks) numpy's Σ -= Wᵀ W is as fast as BLAS in place,
+#: and scipy.linalg need not be imported.
+_NUMPY_MAX_DIM = 40
 
 
 def _subtract_gram(S: Array, W: Array, d: int) -> None:
-    """S[:d, :d] -= Wᵀ W in place, in row blocks so the temporary never is n x n."""
-    rows = max(1, _BLOCK_BYTES // (8 * d))
-    if rows >= d:
-        S[:d, :d] -= W.T @ W
+    """Σ -= Wᵀ W in place: S is the (capacity, capacity) storage, W (2, capacity), zero beyond d.
+
+    A small map takes one numpy expression. A larger one takes BLAS dgemm with β = 1, which
+    updates Σ where it lies, in one pass over memory with no n x n temporary (the memory-bound
+    floor of an O(n²) update). It gets whole rows of the storage, S[i0:i1, :], as the
+    Fortran-ordered matrix S[i0:i1, :]ᵀ, a block of rows per call; each call then stays small
+    enough for BLAS to run it on one thread, and a memory-bound pass gains nothing from more.
+    (``a.dot(b)`` rather than ``a @ b`` in the hot paths: the same product, less overhead on
+    small arrays.)
+    """
+    capacity = S.shape[1]
+    if d <= _NUMPY_MAX_DIM and 8 * d * capacity <= _BLOCK_BYTES:
+        S[:d] -= W[:, :d].T.dot(W)  # whole rows: contiguous, hence faster than S[:d, :d]
         return
+    from scipy.linalg.blas import dgemm  # here, not at the top: scipy.linalg is slow to import
+
+    rows = max(1, _BLOCK_BYTES // (8 * capacity))
     for i0 in range(0, d, rows):
         i1 = min(d, i0 + rows)
-        S[i0:i1, :d] -= W[:, i0:i1].T @ W
+        out = dgemm(-1.0, W.T, W[:, i0:i1], beta=1.0, c=S[i0:i1].T, overwrite_c=True)
+        assert out.base is S, "dgemm worked on a copy"  # S must be C-ordered, as allocated

@@ -1,7 +1,8 @@
 """What the filter remembers of a run: the single source for every plot and metric.
 
 The recorder keeps per event only O(1)-sized things (the pose, its 3x3 covariance, one
-observation's numbers), never a copy of the n x n covariance, so a long run costs O(steps) memory.
+observation's numbers), never a copy of the n x n covariance, so a long run costs O(steps) memory:
+about 100 bytes per event in the finished `History`.
 """
 
 from __future__ import annotations
@@ -63,47 +64,58 @@ class History:
         return self.obs_nis[self.outcome_mask("accepted")]
 
 
-class Recorder:
-    """Collects events as plain tuples (cheap appends) and freezes them into a History.
+#: Columns of one recorded event row: time, pose and the six distinct entries of its covariance.
+ROW = ("t", "x", "y", "theta", "xx", "xy", "xtheta", "yy", "ytheta", "thetatheta")
+#: Where each entry of the 3x3 pose covariance sits in a row's covariance part (ROW[4:]).
+_COV_INDEX = np.array([0, 1, 2, 1, 3, 4, 2, 4, 5])
 
-    Poses come as 3 floats, covariances flattened row-major (9 or 4 floats); absent values
-    (a new landmark has no ẑ) as None.
+
+class Recorder:
+    """Collects events as flat rows of Python floats (cheap appends) and freezes them at the end.
+
+    An event is its kind and one row laid out as `ROW`: 10 floats, O(1) per event whatever the
+    map size. All rows go into one flat list, which numpy turns into an array in one pass.
+    Observations come as tuples (absent values, such as a new landmark's ẑ, as None).
     """
 
     def __init__(self) -> None:
-        self._t: list[float] = []
-        self._event: list[int] = []
-        self._pose: list = []
-        self._pose_cov: list = []
+        self._kinds: list[int] = []
+        self._rows: list[float] = []
         self._obs: list[tuple] = []
 
-    def event(self, t: float, kind: int, pose, pose_cov) -> None:
-        self._t.append(t)
-        self._event.append(kind)
-        self._pose.append(pose)
-        self._pose_cov.append(pose_cov)
+    def event(self, kind: int, row: tuple[float, ...]) -> None:
+        """One event of `kind` (`PREDICT` or `OBSERVE`); `row` as `ROW` (the state after it)."""
+        self._kinds.append(kind)
+        self._rows.extend(row)
+
+    def events(self, kind: int, rows: list[float]) -> None:
+        """Several events of one kind, their rows laid end to end in one flat list."""
+        self._kinds.extend([kind] * (len(rows) // len(ROW)))
+        self._rows.extend(rows)
 
     def observation(
         self, t, landmark_id, z, z_hat, innovation, S, nis, outcome, landmark, landmark_cov
     ) -> None:
+        """What the last recorded event observed. Covariances as nested rows (2x2)."""
         self._obs.append(
-            (t, len(self._t) - 1, landmark_id, z, z_hat, innovation, S, nis, outcome,
+            (t, len(self._kinds) - 1, landmark_id, z, z_hat, innovation, S, nis, outcome,
              landmark, landmark_cov)
         )  # fmt: skip
 
     def finish(self) -> History:
         nan2, nan4 = (math.nan,) * 2, (math.nan,) * 4
         obs = self._obs
+        rows = np.array(self._rows, dtype=float).reshape(-1, len(ROW))
 
         def column(i: int, width: int, missing=None) -> Array:
             values = [missing if o[i] is None else o[i] for o in obs]
             return np.array(values, dtype=float).reshape(-1, width)
 
         return History(
-            t=np.array(self._t, dtype=float),
-            event=np.array(self._event, dtype=np.int8),
-            pose=np.array(self._pose, dtype=float).reshape(-1, 3),
-            pose_cov=np.array(self._pose_cov, dtype=float).reshape(-1, 3, 3),
+            t=rows[:, 0].copy(),
+            event=np.array(self._kinds, dtype=np.int8),
+            pose=rows[:, 1:4].copy(),
+            pose_cov=rows[:, 4:][:, _COV_INDEX].reshape(-1, 3, 3),
             obs_t=np.array([o[0] for o in obs], dtype=float),
             obs_event=np.array([o[1] for o in obs], dtype=np.int64),
             obs_id=np.array([o[2] for o in obs], dtype=np.int64),

@@ -266,3 +266,134 @@ def test_blocked_covariance_update_matches_one_block(monkeypatch):
     np.testing.assert_allclose(blocked.Sigma, whole.Sigma, rtol=0, atol=1e-14)
     np.testing.assert_allclose(blocked.mu, whole.mu, rtol=0, atol=1e-14)
     assert np.max(np.abs(blocked.Sigma - blocked.Sigma.T)) <= 1e-15
+
+
+def stepwise_noise(theta: float, M: np.ndarray, dt: float) -> np.ndarray:
+    """R = V(θ) (M dt) V(θ)ᵀ built with numpy, independently of the filter's float arithmetic."""
+    c, s = math.cos(theta), math.sin(theta)
+    V = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return V @ (M * dt) @ V.T
+
+
+@pytest.mark.parametrize("linearization", ["standard", "fej"])
+@pytest.mark.parametrize("per_second", [True, False])
+def test_predict_many_equals_stepping_predict_one_row_at_a_time(linearization, per_second):
+    rng = np.random.default_rng(21)
+    config = FilterConfig(gate=None, linearization=linearization)
+    Q = observation_noise(0.05, 0.03)
+    M = np.array([[4e-4, 1e-5, 2e-5], [1e-5, 1e-4, -1e-5], [2e-5, -1e-5, 9e-4]])
+    batched = EKFSLAM([0.3, -0.2, 3.0], np.diag([1e-4, 2e-4, 1e-5]), config)
+    stepped = EKFSLAM([0.3, -0.2, 3.0], np.diag([1e-4, 2e-4, 1e-5]), config)
+    for k in range(6):  # a map correlated with the pose, so the cross-covariance matters
+        for f in (batched, stepped):
+            f.update(k, [1.0 + 0.3 * k, -2.5 + 0.9 * k], Q)
+    t = 0.0
+    for _ in range(8):
+        K = int(rng.integers(1, 60))
+        us = np.column_stack(
+            [rng.uniform(0, 0.05, K), rng.uniform(-0.02, 0.02, K), rng.uniform(-0.4, 0.4, K)]
+        )
+        dts = rng.uniform(0.01, 0.05, K)
+        ts = t + np.cumsum(dts)
+        t = ts[-1]
+        if per_second:
+            batched.predict_many(us, dts, ts, M=M)
+            for u, dt, tk in zip(us, dts, ts, strict=True):
+                stepped.predict(u, stepwise_noise(stepped.mu[2], M, dt), tk)
+        else:
+            batched.predict_many(us, dts, ts, R=M)
+            for u, tk in zip(us, ts, strict=True):
+                stepped.predict(u, M, tk)
+        lid = int(rng.integers(0, 6))
+        z = observation(batched.mu[:3], batched.landmark(lid)[0]) + rng.normal(0, [0.05, 0.03])
+        assert batched.update(lid, z, Q, t) == stepped.update(lid, z, Q, t) == "accepted"
+    np.testing.assert_allclose(batched.mu, stepped.mu, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(batched.Sigma, stepped.Sigma, rtol=0, atol=1e-9)
+    a, b = batched.history(), stepped.history()
+    np.testing.assert_array_equal(a.t, b.t)
+    np.testing.assert_allclose(a.pose, b.pose, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(a.pose_cov, b.pose_cov, rtol=0, atol=1e-9)
+    assert batched.counts == stepped.counts and batched.counts.predictions > 50
+    assert np.abs(batched.mu[2]) > 0.1 and np.abs(batched.Sigma[:3, 3:]).max() > 1e-4
+
+
+@pytest.mark.shared_data
+def test_predict_many_equals_stepping_on_a_real_mrclam_log(mrclam7):
+    """Robot 1 of MRCLAM Dataset 7, its first 20,000 odometry rows, with its observations."""
+    from ekfslam.mrclam import load_mrclam
+    from ekfslam.replay import MRCLAM_NOISE
+
+    run, _ = load_mrclam(mrclam7, 1)
+    rows = 20_000
+    t = np.asarray(run.controls.t, dtype=float)[: rows + 1]
+    dts = np.diff(t)
+    us = run.control_twist()[:rows] * dts[:, None]
+    det = run.detections
+    keep = (det.t >= t[0]) & (det.t <= t[-1])
+    det_t, det_id = det.t[keep], det.tag_id[keep]
+    det_z = np.column_stack([det.range, det.bearing])[keep]
+    M, Q = MRCLAM_NOISE.motion_density(), MRCLAM_NOISE.Q
+    start = run.meta.nominal_start  # where replay starts it
+    batched, stepped = EKFSLAM(start), EKFSLAM(start)
+    done = 0
+    upto = np.searchsorted(t[1:], det_t, side="right")  # rows that end at or before each one
+    for i, p in enumerate(upto.tolist()):
+        if p > done:
+            batched.predict_many(us[done:p], dts[done:p], t[done + 1 : p + 1], M=M)
+            for k in range(done, p):
+                stepped.predict(us[k], stepwise_noise(stepped.mu[2], M, dts[k]), t[k + 1])
+            done = p
+        a = batched.update(int(det_id[i]), det_z[i], Q, det_t[i])
+        assert stepped.update(int(det_id[i]), det_z[i], Q, det_t[i]) == a
+    assert batched.counts.predictions == done > 15_000
+    assert batched.counts.accepted > 100 and batched.n_landmarks >= 5
+    np.testing.assert_allclose(batched.mu, stepped.mu, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(batched.Sigma, stepped.Sigma, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(batched.history().pose_cov, stepped.history().pose_cov, atol=1e-9)
+
+
+def test_history_keeps_constant_memory_per_event_whatever_the_map_size():
+    """No n x n copy per step: the history's bytes per event are the same at n = 4 and n = 300."""
+    Q = observation_noise(0.05, 0.03)
+    per_event = {}
+    for n in (4, 300):
+        f = EKFSLAM([0.0, 0.0, 0.0])
+        for j in range(n):
+            f.update(j, [1.0 + j % 7, -3.0 + 0.02 * j], Q)
+        for k in range(200):
+            f.predict([0.01, 0.0, 0.01], np.diag([1e-4, 1e-4, 1e-5]))
+            f.update(k % n, [1.0 + (k % n) % 7, -3.0 + 0.02 * (k % n)], Q)
+        h = f.history()
+        arrays = {k: v for k, v in vars(h).items() if isinstance(v, np.ndarray)}
+        events = sum(v.nbytes for k, v in arrays.items() if not k.startswith("obs_"))
+        observations = sum(v.nbytes for k, v in arrays.items() if k.startswith("obs_"))
+        per_event[n] = (events / len(h.t), observations / len(h.obs_t))
+    assert per_event[300] == per_event[4]
+    # bytes: t, kind, a pose and its 3x3 covariance; one observation's numbers
+    assert per_event[300][0] < 110 and per_event[300][1] < 200
+
+
+def test_large_map_update_agrees_with_literal_reference():
+    """Past about 20 landmarks Σ -= WᵀW runs in BLAS, in place, in row blocks: same result."""
+    Q = observation_noise(0.05, 0.03)
+    rng = np.random.default_rng(12)
+    config = FilterConfig(gate=None)
+    fast = EKFSLAM([0.0, 0.0, 0.5], np.diag([1e-4, 1e-4, 1e-5]), config)
+    slow = LiteralEKFSLAM([0.0, 0.0, 0.5], np.diag([1e-4, 1e-4, 1e-5]), config)
+    n = 30
+    zs = np.column_stack([rng.uniform(1.0, 4.0, n), rng.uniform(-math.pi, math.pi, n)])
+    for k in range(n):
+        assert fast.update(k, zs[k], Q) == slow.update(k, zs[k], Q) == "initialised"
+    for _ in range(30):
+        u, R = [0.02, 0.005, 0.02], np.diag([1e-4, 1e-4, 1e-5])
+        fast.predict(u, R)
+        slow.predict(u, R)
+        j = int(rng.integers(0, n))
+        z = observation(fast.mu[:3], fast.landmark(j)[0]) + rng.normal(0, [0.05, 0.03])
+        assert fast.update(j, z, Q) == slow.update(j, z, Q) == "accepted"
+    import ekfslam.filter as filter_module
+
+    assert fast.Sigma.shape[0] == 3 + 2 * n > filter_module._NUMPY_MAX_DIM  # BLAS's side
+    np.testing.assert_allclose(fast.mu, slow.mu, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fast.Sigma, slow.Sigma, rtol=0, atol=1e-9)
+    assert np.max(np.abs(fast.Sigma - fast.Sigma.T)) <= 1e-15
