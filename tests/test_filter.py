@@ -253,7 +253,7 @@ def test_history_records_every_event_without_n_squared_copies():
 
 def test_blocked_covariance_update_matches_one_block(monkeypatch):
     """Large maps update Σ in row blocks; the result is the same as one big product."""
-    import ekfslam.filter as filter_module
+    import ekfslam.covariance as covariance_module
 
     def run():
         f = EKFSLAM([0.0, 0.0, 0.0], record=False)
@@ -261,7 +261,7 @@ def test_blocked_covariance_update_matches_one_block(monkeypatch):
         return f
 
     whole = run()
-    monkeypatch.setattr(filter_module, "_BLOCK_BYTES", 8 * 40 * 3)  # blocks of a few rows
+    monkeypatch.setattr(covariance_module, "_BLOCK_BYTES", 8 * 40 * 3)  # blocks of a few rows
     blocked = run()
     np.testing.assert_allclose(blocked.Sigma, whole.Sigma, rtol=0, atol=1e-14)
     np.testing.assert_allclose(blocked.mu, whole.mu, rtol=0, atol=1e-14)
@@ -391,9 +391,9 @@ def test_large_map_update_agrees_with_literal_reference():
         j = int(rng.integers(0, n))
         z = observation(fast.mu[:3], fast.landmark(j)[0]) + rng.normal(0, [0.05, 0.03])
         assert fast.update(j, z, Q) == slow.update(j, z, Q) == "accepted"
-    import ekfslam.filter as filter_module
+    import ekfslam.covariance as covariance_module
 
-    assert fast.Sigma.shape[0] == 3 + 2 * n > filter_module._NUMPY_MAX_DIM  # BLAS's side
+    assert fast.Sigma.shape[0] == 3 + 2 * n > covariance_module._NUMPY_MAX_DIM  # BLAS's side
     np.testing.assert_allclose(fast.mu, slow.mu, rtol=0, atol=1e-9)
     np.testing.assert_allclose(fast.Sigma, slow.Sigma, rtol=0, atol=1e-9)
     assert np.max(np.abs(fast.Sigma - fast.Sigma.T)) <= 1e-15
