@@ -19,6 +19,9 @@ from ekfslam.runlog import GroundTruth, RunLog
 
 Array = NDArray[np.float64]
 
+#: The seed's Table 1, from the real robot: (x0, y0, θ0, average error) in m, m, rad, m.
+SEED_TABLE1 = {"square": (-0.020, 0.056, 0.142, 0.153), "octagon": (-0.040, 0.043, 0.137, 0.130)}
+
 
 def interpolate_poses(groundtruth: GroundTruth, t: Array) -> tuple[Array, NDArray[np.bool_]]:
     """True poses at times t (linear in x, y and in the unwrapped heading).

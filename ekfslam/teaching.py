@@ -371,7 +371,8 @@ def table1_markdown(
     """The seed's Table 1 as a Markdown table: each of our runs beside the seed's row.
 
     summaries : {trajectory name ("square", ...): RunSummary with an alignment}.
-    seed_table : {trajectory name: (x0, y0, θ0, average error)}, e.g. `ekfslam.cli.SEED_TABLE1`.
+    seed_table : {trajectory name: (x0, y0, θ0, average error)},
+        e.g. `ekfslam.evaluation.SEED_TABLE1`.
     """
     lines = [
         "| Trajectory | x0 (m) | y0 (m) | θ0 (rad) | Average error (m) |",

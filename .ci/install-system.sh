@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# System packages the tests need, from Debian's archive: Chromium for tests/test_browser.py
+# (driven by Playwright for Python, which must never download a browser of its own).
+# Idempotent, no prompts; run as root (or with passwordless sudo) on Debian.
+set -euo pipefail
+
+PACKAGES=(chromium fonts-dejavu-core)
+
+missing=()
+for package in "${PACKAGES[@]}"; do
+    if ! dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed"; then
+        missing+=("$package")
+    fi
+done
+if [ "${#missing[@]}" -eq 0 ]; then
+    echo "install-system: already installed: ${PACKAGES[*]}"
+    exit 0
+fi
+
+SUDO=()
+if [ "$(id -u)" -ne 0 ]; then
+    command -v sudo >/dev/null || { echo "install-system: need root (or sudo) for apt-get" >&2; exit 1; }
+    SUDO=(sudo -n)
+fi
+export DEBIAN_FRONTEND=noninteractive
+"${SUDO[@]}" apt-get update -q
+"${SUDO[@]}" apt-get install -y -q "${missing[@]}"
+/usr/bin/chromium --version
