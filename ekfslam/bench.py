@@ -31,12 +31,15 @@ import tracemalloc
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ekfslam.filter import EKFSLAM, FilterConfig
 from ekfslam.models import observation_noise
-from ekfslam.reference import LiteralEKFSLAM
+
+if TYPE_CHECKING:  # the literal filter pulls in sympy: import it only when benchmarking
+    from ekfslam.reference import LiteralEKFSLAM
 
 SIZES = (10, 50, 100, 200, 400, 800, 1000)
 #: The literal reference is skipped at sizes where one step is predicted to take longer (s).
@@ -158,6 +161,8 @@ def literal_twin(f: EKFSLAM) -> LiteralEKFSLAM:
     Set directly: growing it one landmark at a time is itself O(n^3). Its per-landmark
     bookkeeping (sightings, first estimates) has no public setter, so it is filled here.
     """
+    from ekfslam.reference import LiteralEKFSLAM
+
     lit = LiteralEKFSLAM(f.pose, f.pose_covariance, f.config)
     lit.mu, lit.Sigma, lit.slot = f.mu.copy(), f.Sigma.copy(), dict(f.slot)
     lit._sightings = [2] * f.n_landmarks

@@ -13,17 +13,24 @@ import sys
 from pathlib import Path
 
 from ekfslam.errors import EkfSlamError, InputError
-
-#: The seed's Table 1: (x0, y0, θ0, average error) from the real robot.
-SEED_TABLE1 = {"square": (-0.020, 0.056, 0.142, 0.153), "octagon": (-0.040, 0.043, 0.137, 0.130)}
+from ekfslam.evaluation import SEED_TABLE1
 
 EXIT_BAD_INPUT = 2
 
 #: Modules with an ``add_cli(subparsers)`` that registers a subcommand (``set_defaults(func=...)``).
-_COMMAND_MODULES: tuple[str, ...] = ("ekfslam.fetch",)
+_COMMAND_MODULES: tuple[str, ...] = (
+    "ekfslam.fetch",
+    "ekfslam.mrclam",
+    "ekfslam.rosbag",
+    "ekfslam.tum",
+    "ekfslam.frames",
+    "ekfslam.visioneval",
+    "ekfslam.consistency",
+    "ekfslam.bench",
+)
 
 
-def _noise_arguments(p: argparse.ArgumentParser) -> None:
+def add_noise_arguments(p: argparse.ArgumentParser) -> None:
     from ekfslam.filter import CHI2_2DOF_99
 
     g = p.add_argument_group("noise (R, eq. 9, and Q, eq. 11) and filter options")
@@ -60,7 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--align", choices=["mean_distance", "least_squares"], default="mean_distance",
         help="eq. (17) objective: mean distance (the seed's) or least squares",
     )  # fmt: skip
-    _noise_arguments(run)
+    add_noise_arguments(run)
     run.set_defaults(func=cmd_run)
 
     sim = sub.add_parser("simulate", help="simulate the seed's robot and write a run folder")
@@ -86,7 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _load_run(args: argparse.Namespace):
+def load_run(args: argparse.Namespace):
     """A RunLog from either format, plus a note on anything the loader dropped."""
     folder: Path = args.run
     if (folder / "Barcodes.dat").is_file():
@@ -98,12 +105,17 @@ def _load_run(args: argparse.Namespace):
         return run, report
     if args.robot is not None:
         raise InputError(folder, None, "--robot is only for MRCLAM datasets (no Barcodes.dat)")
+    # A run logged as camera frames, with no detections.csv yet: detect the tags in its frames.
+    from ekfslam.frames import has_frames_only, read_frames_run
+
+    if has_frames_only(folder):
+        return read_frames_run(folder)
     from ekfslam.runlog import read_run
 
     return read_run(folder), None
 
 
-def _noise_from_args(args: argparse.Namespace, run):
+def noise_from_args(args: argparse.Namespace, run):
     from ekfslam.filter import FilterConfig
     from ekfslam.replay import NoiseConfig, default_noise
 
@@ -122,8 +134,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from ekfslam.evaluation import summarize
     from ekfslam.replay import replay
 
-    run, report = _load_run(args)
-    noise, config = _noise_from_args(args, run)
+    run, report = load_run(args)
+    noise, config = noise_from_args(args, run)
     result = replay(run, noise, config)
     summary = summarize(run, result, method=args.align)
     out = summary.as_dict()

@@ -174,7 +174,7 @@ def export_tum(run: RunLog, result: ReplayResult, folder: str | os.PathLike) -> 
 
 def add_cli(subparsers: argparse._SubParsersAction) -> None:
     """``python -m ekfslam tum RUN [--robot N] --out DIR``: replay a run and export it."""
-    from ekfslam.cli import _noise_arguments
+    from ekfslam.cli import add_noise_arguments
 
     p = subparsers.add_parser(
         "tum",
@@ -184,16 +184,16 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("run", type=Path, help="a run folder or a MRCLAM dataset folder")
     p.add_argument("--robot", type=int, help="MRCLAM only: which robot (1-5)")
     p.add_argument("--out", type=Path, required=True, help="folder for the .tum files")
-    _noise_arguments(p)
+    add_noise_arguments(p)
     p.set_defaults(func=_cmd_tum)
 
 
 def _cmd_tum(args: argparse.Namespace) -> int:
-    from ekfslam.cli import _load_run, _noise_from_args
+    from ekfslam.cli import load_run, noise_from_args
     from ekfslam.replay import replay
 
-    run, _report = _load_run(args)
-    noise, config = _noise_from_args(args, run)
+    run, _report = load_run(args)
+    noise, config = noise_from_args(args, run)
     written = export_tum(run, replay(run, noise, config), args.out)
     for name in sorted(written):
         print(written[name])
