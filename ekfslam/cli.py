@@ -191,7 +191,8 @@ def _table(summary, out: dict) -> str:
     lines.append(
         f"landmarks {summary.landmarks_count}, predictions {summary.predictions}, "
         f"updates accepted {summary.accepted}, rejected {summary.rejected}, "
-        f"refused {summary.refused}, initialised {summary.initialised}"
+        f"refused {summary.refused}, initialised {summary.initialised}, "
+        f"re-initialised {summary.reinitialised}"
     )
     if summary.ate_rmse is not None:
         lines.append(f"trajectory ATE RMSE (no alignment) {summary.ate_rmse:.3f} m")

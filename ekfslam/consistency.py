@@ -372,7 +372,10 @@ def add_cli(subparsers) -> None:
         "--long-run", type=_positive, nargs="?", const=100_000, metavar="STEPS",
         help="drive STEPS steps (default 10^5) and check Σ's smallest eigenvalue",
     )  # fmt: skip
-    p.add_argument("--gate-after", type=_positive, default=2, help="outlier study: gate_after")
+    p.add_argument(
+        "--gate-after", type=_positive, default=FilterConfig.gate_after,
+        help="outlier study: gate_after (default: the filter's, %(default)s)",
+    )  # fmt: skip
     p.set_defaults(func=_cmd_consistency)
 
 

@@ -70,6 +70,7 @@ class RunSummary:
     rejected: int
     refused: int
     initialised: int
+    reinitialised: int
     nis_mean: float | None
     seconds: float
 
@@ -103,6 +104,7 @@ class RunSummary:
                 "rejected": self.rejected,
                 "refused": self.refused,
                 "initialised": self.initialised,
+                "reinitialised": self.reinitialised,
             },
             "predictions": self.predictions,
             "trajectory": {"ate_rmse": opt(self.ate_rmse)},
@@ -151,6 +153,7 @@ def summarize(run: RunLog, result: ReplayResult, method: str = "mean_distance") 
         rejected=c.rejected,
         refused=c.refused,
         initialised=c.initialised,
+        reinitialised=c.reinitialised,
         nis_mean=float(np.mean(nis)) if len(nis) else None,
         seconds=result.seconds,
     )

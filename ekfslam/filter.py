@@ -23,19 +23,21 @@ runs in place in BLAS for larger maps. `python -m ekfslam bench` measures it all
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.covariance import subtract_gram
+from ekfslam.filter_config import CHI2_2DOF_99 as CHI2_2DOF_99
+from ekfslam.filter_config import FilterConfig, FilterCounts
 from ekfslam.history import (
     ACCEPTED,
     INITIALISED,
     OBSERVE,
+    OUTCOMES,
     PREDICT,
     REFUSED,
+    REINITIALISED,
     REJECTED,
     History,
     Recorder,
@@ -43,64 +45,6 @@ from ekfslam.history import (
 from ekfslam.models import MIN_RANGE_SQUARED, inverse_observation, inverse_observation_jacobians
 
 Array = NDArray[np.float64]
-
-#: chi-square(2 dof) 99% quantile: the default Mahalanobis gate on (r, φ) innovations.
-CHI2_2DOF_99 = 9.21034037197618
-
-
-@dataclass(frozen=True)
-class FilterConfig:
-    """Choices that change how the filter behaves (noise levels are passed per step).
-
-    init : "inverse" (default) initialises a new landmark through the inverse observation
-        eq. (12) with its full cross-covariance; "seed" reproduces the report: eq. (12) for the
-        mean, eq. (3)'s "infinite" covariance as `seed_init_variance`, then the update eq. (15)-(16)
-        with the same observation.
-    seed_init_variance : m^2. The finite stand-in for eq. (3)'s ∞.
-    gate : Mahalanobis threshold on the NIS νᵀS⁻¹ν (default chi²(2) 99% = 9.21); None disables.
-    gate_after : the gate applies to a landmark once it has this many accepted sightings
-        (its initialisation counts as one); before that it has no estimate worth gating against.
-    initial_capacity : landmarks to pre-allocate for (the storage doubles when full).
-    linearization : "standard" evaluates every Jacobian at the latest estimate; "fej" is the
-        First-Estimates Jacobian EKF (Huang, Mourikis & Roumeliotis, IJRR 2010): the motion
-        Jacobian of eq. (7) uses the predicted positions p̂(k+1|k) - p̂(k|k-1) and the observation
-        Jacobian of eq. (14) the robot's predicted position and each landmark's first estimate,
-        so the filter does not gain spurious information about the global heading.
-    """
-
-    init: Literal["inverse", "seed"] = "inverse"
-    linearization: Literal["standard", "fej"] = "standard"
-    seed_init_variance: float = 1e6
-    gate: float | None = CHI2_2DOF_99
-    gate_after: int = 2
-    initial_capacity: int = 16
-
-    def __post_init__(self) -> None:
-        if self.linearization not in ("standard", "fej"):
-            raise ValueError(
-                f"linearization must be 'standard' or 'fej', got {self.linearization!r}"
-            )
-        if self.init not in ("inverse", "seed"):
-            raise ValueError(f"init must be 'inverse' or 'seed', got {self.init!r}")
-        if not self.seed_init_variance > 0:
-            raise ValueError("seed_init_variance must be positive")
-        if self.gate is not None and not self.gate > 0:
-            raise ValueError("gate must be positive or None")
-        if self.gate_after < 1:
-            raise ValueError("gate_after must be at least 1")
-        if self.initial_capacity < 1:
-            raise ValueError("initial_capacity must be at least 1")
-
-
-@dataclass(frozen=True)
-class FilterCounts:
-    """How many steps of each kind the filter took; nothing is dropped without being counted."""
-
-    predictions: int
-    initialised: int
-    accepted: int
-    rejected: int
-    refused: int
 
 
 def _float_rows(values: ArrayLike) -> list:
@@ -154,6 +98,7 @@ class EKFSLAM:
         # FEJ: the robot's predicted position at the current step, and first landmark estimates
         self._prior_xy = (float(self._mu[0]), float(self._mu[1]))
         self._first: list[tuple[float, float]] = []
+        self._rejected: list[list[Array]] = []  # per slot: where the rejected sightings put it
         # scratch for the small factors of each step (filled in place: no per-step allocation)
         self._g_sum = np.zeros((2, 1))
         self._H_l = np.empty((2, 2))
@@ -348,8 +293,9 @@ class EKFSLAM:
         Returns
         -------
         str
-            "initialised", "accepted", "rejected" (failed the gate) or "refused" (cannot be
-            linearised: the landmark, or the observation, sits on the robot). Each is counted.
+            "initialised", "accepted", "rejected" (failed the gate), "reinitialised" (see
+            `FilterConfig.reinit_after`) or "refused" (cannot be linearised: the landmark, or
+            the observation, sits on the robot). Each is counted.
         """
         if t is not None:
             self._t = t
@@ -366,12 +312,19 @@ class EKFSLAM:
             if self.config.init == "inverse":
                 l = 3 + 2 * j
                 return self._finish(landmark_id, z, None, None, None, math.nan, INITIALISED, l)
-            return self._correct(landmark_id, j, z, Qf, gated=False, fresh=True)
+            return self._correct(landmark_id, j, z, Qf, False, True, accepted_as=INITIALISED)
         gated = self.config.gate is not None and self._sightings[j] >= self.config.gate_after
         return self._correct(landmark_id, j, z, Qf, gated=gated, fresh=False)
 
     def _correct(
-        self, landmark_id: int, j: int, z: tuple[float, float], Q, gated: bool, fresh: bool
+        self,
+        landmark_id: int,
+        j: int,
+        z: tuple[float, float],
+        Q,
+        gated: bool,
+        fresh: bool,
+        accepted_as: int = ACCEPTED,
     ) -> str:
         mu, S, d = self._mu, self._Sigma, self._dim  # storage: zero beyond the state's d
         l = 3 + 2 * j
@@ -418,6 +371,8 @@ class EKFSLAM:
         w1 = (nu1 - l10 * w0) / l11
         nis = w0 * w0 + w1 * w1
         if gated and nis > self.config.gate:
+            if self._should_reinitialise(j, z):
+                return self._reinitialise(landmark_id, j, z, Q)
             return self._finish(landmark_id, z, z_hat, (nu0, nu1), S_innov, nis, REJECTED, l)
         # eq. (15)-(16) with W = L⁻¹ H Σ: K = Σ Hᵀ S⁻¹ = Wᵀ L⁻¹, so K S Kᵀ = Wᵀ W and Σ -= Wᵀ W,
         # which for the optimal gain equals Joseph's form (I-KH)Σ(I-KH)ᵀ + KQKᵀ and keeps Σ
@@ -434,16 +389,27 @@ class EKFSLAM:
         subtract_gram(S, Y[:2], d)
         if not fresh:
             self._sightings[j] += 1
-        return self._finish(landmark_id, z, z_hat, (nu0, nu1), S_innov, nis, ACCEPTED, l)
+        self._rejected[j].clear()
+        return self._finish(landmark_id, z, z_hat, (nu0, nu1), S_innov, nis, accepted_as, l)
 
     def _add_landmark(self, landmark_id: int, z: Array, Q: Array) -> int:
         """Append a landmark slot, eq. (12) for the mean; covariance by `config.init`."""
         j = len(self._ids)
-        d = self._dim
-        if d + 2 > self._mu.shape[0]:
+        if self._dim + 2 > self._mu.shape[0]:
             self._grow()
-        mu, S = self._mu, self._Sigma
-        l = d
+        self._dim += 2
+        self._place(j, z, Q)
+        self._ids.append(landmark_id)
+        self.slot[landmark_id] = j
+        self._sightings.append(1)
+        self._first.append((float(self._mu[3 + 2 * j]), float(self._mu[4 + 2 * j])))
+        self._rejected.append([])
+        return j
+
+    def _place(self, j: int, z: Array, Q: Array) -> None:
+        """Set slot j from one sighting as if first seen now, dropping what it held."""
+        mu, S, d = self._mu, self._Sigma, self._dim
+        l = 3 + 2 * j
         pose = mu[:3]
         mu[l : l + 2] = inverse_observation(pose, z)
         if self.config.init == "inverse":
@@ -457,12 +423,30 @@ class EKFSLAM:
             S[l : l + 2, :d] = 0.0
             S[:d, l : l + 2] = 0.0
             S[l : l + 2, l : l + 2] = self.config.seed_init_variance * np.eye(2)
-        self._dim = d + 2
-        self._ids.append(landmark_id)
-        self.slot[landmark_id] = j
-        self._sightings.append(1)
-        self._first.append((float(mu[l]), float(mu[l + 1])))
-        return j
+
+    def _should_reinitialise(self, j: int, z: tuple[float, float]) -> bool:
+        """Do the landmark's last `reinit_after` sightings, all rejected, agree with each other?"""
+        k = self.config.reinit_after
+        if k is None:
+            return False
+        seen = self._rejected[j]
+        seen.append(inverse_observation(self._mu[:3], z))
+        if len(seen) < k:
+            return False
+        del seen[:-k]
+        return _new_place(
+            seen, self._mu[3 : self._dim].reshape(-1, 2), j, self.config.reinit_radius
+        )
+
+    def _reinitialise(self, landmark_id: int, j: int, z: tuple[float, float], Q: Array) -> str:
+        self._place(j, np.array(z), np.asarray(Q, dtype=float))
+        l = 3 + 2 * j
+        self._first[j] = (float(self._mu[l]), float(self._mu[l + 1]))
+        self._sightings[j] = 1
+        self._rejected[j].clear()
+        if self.config.init == "seed":  # eq. (3), then the update with this sighting
+            return self._correct(landmark_id, j, z, Q, False, True, accepted_as=REINITIALISED)
+        return self._finish(landmark_id, z, None, None, None, math.nan, REINITIALISED, l)
 
     def _grow(self) -> None:
         d = self._dim
@@ -484,7 +468,7 @@ class EKFSLAM:
         outcome: int,
         l: int | None,
     ) -> str:
-        name = ("initialised", "accepted", "rejected", "refused")[outcome]
+        name = OUTCOMES[outcome]
         self._counts[name] += 1
         rec = self._recorder
         if rec is not None:
@@ -497,3 +481,13 @@ class EKFSLAM:
             rec.event(OBSERVE, (self._t, *mu[:3].tolist(), s00, s01, s02, s11, s12, s22))
             rec.observation(self._t, landmark_id, z, z_hat, nu, S_innov, nis, outcome, lm, lc)
         return name
+
+
+def _new_place(seen: list, landmarks: Array, j: int, radius: float) -> bool:
+    """Do the rejected sightings `seen` (k, 2) agree on one place that no other landmark holds?"""
+    seen = np.asarray(seen)
+    centre = seen.mean(axis=0)
+    if np.max(np.hypot(*(seen - centre).T)) > radius:
+        return False
+    others = np.delete(landmarks, j, axis=0)
+    return not np.any(np.hypot(*(others - centre).T) <= radius)

@@ -18,8 +18,8 @@ Array = NDArray[np.float64]
 #: Event kinds in `History.event`.
 PREDICT, OBSERVE = 0, 1
 #: Observation outcomes in `History.obs_outcome` (index into this tuple).
-OUTCOMES = ("initialised", "accepted", "rejected", "refused")
-INITIALISED, ACCEPTED, REJECTED, REFUSED = range(4)
+OUTCOMES = ("initialised", "accepted", "rejected", "refused", "reinitialised")
+INITIALISED, ACCEPTED, REJECTED, REFUSED, REINITIALISED = range(5)
 
 
 @dataclass(frozen=True, eq=False)

@@ -48,6 +48,7 @@ class LiteralEKFSLAM:
         self._fej = self.config.linearization == "fej"
         self._prior = self.mu[:2].copy()  # FEJ: the predicted position at the current step
         self._first: list[np.ndarray] = []  # FEJ: each landmark's first estimate
+        self._rejected: list[list[np.ndarray]] = []  # per slot: rejected sightings' positions
         self._counts = dict.fromkeys(FilterCounts.__dataclass_fields__, 0)
 
     @property
@@ -92,7 +93,7 @@ class LiteralEKFSLAM:
             j = self._augment(landmark_id, z, Q)
             if self.config.init == "inverse":
                 return self._count("initialised")
-            return self._correct(j, z, Q, gated=False, fresh=True)
+            return self._correct(j, z, Q, gated=False, fresh=True, accepted_as="initialised")
         gated = self.config.gate is not None and self._sightings[j] >= self.config.gate_after
         return self._correct(j, z, Q, gated=gated, fresh=False)
 
@@ -114,9 +115,43 @@ class LiteralEKFSLAM:
         self._first.append(m.copy())
         self.slot[landmark_id] = n
         self._sightings.append(1)
+        self._rejected.append([])
         return n
 
-    def _correct(self, j: int, z: np.ndarray, Q: np.ndarray, gated: bool, fresh: bool) -> str:
+    def _reinitialise(self, j: int, z: np.ndarray, Q: np.ndarray) -> str:
+        """Slot j from this sighting alone: eq. (12) again, its old rows and columns replaced."""
+        n = self.n_landmarks
+        pose = self.mu[:3]
+        m = inverse_observation(pose, z)
+        rows = slice(3 + 2 * j, 5 + 2 * j)
+        if self.config.init == "inverse":
+            G_p, G_z = inverse_observation_jacobians(pose, z)
+            G_x = G_p @ lift_matrix_numeric(n)
+            cross = G_x @ self.Sigma
+            self.Sigma[rows, :] = cross
+            self.Sigma[:, rows] = cross.T
+            self.Sigma[rows, rows] = G_x @ self.Sigma @ G_x.T + G_z @ Q @ G_z.T
+        else:
+            self.Sigma[rows, :] = 0.0
+            self.Sigma[:, rows] = 0.0
+            self.Sigma[rows, rows] = self.config.seed_init_variance * np.eye(2)
+        self.mu[rows] = m
+        self._first[j] = m.copy()
+        self._sightings[j] = 1
+        self._rejected[j] = []
+        if self.config.init == "seed":
+            return self._correct(j, z, Q, gated=False, fresh=True, accepted_as="reinitialised")
+        return self._count("reinitialised")
+
+    def _correct(
+        self,
+        j: int,
+        z: np.ndarray,
+        Q: np.ndarray,
+        gated: bool,
+        fresh: bool,
+        accepted_as: str = "accepted",
+    ) -> str:
         n = self.n_landmarks
         pose = self.mu[:3]
         landmark = self.mu[3 + 2 * j : 5 + 2 * j]
@@ -138,6 +173,19 @@ class LiteralEKFSLAM:
             return self._count("refused")
         nis = float(nu @ np.linalg.solve(S, nu))
         if gated and nis > self.config.gate:
+            k = self.config.reinit_after
+            if k is not None:  # do the last k sightings, all rejected, agree on a new place?
+                self._rejected[j] = ([*self._rejected[j], inverse_observation(pose, z)])[-k:]
+                seen = np.array(self._rejected[j])
+                centre = seen.mean(axis=0)
+                others = [m for i, m in enumerate(self.mu[3:].reshape(-1, 2)) if i != j]
+                radius = self.config.reinit_radius
+                if (
+                    len(seen) == k
+                    and np.linalg.norm(seen - centre, axis=1).max() <= radius
+                    and all(np.linalg.norm(m - centre) > radius for m in others)
+                ):
+                    return self._reinitialise(j, z, Q)
             return self._count("rejected")
         K = self.Sigma @ H.T @ np.linalg.inv(S)  # eq. (15)
         self.mu = self.mu + K @ nu  # eq. (16)
@@ -146,7 +194,8 @@ class LiteralEKFSLAM:
         self.Sigma = IKH @ self.Sigma @ IKH.T + K @ Q @ K.T
         if not fresh:
             self._sightings[j] += 1
-        return self._count("accepted")
+        self._rejected[j] = []
+        return self._count(accepted_as)
 
     def _count(self, name: str) -> str:
         self._counts[name] += 1

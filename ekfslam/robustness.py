@@ -79,7 +79,7 @@ def outlier_study(
     rate: float = 0.05,
     *,
     gate: float = CHI2_2DOF_99,
-    gate_after: int = 2,
+    gate_after: int = FilterConfig.gate_after,
     first_seed: int = 0,
 ) -> OutlierStudy:
     """Map error with outliers at `rate`, gate on and off, against the clean run (gate on).

@@ -230,7 +230,9 @@ def test_seed_initialisation_approaches_inverse_initialisation():
     inv = EKFSLAM([0.2, 0.1, 0.4], P0, FilterConfig(init="inverse"))
     inv.update(9, z, Q)
     seed = EKFSLAM([0.2, 0.1, 0.4], P0, FilterConfig(init="seed", seed_init_variance=1e6))
-    assert seed.update(9, z, Q) == "accepted"
+    # regression: the seed's initialisation once counted as an accepted update
+    assert seed.update(9, z, Q) == "initialised"
+    assert (seed.counts.initialised, seed.counts.accepted) == (1, 0)
     np.testing.assert_allclose(seed.mu, inv.mu, atol=1e-9)
     np.testing.assert_allclose(seed.Sigma, inv.Sigma, rtol=1e-4, atol=1e-8)
 
@@ -397,3 +399,54 @@ def test_large_map_update_agrees_with_literal_reference():
     np.testing.assert_allclose(fast.mu, slow.mu, rtol=0, atol=1e-9)
     np.testing.assert_allclose(fast.Sigma, slow.Sigma, rtol=0, atol=1e-9)
     assert np.max(np.abs(fast.Sigma - fast.Sigma.T)) <= 1e-15
+
+
+@pytest.mark.parametrize("init", ["inverse", "seed"])
+def test_a_landmark_initialised_from_an_outlier_is_initialised_again(init):
+    """A misread first sighting would otherwise make the gate reject every true one after it."""
+    Q = observation_noise(0.02, 0.01)
+    config = FilterConfig(init=init, seed_init_variance=1e2)
+    fast = EKFSLAM([0.0, 0.0, 0.0], config=config)
+    slow = LiteralEKFSLAM([0.0, 0.0, 0.0], config=config)
+    truth = np.array([1.0, 0.5])
+    outcomes = []
+    for k in range(8):
+        z = observation(np.zeros(3), truth) + np.array([0.004, -0.002]) * (-1) ** k
+        if k == 0:
+            z[0] += 0.8  # a gross range error on the very first sighting
+        a, b = fast.update(7, z, Q), slow.update(7, z, Q)
+        assert a == b
+        outcomes.append(a)
+        fast.predict([0.0, 0.0, 0.0], np.diag([1e-6, 1e-6, 1e-7]))
+        slow.predict([0.0, 0.0, 0.0], np.diag([1e-6, 1e-6, 1e-7]))
+    assert outcomes[:4] == ["initialised", "rejected", "rejected", "reinitialised"]
+    assert set(outcomes[4:]) == {"accepted"}
+    np.testing.assert_allclose(fast.landmark(7)[0], truth, atol=0.01)
+    np.testing.assert_allclose(fast.mu, slow.mu, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fast.Sigma, slow.Sigma, rtol=0, atol=1e-9)
+    assert fast.counts.reinitialised == 1
+    assert np.linalg.eigvalsh(fast.Sigma).min() > 0
+
+
+def test_scattered_rejections_do_not_move_a_landmark():
+    """Outliers that disagree with each other are not a new place for the landmark."""
+    Q = observation_noise(0.02, 0.01)
+    f = EKFSLAM([0.0, 0.0, 0.0])
+    f.update(7, [1.0, 0.3], Q)
+    for extra in (0.5, 1.2, 0.8, 1.6, 0.6):  # gross range errors, each elsewhere
+        assert f.update(7, [1.0 + extra, 0.3], Q) == "rejected"
+    assert f.counts.reinitialised == 0
+    assert f.update(7, [1.0, 0.3], Q) == "accepted"
+
+
+def test_misread_ids_of_another_landmark_do_not_move_a_landmark():
+    """Sightings of tag A reported as tag B agree with each other, but land on A: no re-init."""
+    Q = observation_noise(0.02, 0.01)
+    f = EKFSLAM([0.0, 0.0, 0.0])
+    a, b = np.array([1.0, 0.5]), np.array([1.0, -0.5])
+    f.update(1, observation(np.zeros(3), a), Q)
+    f.update(2, observation(np.zeros(3), b), Q)
+    for _ in range(5):
+        assert f.update(2, observation(np.zeros(3), a), Q) == "rejected"
+    assert f.counts.reinitialised == 0
+    np.testing.assert_allclose(f.landmark(2)[0], b, atol=1e-9)
