@@ -167,6 +167,7 @@ def literal_twin(f: EKFSLAM) -> LiteralEKFSLAM:
     lit.mu, lit.Sigma, lit.slot = f.mu.copy(), f.Sigma.copy(), dict(f.slot)
     lit._sightings = [2] * f.n_landmarks
     lit._first = [f.mu[3 + 2 * j : 5 + 2 * j].copy() for j in range(f.n_landmarks)]
+    lit._rejected = [[] for _ in range(f.n_landmarks)]
     return lit
 
 

@@ -47,6 +47,11 @@ def add_noise_arguments(p: argparse.ArgumentParser) -> None:
         "--gate", type=float, default=CHI2_2DOF_99,
         help="NIS gate (chi-square, 2 dof); 0 turns gating off (default: %(default).2f)",
     )  # fmt: skip
+    g.add_argument(
+        "--reinit-after", type=int,
+        help="re-initialise a landmark after this many agreeing rejected sightings; 0: never "
+        "(default: 3, but never for MRCLAM)",
+    )  # fmt: skip
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -116,8 +121,9 @@ def load_run(args: argparse.Namespace):
 
 
 def noise_from_args(args: argparse.Namespace, run):
-    from ekfslam.filter import FilterConfig
-    from ekfslam.replay import NoiseConfig, default_noise
+    from dataclasses import replace
+
+    from ekfslam.replay import NoiseConfig, default_config, default_noise
 
     base = default_noise(run)
     overrides = {
@@ -126,7 +132,11 @@ def noise_from_args(args: argparse.Namespace, run):
         if getattr(args, name) is not None
     }
     noise = NoiseConfig(**{**base.__dict__, **overrides})
-    config = FilterConfig(init=args.init, gate=None if args.gate == 0 else args.gate)
+    config = replace(
+        default_config(run), init=args.init, gate=None if args.gate == 0 else args.gate
+    )
+    if args.reinit_after is not None:
+        config = replace(config, reinit_after=args.reinit_after or None)
     return noise, config
 
 

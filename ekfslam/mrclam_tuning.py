@@ -141,16 +141,16 @@ def score_robots(
 ) -> list[RobotScore]:
     """Replay each robot with the same noise and score it (what `tune_noise` minimises).
 
-    noise : None means `ekfslam.replay.MRCLAM_NOISE`; config : None, the default FilterConfig.
+    noise : None means `ekfslam.replay.MRCLAM_NOISE`; config : None, `ekfslam.replay.MRCLAM_CONFIG`.
     calibration : apply `calibrate_commands` first (None: the logged commands as they are).
     """
     from ekfslam.evaluation import summarize
-    from ekfslam.replay import MRCLAM_NOISE, replay
+    from ekfslam.replay import MRCLAM_CONFIG, MRCLAM_NOISE, replay
 
     scores = []
     for robot in robots:
         run = _cached_run(str(dataset_dir), robot, calibration)
-        result = replay(run, noise or MRCLAM_NOISE, config)
+        result = replay(run, noise or MRCLAM_NOISE, config or MRCLAM_CONFIG)
         s = summarize(run, result)
         scores.append(
             RobotScore(
