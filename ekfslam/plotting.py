@@ -124,7 +124,7 @@ def figure2(
     *,
     arena_half_size: float | None = None,
     title: str | None = None,
-    figsize: tuple[float, float] = (8.0, 8.0),
+    figsize: tuple[float, float] = (10.5, 7.5),
 ) -> Figure:
     """A standalone Figure 2 for one run (no pyplot state: safe in scripts and tests)."""
     fig = Figure(figsize=figsize, layout="constrained")
@@ -134,7 +134,8 @@ def figure2(
         true_start = run.groundtruth.pose[0]
     plot_map(ax, run, result, arena_half_size=arena_half_size, true_start=true_start)
     ax.set_title(title or f"EKF SLAM: {run.meta.name}")
-    ax.legend(loc="upper right", fontsize=8, framealpha=0.85)
+    # outside the axes: inside, it hid a landmark of the seed's runs
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=9)
     return fig
 
 
