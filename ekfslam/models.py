@@ -76,6 +76,18 @@ def motion_noise(pose: ArrayLike, M: ArrayLike) -> Array:
     return 0.5 * (R + R.T)
 
 
+def _offset(pose: ArrayLike, landmark: ArrayLike) -> tuple[float, float, float]:
+    """δ = landmark - robot position and q = δᵀδ of eq. (13), refusing a landmark on the robot."""
+    dx = landmark[0] - pose[0]
+    dy = landmark[1] - pose[1]
+    q = dx * dx + dy * dy
+    if not q > MIN_RANGE_SQUARED:
+        raise DegenerateGeometry(
+            f"landmark at ({landmark[0]:.6g}, {landmark[1]:.6g}) sits on the robot"
+        )
+    return dx, dy, q
+
+
 def observation(pose: ArrayLike, landmark: ArrayLike) -> Array:
     """ẑ = (r, φ): predicted range and bearing of a landmark, eq. (13), with atan2.
 
@@ -87,13 +99,7 @@ def observation(pose: ArrayLike, landmark: ArrayLike) -> Array:
     DegenerateGeometry
         When the landmark is within 1e-6 m of the robot (no bearing is defined there).
     """
-    dx = landmark[0] - pose[0]
-    dy = landmark[1] - pose[1]
-    q = dx * dx + dy * dy
-    if not q > MIN_RANGE_SQUARED:
-        raise DegenerateGeometry(
-            f"landmark at ({landmark[0]:.6g}, {landmark[1]:.6g}) sits on the robot"
-        )
+    dx, dy, q = _offset(pose, landmark)
     return np.array([math.sqrt(q), wrap_angle(math.atan2(dy, dx) - float(pose[2]))])
 
 
@@ -103,13 +109,7 @@ def observation_jacobians(pose: ArrayLike, landmark: ArrayLike) -> tuple[Array, 
     Eq. (14) writes them side by side as a 2x5 matrix times the lift F_x,j; the efficient filter
     uses the blocks directly.
     """
-    dx = landmark[0] - pose[0]
-    dy = landmark[1] - pose[1]
-    q = dx * dx + dy * dy
-    if not q > MIN_RANGE_SQUARED:
-        raise DegenerateGeometry(
-            f"landmark at ({landmark[0]:.6g}, {landmark[1]:.6g}) sits on the robot"
-        )
+    dx, dy, q = _offset(pose, landmark)
     r = math.sqrt(q)
     a, b = dx / r, dy / r
     c, d = dy / q, dx / q

@@ -17,21 +17,11 @@ from ekfslam.alignment import (
     align_mean_distance,
     mean_distance_objective,
 )
+from ekfslam.arena import SEED_TAG_POSITIONS
 from ekfslam.errors import AlignmentError
 
 # The seed's eight AprilTags (m) and its nominal start pose.
-SEED_TAGS = np.array(
-    [
-        (0.75, 0.375),
-        (0.75, -0.375),
-        (0.375, -0.75),
-        (0.375, 0.75),
-        (-0.375, 0.75),
-        (-0.75, 0.375),
-        (-0.75, -0.375),
-        (-0.375, -0.75),
-    ]
-)
+SEED_TAGS = np.array(SEED_TAG_POSITIONS)
 NOMINAL_START = np.array([-0.375, -0.375, 0.0])
 SOLVERS = [align_least_squares, align_mean_distance]
 
