@@ -183,7 +183,7 @@ def _table(summary, out: dict) -> str:
     header = f"{'Trajectory':<22}{'x0':>9}{'y0':>9}{'theta0':>9}{'Average Error':>15}"
     lines.append(header)
     if a is None:
-        lines.append(f"{summary.name:<22}  (no alignment: the run has no known tag map)")
+        lines.append(f"{summary.name:<22}  (no alignment: {summary.alignment_note})")
     else:
         lines.append(
             f"{summary.name:<22}{a.x0:>9.3f}{a.y0:>9.3f}{a.theta0:>9.3f}{a.mean_error:>15.3f}"

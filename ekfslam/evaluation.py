@@ -73,6 +73,7 @@ class RunSummary:
     reinitialised: int
     nis_mean: float | None
     seconds: float
+    alignment_note: str | None = None
 
     def as_dict(self) -> dict:
         """Nested JSON-ready dict (``alignment.x0`` is ``{"alignment": {"x0": ...}}``)."""
@@ -94,6 +95,7 @@ class RunSummary:
                 "rmse": a.rmse,
                 "landmarks_matched": len(a.ids),
             },
+            "alignment_note": self.alignment_note,
             "true_start": None if self.true_start is None else [float(v) for v in self.true_start],
             "landmarks": {
                 "count": self.landmarks_count,
@@ -117,12 +119,14 @@ def summarize(run: RunLog, result: ReplayResult, method: str = "mean_distance") 
     """Score a replay against what the run knows: its tag map and its ground truth, if any."""
     alignment = start_pose = None
     unaligned = None
+    note = "the run has no known tag map"
     tag_map = run.meta.tag_map
     if tag_map:
         try:
             alignment = align(result.landmarks, tag_map, method=method)
-        except AlignmentError:
-            alignment = None
+            note = None
+        except AlignmentError as exc:  # not an error of the run: reported, not raised
+            note = str(exc)
         if alignment is not None:
             start_pose = alignment.start_pose(run.meta.nominal_start)
         common = [i for i in result.landmarks if i in tag_map]
@@ -156,4 +160,5 @@ def summarize(run: RunLog, result: ReplayResult, method: str = "mean_distance") 
         reinitialised=c.reinitialised,
         nis_mean=float(np.mean(nis)) if len(nis) else None,
         seconds=result.seconds,
+        alignment_note=note,
     )

@@ -316,7 +316,7 @@ def status_text(summary: RunSummary) -> str:
     a = summary.alignment
     nis = "-" if summary.nis_mean is None else f"{summary.nis_mean:.2f}"
     if a is None:
-        row = f"{summary.name:<16}{'(no alignment: the run has no tag map)':>35}{nis:>9}"
+        row = f"{summary.name:<16}  (no alignment: {summary.alignment_note}){nis:>9}"
     else:
         row = f"{summary.name:<16}{a.x0:>8.3f}{a.y0:>8.3f}{a.theta0:>8.3f}{a.mean_error:>11.3f}"
         row += f"{nis:>9}"

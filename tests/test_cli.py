@@ -134,3 +134,21 @@ def test_simulate_refuses_to_overwrite(tmp_path: Path):
     )
     again = cli("simulate", "--trajectory", "octagon", "--laps", "1", "--out", str(target))
     assert again.returncode == 2 and "Traceback" not in again.stderr
+
+
+def test_a_map_too_small_to_align_says_why(tmp_path: Path):
+    """Regression: a run with a tag map but one landmark seen claimed it had no tag map."""
+    from ekfslam.runlog import Detections, RunLog, write_run
+
+    run = read_run(RUNS / "square-2laps")
+    keep = run.detections.tag_id == run.detections.tag_id[0]
+    d = run.detections
+    one_tag = Detections(d.t[keep], d.tag_id[keep], d.range[keep], d.bearing[keep])
+    write_run(RunLog(run.meta, run.controls, one_tag, run.groundtruth), tmp_path / "one")
+    out = cli("run", str(tmp_path / "one"))
+    assert out.returncode == 0, out.stderr
+    assert "no known tag map" not in out.stdout
+    assert "at least 2 landmarks in common, found 1" in out.stdout
+    d = json.loads(cli("run", str(tmp_path / "one"), "--json").stdout)
+    assert d["alignment"] is None
+    assert "found 1" in d["alignment_note"]
