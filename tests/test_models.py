@@ -110,14 +110,16 @@ def test_observation_and_its_jacobians_match_sympy(cases):
         assert got.shape == want.shape == (2,)
         np.testing.assert_allclose(got[0], want[0], rtol=0, atol=1e-12, err_msg=f"case {i}")
         assert_angles_close(got[1], want[1], 1e-12, f"case {i}")
-        for got_J, want_J, shape in zip(
-            models.observation_jacobians(p, m),
-            twin.observation_jacobians(p, m),
-            ((2, 3), (2, 2)),
-            strict=True,
-        ):
-            assert got_J.shape == want_J.shape == shape
-            np.testing.assert_allclose(got_J, want_J, rtol=0, atol=1e-12, err_msg=f"case {i}")
+        assert_blocks_equal(
+            models.observation_jacobians(p, m), twin.observation_jacobians(p, m), f"case {i}"
+        )
+
+
+def assert_blocks_equal(got, want, message: str) -> None:
+    """The (2x3 pose, 2x2 other) Jacobian blocks agree with the sympy ones to 1e-12."""
+    for got_J, want_J, shape in zip(got, want, ((2, 3), (2, 2)), strict=True):
+        assert got_J.shape == want_J.shape == shape
+        np.testing.assert_allclose(got_J, want_J, rtol=0, atol=1e-12, err_msg=message)
 
 
 def test_inverse_observation_and_its_jacobians_match_sympy(cases):
@@ -126,14 +128,11 @@ def test_inverse_observation_and_its_jacobians_match_sympy(cases):
         got, want = models.inverse_observation(p, z), twin.inverse_observation(p, z)
         assert got.shape == want.shape == (2,)
         np.testing.assert_allclose(got, want, rtol=0, atol=1e-12, err_msg=f"case {i}")
-        for got_J, want_J, shape in zip(
+        assert_blocks_equal(
             models.inverse_observation_jacobians(p, z),
             twin.inverse_observation_jacobians(p, z),
-            ((2, 3), (2, 2)),
-            strict=True,
-        ):
-            assert got_J.shape == want_J.shape == shape
-            np.testing.assert_allclose(got_J, want_J, rtol=0, atol=1e-12, err_msg=f"case {i}")
+            f"case {i}",
+        )
 
 
 def test_noise_models_match_sympy(cases):
