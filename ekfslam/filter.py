@@ -15,9 +15,9 @@ Storage is pre-allocated and grows geometrically, so adding a landmark never cop
 (except on the rare doubling of the capacity). The storage beyond the state is kept at zero, so
 the hot paths may work on whole (contiguous) rows of it.
 
-Speed: a step costs microseconds, most of it Python's and numpy's per-call overhead; the small
-2x2 and 3x3 algebra is therefore written out in plain floats, and the O(n²) covariance update
-runs in place in BLAS for larger maps. `python -m ekfslam bench` measures it all.
+Speed: the arithmetic of a step lives in `ekfslam.kernels`, compiled with numba: as numpy calls
+on the seed's small map, per-call overhead cost ten times the arithmetic. This module keeps the
+decisions (slots, gating, re-initialisation, counting). `python -m ekfslam bench` measures it.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ekfslam.covariance import subtract_gram
+from ekfslam import kernels
 from ekfslam.filter_config import CHI2_2DOF_99 as CHI2_2DOF_99
 from ekfslam.filter_config import FilterConfig, FilterCounts
 from ekfslam.history import (
@@ -47,14 +47,20 @@ from ekfslam.models import MIN_RANGE_SQUARED, inverse_observation, inverse_obser
 Array = NDArray[np.float64]
 
 
-def _float_rows(values: ArrayLike) -> list:
-    """Values as (nested) lists of floats; lists pass through (replay slices its own lists)."""
-    return values if isinstance(values, list) else np.asarray(values, dtype=float).tolist()
+def _rows(values: ArrayLike, width: int | None = None) -> Array:
+    """Values as a C-ordered float array, (K,) or (K, width): the kernels' one signature."""
+    a = np.ascontiguousarray(values, dtype=float)
+    return a if width is None else a.reshape(-1, width)
 
 
-def _wrap(a: float) -> float:
-    a = (a + math.pi) % (2.0 * math.pi) - math.pi
-    return -math.pi if a >= math.pi else a
+def _matrix(values: ArrayLike) -> Array:
+    a = np.ascontiguousarray(values, dtype=float)
+    if a.shape != (3, 3):
+        raise ValueError(f"motion noise must be 3x3, got shape {a.shape}")
+    return a
+
+
+_wrap = kernels.wrap
 
 
 class EKFSLAM:
@@ -99,10 +105,10 @@ class EKFSLAM:
         self._prior_xy = (float(self._mu[0]), float(self._mu[1]))
         self._first: list[tuple[float, float]] = []
         self._rejected: list[list[Array]] = []  # per slot: where the rejected sightings put it
-        # scratch for the small factors of each step (filled in place: no per-step allocation)
-        self._g_sum = np.zeros((2, 1))
-        self._H_l = np.empty((2, 2))
-        self._factors = np.zeros((3, 2))
+        # scratch for the kernels (filled in place: no per-step allocation)
+        self._work = np.zeros((2, cap))  # H Σ, then W = L⁻¹ H Σ
+        self._out = np.full(8, math.nan)  # ẑ, ν, S, NIS of the last observation
+        self._no_rows = np.zeros((1, 10))  # where nothing is recorded
 
     # ------------------------------------------------------------------ views
     @property
@@ -175,8 +181,9 @@ class EKFSLAM:
         Only the pose block and the pose-landmark cross blocks change:
         Σ_rr <- G Σ_rr Gᵀ + R and Σ_rm <- G Σ_rm, which is eq. (9) with its lifts done right.
         """
-        R = np.asarray(R, dtype=float)
-        self._propagate([(u[0], u[1], u[2])], None, R, [self._t if t is None else t])
+        self._propagate(
+            _rows(u, 3), None, _matrix(R), np.array([self._t if t is None else float(t)])
+        )
 
     def predict_many(
         self,
@@ -203,77 +210,29 @@ class EKFSLAM:
         """
         if (M is None) == (R is None):
             raise ValueError("give exactly one of M (per second) or R (per step)")
-        self._propagate(
-            _float_rows(us),
-            _float_rows(dts) if M is not None else None,
-            np.asarray(M if M is not None else R, dtype=float),
-            _float_rows(ts),
-        )
+        us = _rows(us, 3)
+        dts = _rows(dts) if M is not None else None
+        ts = _rows(ts)
+        if not len(us) == len(ts) == (len(us) if dts is None else len(dts)):
+            raise ValueError(f"{len(us)} increments need as many times (and durations)")
+        self._propagate(us, dts, _matrix(M if M is not None else R), ts)
 
-    def _propagate(self, us: list, dts: list | None, N: Array, ts: list) -> None:
-        """Steps in plain floats, eqs. (6), (7) and (9): N is M (per second) when dts is given."""
-        x, y, th = self._mu[:3].tolist()
-        (s00, s01, s02), (_, s11, s12), (_, _, s22) = self._Sigma[:3, :3].tolist()
-        (n00, n01, n02), (_, n11, n12), (_, _, n22) = N.tolist()
-        r00, r01, r02, r11, r12, r22 = n00, n01, n02, n11, n12, n22
-        A = B = 0.0  # Σ g0 and Σ g1 over the batch
-        rows: list[float] = []  # the history's rows of this batch (`ekfslam.history.ROW`)
-        record = None if self._recorder is None else rows.extend
-        fej = self._fej
-        px, py = self._prior_xy  # FEJ: p̂(k|k-1), the first estimate of this step's position
-        for k, (dux, duy, dth) in enumerate(us):
-            c, s = math.cos(th), math.sin(th)
-            dx = dux * c - duy * s  # eq. (6): the step in the world frame
-            dy = dux * s + duy * c
-            # eq. (7): G = I + g e₃ᵀ with g = (g0, g1, 0) = (-Δy, Δx) of the step
-            if fej:  # Δ between the predicted positions, not from the updated one
-                g0, g1 = -(y + dy - py), x + dx - px
-            else:
-                g0, g1 = -dy, dx
-            if dts is not None:  # R = V (M dt) Vᵀ with V the rotation of eq. (5)
-                dt = dts[k]
-                cc, ss, cs = c * c, s * s, c * s
-                r00 = (cc * n00 - 2.0 * cs * n01 + ss * n11) * dt
-                r01 = (cs * (n00 - n11) + (cc - ss) * n01) * dt
-                r11 = (ss * n00 + 2.0 * cs * n01 + cc * n11) * dt
-                r02 = (c * n02 - s * n12) * dt
-                r12 = (s * n02 + c * n12) * dt
-                r22 = n22 * dt
-            # eq. (9) on the pose block: G Σ Gᵀ + R, written out for G = I + g e₃ᵀ
-            s00, s01, s02, s11, s12, s22 = (
-                s00 + 2.0 * g0 * s02 + g0 * g0 * s22 + r00,
-                s01 + g0 * s12 + g1 * s02 + g0 * g1 * s22 + r01,
-                s02 + g0 * s22 + r02,
-                s11 + 2.0 * g1 * s12 + g1 * g1 * s22 + r11,
-                s12 + g1 * s22 + r12,
-                s22 + r22,
-            )
-            x += dx
-            y += dy
-            th += dth
-            if not -math.pi <= th < math.pi:
-                th = _wrap(th)
-            A += g0
-            B += g1
-            if record is not None:
-                record((ts[k], x, y, th, s00, s01, s02, s11, s12, s22))
-            px, py = x, y
-        if record is not None:
-            self._recorder.events(PREDICT, rows)
-        mu, S, d = self._mu, self._Sigma, self._dim
-        mu[0], mu[1], mu[2] = x, y, th
-        self._prior_xy = (px, py)
-        if d > 3:
-            g = self._g_sum
-            g[0, 0], g[1, 0] = A, B
-            # Σ_rm <- (Π G) Σ_rm: only the x and y rows change. Whole rows of the storage
-            # (their pose block is overwritten below, and they are zero beyond d) are contiguous.
-            S[:2] += g * S[2]
-            S[3:d, :3] = S[:3, 3:d].T
-        S[:3, :3] = ((s00, s01, s02), (s01, s11, s12), (s02, s12, s22))
+    def _propagate(self, us: Array, dts: Array | None, N: Array, ts: Array) -> None:
+        """`ekfslam.kernels.propagate`: N is M (per second) when dts is given, else R."""
+        rec = self._recorder
+        if rec is None:
+            rows, r0 = self._no_rows, 0
+        else:
+            r0 = rec.reserve(PREDICT, len(us))
+            rows = rec.rows
+        use_dts = dts is not None
+        self._prior_xy = kernels.propagate(
+            self._mu, self._Sigma, self._dim, us, dts if use_dts else ts, use_dts, N,
+            self._fej, *self._prior_xy, ts, rows, r0, rec is not None,
+        )  # fmt: skip
         self._counts["predictions"] += len(us)
-        if ts:
-            self._t = ts[-1]
+        if len(ts):
+            self._t = float(ts[-1])
 
     # -------------------------------------------------------------- correction
     def update(self, landmark_id: int, z: ArrayLike, Q: ArrayLike, t: float | None = None) -> str:
@@ -299,19 +258,20 @@ class EKFSLAM:
         """
         if t is not None:
             self._t = t
-        z = (float(z[0]), float(z[1]))
-        Qf = np.asarray(Q, dtype=float).tolist()
-        (q00, q01), (q10, q11) = Qf
-        if not all(map(math.isfinite, (*z, q00, q01, q10, q11))):
+        z0, z1 = float(z[0]), float(z[1])
+        (q00, q01), (q10, q11) = Qf = np.asarray(Q, dtype=float).tolist()
+        if not all(map(math.isfinite, (z0, z1, q00, q01, q10, q11))):
             raise ValueError(f"non-finite observation {z} or noise {Qf} for landmark {landmark_id}")
+        z = (z0, z1)
         j = self.slot.get(landmark_id)
         if j is None:
-            if z[0] * z[0] <= MIN_RANGE_SQUARED:
-                return self._finish(landmark_id, z, None, None, None, math.nan, REFUSED, None)
+            if z0 * z0 <= MIN_RANGE_SQUARED:
+                self._out[:] = math.nan
+                return self._finish(landmark_id, z, REFUSED, -1)
             j = self._add_landmark(landmark_id, np.array(z), np.asarray(Q, dtype=float))
             if self.config.init == "inverse":
-                l = 3 + 2 * j
-                return self._finish(landmark_id, z, None, None, None, math.nan, INITIALISED, l)
+                self._out[:] = math.nan
+                return self._finish(landmark_id, z, INITIALISED, 3 + 2 * j)
             return self._correct(landmark_id, j, z, Qf, False, True, accepted_as=INITIALISED)
         gated = self.config.gate is not None and self._sightings[j] >= self.config.gate_after
         return self._correct(landmark_id, j, z, Qf, gated=gated, fresh=False)
@@ -321,76 +281,30 @@ class EKFSLAM:
         landmark_id: int,
         j: int,
         z: tuple[float, float],
-        Q,
+        Q: list,
         gated: bool,
         fresh: bool,
         accepted_as: int = ACCEPTED,
     ) -> str:
-        mu, S, d = self._mu, self._Sigma, self._dim  # storage: zero beyond the state's d
-        l = 3 + 2 * j
-        x, y, th = mu[:3].tolist()
-        mx, my = mu[l : l + 2].tolist()
-        dx, dy = mx - x, my - y
-        q = dx * dx + dy * dy
+        """`ekfslam.kernels.correct`, then the bookkeeping of its outcome."""
+        mu, l = self._mu, 3 + 2 * j
         if self._fej:  # Jacobian at p̂(k|k-1) and the landmark's first estimate
             (fx, fy), (px, py) = self._first[j], self._prior_xy
             jx, jy = fx - px, fy - py
         else:
-            jx, jy = dx, dy
-        jq = jx * jx + jy * jy
-        if not (q > MIN_RANGE_SQUARED and jq > MIN_RANGE_SQUARED):
-            return self._finish(landmark_id, z, None, None, None, math.nan, REFUSED, l)
-        z_hat = (math.sqrt(q), _wrap(math.atan2(dy, dx) - th))
-        nu0 = z[0] - z_hat[0]
-        nu1 = _wrap(z[1] - z_hat[1])
-        # eq. (14) on the rows (x, y, θ, mx, my) is H = [-H_l | -e₂ | H_l] with
-        # H_l = [[a, b], [-e, f]]: the observation sees only the landmark relative to the robot.
-        # So H Σ = H_l (Σ_l - Σ_xy) - e₂ Σ_θ, from five rows of Σ: O(n), no lift, no n x n work.
-        # Whole rows of the storage (zero beyond the state) keep every array contiguous.
-        jr = math.sqrt(jq)
-        a, b, e, f = jx / jr, jy / jr, jy / jq, jx / jq
-        H_l = self._H_l
-        H_l[0, 0], H_l[0, 1], H_l[1, 0], H_l[1, 1] = a, b, -e, f
-        HS = H_l.dot(S[l : l + 2] - S[:2])  # H Σ, (2, capacity)
-        HS[1] -= S[2]
-        # S = H Σ Hᵀ + Q (eq. 15's innovation covariance), the same way from H Σ's columns
-        (p0x, p0y, p0t), (p1x, p1y, p1t) = HS[:, :3].tolist()
-        (p0m, p0n), (p1m, p1n) = HS[:, l : l + 2].tolist()
-        s00 = a * (p0m - p0x) + b * (p0n - p0y) + Q[0][0]
-        s01 = -e * (p0m - p0x) + f * (p0n - p0y) - p0t + Q[0][1]
-        s11 = -e * (p1m - p1x) + f * (p1n - p1y) - p1t + Q[1][1]
-        S_innov = (s00, s01, s01, s11)
-        # S = L Lᵀ (Cholesky, 2x2); w = L⁻¹ ν makes the NIS νᵀ S⁻¹ ν = |w|²
-        det = s00 * s11 - s01 * s01
-        if not (s00 > 0.0 and det > 0.0):
-            return self._finish(landmark_id, z, z_hat, (nu0, nu1), S_innov, math.nan, REFUSED, l)
-        l00 = math.sqrt(s00)
-        l10 = s01 / l00
-        l11 = math.sqrt(det) / l00  # = √(s11 - l10²)
-        w0 = nu0 / l00
-        w1 = (nu1 - l10 * w0) / l11
-        nis = w0 * w0 + w1 * w1
-        if gated and nis > self.config.gate:
-            if self._should_reinitialise(j, z):
-                return self._reinitialise(landmark_id, j, z, Q)
-            return self._finish(landmark_id, z, z_hat, (nu0, nu1), S_innov, nis, REJECTED, l)
-        # eq. (15)-(16) with W = L⁻¹ H Σ: K = Σ Hᵀ S⁻¹ = Wᵀ L⁻¹, so K S Kᵀ = Wᵀ W and Σ -= Wᵀ W,
-        # which for the optimal gain equals Joseph's form (I-KH)Σ(I-KH)ᵀ + KQKᵀ and keeps Σ
-        # symmetric. One product gives W and (K ν)ᵀ = (S⁻¹ ν)ᵀ H Σ = (L⁻ᵀ w)ᵀ H Σ together.
-        F = self._factors  # rows: L⁻¹ (2x2), then (L⁻ᵀ w)ᵀ
-        F[0, 0], F[1, 0], F[1, 1] = 1.0 / l00, -l10 / (l00 * l11), 1.0 / l11
-        F[2, 1] = w1 / l11
-        F[2, 0] = (w0 - l10 * F[2, 1]) / l00
-        Y = F.dot(HS)  # (3, capacity): W, then (K ν)ᵀ
-        mu += Y[2]
-        th = mu.item(2)
-        if not -math.pi <= th < math.pi:
-            mu[2] = _wrap(th)
-        subtract_gram(S, Y[:2], d)
-        if not fresh:
-            self._sightings[j] += 1
-        self._rejected[j].clear()
-        return self._finish(landmark_id, z, z_hat, (nu0, nu1), S_innov, nis, accepted_as, l)
+            jx, jy = mu.item(l) - mu.item(0), mu.item(l + 1) - mu.item(1)
+        outcome = kernels.correct(
+            mu, self._Sigma, self._dim, l, z[0], z[1], Q[0][0], Q[0][1], Q[1][1], jx, jy,
+            self.config.gate if gated else math.inf, self._work, self._out,
+        )  # fmt: skip
+        if outcome == REJECTED and self._should_reinitialise(j, z):
+            return self._reinitialise(landmark_id, j, z, Q)
+        if outcome == ACCEPTED:
+            outcome = accepted_as
+            if not fresh:
+                self._sightings[j] += 1
+            self._rejected[j].clear()
+        return self._finish(landmark_id, z, outcome, l)
 
     def _add_landmark(self, landmark_id: int, z: Array, Q: Array) -> int:
         """Append a landmark slot, eq. (12) for the mean; covariance by `config.init`."""
@@ -446,7 +360,8 @@ class EKFSLAM:
         self._rejected[j].clear()
         if self.config.init == "seed":  # eq. (3), then the update with this sighting
             return self._correct(landmark_id, j, z, Q, False, True, accepted_as=REINITIALISED)
-        return self._finish(landmark_id, z, None, None, None, math.nan, REINITIALISED, l)
+        self._out[:] = math.nan
+        return self._finish(landmark_id, z, REINITIALISED, l)
 
     def _grow(self) -> None:
         d = self._dim
@@ -456,30 +371,20 @@ class EKFSLAM:
         mu[:d] = self._mu[:d]
         S[:d, :d] = self._Sigma[:d, :d]
         self._mu, self._Sigma = mu, S
+        self._work = np.zeros((2, cap))
 
-    def _finish(
-        self,
-        landmark_id: int,
-        z: tuple[float, float],
-        z_hat: tuple[float, float] | None,
-        nu: tuple[float, float] | None,
-        S_innov: tuple[float, ...] | None,
-        nis: float,
-        outcome: int,
-        l: int | None,
-    ) -> str:
+    def _finish(self, landmark_id: int, z: tuple[float, float], outcome: int, l: int) -> str:
+        """Count the outcome and record the state after it (l < 0: the landmark has no slot)."""
         name = OUTCOMES[outcome]
         self._counts[name] += 1
         rec = self._recorder
         if rec is not None:
-            mu, S = self._mu, self._Sigma
-            if l is None:
-                lm, lc = (math.nan, math.nan), ((math.nan, math.nan), (math.nan, math.nan))
-            else:
-                lm, lc = mu[l : l + 2].tolist(), S[l : l + 2, l : l + 2].tolist()
-            (s00, s01, s02), (_, s11, s12), (_, _, s22) = S[:3, :3].tolist()
-            rec.event(OBSERVE, (self._t, *mu[:3].tolist(), s00, s01, s02, s11, s12, s22))
-            rec.observation(self._t, landmark_id, z, z_hat, nu, S_innov, nis, outcome, lm, lc)
+            n = rec.reserve(OBSERVE, 1)
+            m = rec.reserve_observation()
+            kernels.record(
+                self._mu, self._Sigma, l, self._t, landmark_id, z[0], z[1], self._out, outcome,
+                rec.rows, n, rec.obs, m,
+            )  # fmt: skip
         return name
 
 

@@ -7,7 +7,6 @@ about 100 bytes per event in the finished `History`.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -66,65 +65,74 @@ class History:
 
 #: Columns of one recorded event row: time, pose and the six distinct entries of its covariance.
 ROW = ("t", "x", "y", "theta", "xx", "xy", "xtheta", "yy", "ytheta", "thetatheta")
+#: Columns of one recorded observation row (NaN where a value is absent, such as a new
+#: landmark's ẑ): time, the index of its event, the landmark id, z, ẑ, ν, S (2x2, row-major),
+#: the NIS, the outcome (index into `OUTCOMES`), the landmark's mean and covariance after it.
+OBS_ROW = (
+    "t", "event", "id", "r", "phi", "r_hat", "phi_hat", "nu_r", "nu_phi",
+    "S00", "S01", "S10", "S11", "nis", "outcome", "mx", "my", "Mxx", "Mxy", "Myx", "Myy",
+)  # fmt: skip
 #: Where each entry of the 3x3 pose covariance sits in a row's covariance part (ROW[4:]).
 _COV_INDEX = np.array([0, 1, 2, 1, 3, 4, 2, 4, 5])
 
 
 class Recorder:
-    """Collects events as flat rows of Python floats (cheap appends) and freezes them at the end.
+    """Collects events in pre-allocated arrays that double when full, and freezes them at the end.
 
     An event is its kind and one row laid out as `ROW`: 10 floats, O(1) per event whatever the
-    map size. All rows go into one flat list, which numpy turns into an array in one pass.
-    Observations come as tuples (absent values, such as a new landmark's ẑ, as None).
+    map size; an observation adds one row laid out as `OBS_ROW`. The filter's compiled kernels
+    (`ekfslam.kernels`) write the rows in place: `reserve` says where.
     """
 
-    def __init__(self) -> None:
-        self._kinds: list[int] = []
-        self._rows: list[float] = []
-        self._obs: list[tuple] = []
+    def __init__(self, capacity: int = 1024) -> None:
+        self.rows = np.empty((capacity, len(ROW)))
+        self.kinds = np.empty(capacity, dtype=np.int8)
+        self.n = 0  # events so far
+        self.obs = np.empty((capacity, len(OBS_ROW)))
+        self.m = 0  # observations so far
 
-    def event(self, kind: int, row: tuple[float, ...]) -> None:
-        """One event of `kind` (`PREDICT` or `OBSERVE`); `row` as `ROW` (the state after it)."""
-        self._kinds.append(kind)
-        self._rows.extend(row)
+    def reserve(self, kind: int, count: int) -> int:
+        """Make room for `count` events of `kind`; returns the index of the first one's row."""
+        n = self.n
+        if n + count > len(self.kinds):
+            size = max(2 * len(self.kinds), n + count)
+            self.rows = _grown(self.rows, size, n)
+            self.kinds = _grown(self.kinds, size, n)
+        self.kinds[n : n + count] = kind
+        self.n = n + count
+        return n
 
-    def events(self, kind: int, rows: list[float]) -> None:
-        """Several events of one kind, their rows laid end to end in one flat list."""
-        self._kinds.extend([kind] * (len(rows) // len(ROW)))
-        self._rows.extend(rows)
-
-    def observation(
-        self, t, landmark_id, z, z_hat, innovation, S, nis, outcome, landmark, landmark_cov
-    ) -> None:
-        """What the last recorded event observed. Covariances as nested rows (2x2)."""
-        self._obs.append(
-            (t, len(self._kinds) - 1, landmark_id, z, z_hat, innovation, S, nis, outcome,
-             landmark, landmark_cov)
-        )  # fmt: skip
+    def reserve_observation(self) -> int:
+        """Make room for one observation (after its event's `reserve`); returns its row index."""
+        m = self.m
+        if m == len(self.obs):
+            self.obs = _grown(self.obs, 2 * m, m)
+        self.m = m + 1
+        return m
 
     def finish(self) -> History:
-        nan2, nan4 = (math.nan,) * 2, (math.nan,) * 4
-        obs = self._obs
-        rows = np.array(self._rows, dtype=float).reshape(-1, len(ROW))
-
-        def column(i: int, width: int, missing=None) -> Array:
-            values = [missing if o[i] is None else o[i] for o in obs]
-            return np.array(values, dtype=float).reshape(-1, width)
-
+        rows, obs = self.rows[: self.n], self.obs[: self.m]
         return History(
             t=rows[:, 0].copy(),
-            event=np.array(self._kinds, dtype=np.int8),
+            event=self.kinds[: self.n].copy(),
             pose=rows[:, 1:4].copy(),
             pose_cov=rows[:, 4:][:, _COV_INDEX].reshape(-1, 3, 3),
-            obs_t=np.array([o[0] for o in obs], dtype=float),
-            obs_event=np.array([o[1] for o in obs], dtype=np.int64),
-            obs_id=np.array([o[2] for o in obs], dtype=np.int64),
-            obs_z=column(3, 2),
-            obs_z_hat=column(4, 2, nan2),
-            obs_innovation=column(5, 2, nan2),
-            obs_S=column(6, 4, nan4).reshape(-1, 2, 2),
-            obs_nis=np.array([o[7] for o in obs], dtype=float),
-            obs_outcome=np.array([o[8] for o in obs], dtype=np.int8),
-            obs_landmark=column(9, 2),
-            obs_landmark_cov=column(10, 4).reshape(-1, 2, 2),
+            obs_t=obs[:, 0].copy(),
+            obs_event=obs[:, 1].astype(np.int64),
+            obs_id=obs[:, 2].astype(np.int64),
+            obs_z=obs[:, 3:5].copy(),
+            obs_z_hat=obs[:, 5:7].copy(),
+            obs_innovation=obs[:, 7:9].copy(),
+            obs_S=obs[:, 9:13].reshape(-1, 2, 2).copy(),
+            obs_nis=obs[:, 13].copy(),
+            obs_outcome=obs[:, 14].astype(np.int8),
+            obs_landmark=obs[:, 15:17].copy(),
+            obs_landmark_cov=obs[:, 17:21].reshape(-1, 2, 2).copy(),
         )
+
+
+def _grown(a: NDArray, size: int, used: int) -> NDArray:
+    """A larger copy of `a` along its first axis, keeping its first `used` entries."""
+    b = np.empty((size, *a.shape[1:]), dtype=a.dtype)
+    b[:used] = a[:used]
+    return b

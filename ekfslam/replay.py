@@ -142,8 +142,7 @@ def replay(
     # before detection i, predict through every piece that ends at or before its time
     upto = np.searchsorted(ends, det_t, side="right")
     M, R = (None, fixed_R) if fixed_R is not None else (density, None)
-    # plain lists: slicing them per detection is cheaper than slicing arrays and converting
-    us, dts, ends = us.tolist(), dts.tolist(), ends.tolist()
+    us, dts, ends = (np.ascontiguousarray(a, dtype=float) for a in (us, dts, ends))
     det_id, det_time = det.tag_id.tolist(), det_t.tolist()
     det_z = np.column_stack([det.range, det.bearing]).tolist()
     done = 0
