@@ -14,8 +14,8 @@ Monte Carlo runs are simulated with *correctly specified noise*: `noise_for_simu
 filter the simulator's own R (eq. 9) and Q (eq. 11). The filter starts at the robot's TRUE start
 with zero covariance, and the scenarios set the placement error to zero too, so estimate and truth
 share one frame and no alignment (eq. 17) hides anything. The scenarios are in
-`ekfslam.scenarios`; the outlier study and the long run (`ekfslam.robustness`) share this
-module's command, ``python -m ekfslam consistency``.
+`ekfslam.scenarios`; the outlier study and the long run (`ekfslam.robustness`) and the pose NEES
+against MRCLAM's Vicon (`ekfslam.mrclam_consistency`, ``--mrclam``) share this module's command.
 """
 
 from __future__ import annotations
@@ -84,8 +84,8 @@ class RunErrors:
     map_dof: int
 
 
-def _nees(e: Array, P: Array) -> Array:
-    """eᵀ P⁻¹ e for stacks e (K, d), P (K, d, d); NaN where P is not positive definite."""
+def nees(e: Array, P: Array) -> Array:
+    """NEES eᵀ P⁻¹ e for stacks e (K, d), P (K, d, d); NaN where P is not positive definite."""
     out = np.full(len(e), np.nan)
     ok = np.isfinite(e).all(axis=1)
     ok[ok] = np.linalg.eigvalsh(P[ok])[:, 0] > 1e-15
@@ -115,11 +115,11 @@ def run_errors(run: RunLog, result: ReplayResult) -> RunErrors:
     t, e, P = pose_errors(run, result)
     h, gt, tags = result.history, run.groundtruth, run.meta.tag_map or {}
     k = len(t)
-    nees_pose, nees_heading = _nees(e, P), _nees(e[:, 2:], P[:, 2:, 2:])
+    nees_pose, nees_heading = nees(e, P), nees(e[:, 2:], P[:, 2:, 2:])
     step = np.minimum(np.searchsorted(gt.t, h.obs_t, side="left"), k - 1)
     seen = np.isfinite(h.obs_landmark[:, 0]) & np.isin(h.obs_id, list(tags))
     truth = np.array([tags[i] for i in h.obs_id[seen].tolist()]).reshape(-1, 2)
-    lm = _nees(h.obs_landmark[seen] - truth, h.obs_landmark_cov[seen])
+    lm = nees(h.obs_landmark[seen] - truth, h.obs_landmark_cov[seen])
     computed = np.isin(h.obs_outcome, [OUTCOMES.index("accepted"), OUTCOMES.index("rejected")])
     ids = list(result.landmarks)  # slot order: slot j is state rows 3 + 2j, 4 + 2j
     js = [j for j, i in enumerate(ids) if i in tags]
@@ -350,13 +350,16 @@ def plot_consistency(results, title: str | None = None, figsize=(9.0, 9.0)) -> F
 
 # ---------------------------------------------------------------------------------- command line
 def add_cli(subparsers) -> None:
-    """``python -m ekfslam consistency``: NEES/NIS over runs, or --outliers RATE, or --long-run."""
+    """``python -m ekfslam consistency``: NEES/NIS over runs; --outliers, --long-run, --mrclam."""
     p = subparsers.add_parser(
         "consistency", help="NEES/NIS over Monte Carlo runs; outlier gating; a long Σ run"
     )
     p.add_argument("--runs", type=_positive, default=50, help="Monte Carlo runs (default 50)")
     p.add_argument("--trajectory", choices=SCENARIOS, default="octagon", help="the scenario")
-    p.add_argument("--linearization", choices=["standard", "fej", "both"], default="standard")
+    p.add_argument(
+        "--linearization", choices=["standard", "fej", "both"],
+        help="default: standard for simulated runs, both with --mrclam",
+    )  # fmt: skip
     p.add_argument("--seed", type=int, default=0, help="seed of the first run (then +1, +2...)")
     p.add_argument(
         "--gate", type=float, default=CHI2_2DOF_99, help="NIS gate; 0 turns it off (%(default).2f)"
@@ -376,6 +379,9 @@ def add_cli(subparsers) -> None:
         "--gate-after", type=_positive, default=FilterConfig.gate_after,
         help="outlier study: gate_after (default: the filter's, %(default)s)",
     )  # fmt: skip
+    from ekfslam import mrclam_consistency  # here: that module imports this one
+
+    mrclam_consistency.add_arguments(p)
     p.set_defaults(func=_cmd_consistency)
 
 
@@ -387,9 +393,12 @@ def _positive(text: str) -> int:
 
 
 def _cmd_consistency(args: argparse.Namespace) -> int:
-    from ekfslam import robustness
+    from ekfslam import mrclam_consistency, robustness
 
-    lins = ("standard", "fej") if args.linearization == "both" else (args.linearization,)
+    if args.mrclam is not None:
+        return mrclam_consistency.run_cli(args)
+    lin = args.linearization or "standard"
+    lins = ("standard", "fej") if lin == "both" else (lin,)
     if args.long_run is not None:
         found = [robustness.long_run(args.long_run, lin, seed=args.seed) for lin in lins]
         out = {r.linearization: dataclasses.asdict(r) | {"passed": r.passed} for r in found}

@@ -149,7 +149,7 @@ def score_robots(
 
     scores = []
     for robot in robots:
-        run = _cached_run(str(dataset_dir), robot, calibration)
+        run = load_robot(str(dataset_dir), robot, calibration)
         result = replay(run, noise or MRCLAM_NOISE, config or MRCLAM_CONFIG)
         s = summarize(run, result)
         scores.append(
@@ -257,8 +257,13 @@ def _grid_point(job: tuple) -> tuple[float, ...]:
 _RUNS: dict[tuple, RunLog] = {}
 
 
-def _cached_run(dataset_dir: str, robot: int, calibration: CommandCalibration | None) -> RunLog:
-    """Load (and calibrate) a robot once per process: a grid replays it many times."""
+def load_robot(
+    dataset_dir: str | Path, robot: int, calibration: CommandCalibration | None = None
+) -> RunLog:
+    """Robot `robot` of a dataset, loaded (and calibrated) once per process: grids replay it often.
+
+    The RunLog is shared between callers: it is frozen, never change it in place.
+    """
     key = (str(Path(dataset_dir).resolve()), robot, calibration)
     if key not in _RUNS:
         run = load_mrclam(dataset_dir, robot)[0]
