@@ -29,6 +29,15 @@ Array = NDArray[np.float64]
 
 #: The AprilTag family the arena's tags are printed from (36 data bits, Hamming distance 11).
 TAG_FAMILY = "tag36h11"
+#: m, the side of the arena's printed tags (the black square, `TagSpec.size`).
+TAG_SIZE = 0.16
+#: m, the height of the tags' centres above the floor.
+TAG_HEIGHT = 0.15
+#: (x, y, yaw) m, m, rad: where the seed's robot carries its camera, 6 cm ahead of its centre.
+DEFAULT_MOUNTING = (0.06, 0.0, 0.0)
+#: The printed tag's outline is its 8-module black square plus the white module around it.
+_OUTLINE_SCALE = 10.0 / 8.0
+_NEAR = 0.01  # m: a point must be at least this far in front of the optical centre
 
 
 @dataclass(frozen=True)
@@ -198,3 +207,76 @@ def optical_to_robot(points: ArrayLike, mounting: ArrayLike, pitch: float = 0.0)
     mx, my, yaw = np.asarray(mounting, dtype=float)
     p = np.asarray(points, dtype=float).reshape(-1, 3)
     return p @ optical_axes(yaw, pitch) + np.array([mx, my, 0.0])
+
+
+def tags_in_view(
+    camera: Camera,
+    tags: TagSpec,
+    mounting: ArrayLike,
+    poses: ArrayLike,
+    positions: ArrayLike,
+    normals: ArrayLike,
+    *,
+    tag_height: float = TAG_HEIGHT,
+    max_incidence: float = math.pi / 2,
+    margin_px: float = 1.0,
+) -> NDArray[np.bool_]:
+    """Which wall tags are fully in view and facing the camera, from each robot pose.
+
+    A tag is fully in view when its whole printed outline, the black square and the white
+    module around it, is in front of the camera and projects (lens distortion included) at
+    least `margin_px` inside the image, checked at the corners and at 8 points along each edge
+    (barrel distortion bows the edges outwards). The white module counts because the vision
+    needs it: `ekfslam.vision` refuses a tag whose white border the image cuts (its edge fit
+    would end at the border). A tag faces the camera when the angle between its normal and the
+    line of sight from the optical centre to its centre, in 3-D, is at most `max_incidence`.
+    This is the one definition the simulator (`ekfslam.simulation.visible`) and the vision
+    evaluation (`ekfslam.visioneval`) share.
+
+    Parameters
+    ----------
+    camera : Camera, with ``mount_height`` set.  tags : TagSpec, the printed size.
+    mounting : (3,) the camera's (x, y, yaw) in the robot frame, m, m, rad.
+    poses : (F, 3) robot poses (x, y, θ), m, m, rad.
+    positions, normals : (n, 2) the tags' centres on their walls (m) and unit normals.
+    tag_height : m, the tags' centres above the floor.  max_incidence : rad.
+
+    Returns
+    -------
+    (F, n) bool.
+    """
+    if camera.mount_height is None:
+        raise ValueError("tags_in_view needs Camera.mount_height (the camera's height, m)")
+    P = np.asarray(poses, dtype=float).reshape(-1, 3)
+    xy = np.asarray(positions, dtype=float).reshape(-1, 2)
+    normal = np.asarray(normals, dtype=float).reshape(-1, 2)
+    mx, my, yaw = np.asarray(mounting, dtype=float).reshape(3)
+    # the outline in (right, up) units of half its side, from each corner towards the next
+    square = np.array([[-1.0, 1.0], [1.0, 1.0], [1.0, -1.0], [-1.0, -1.0]])
+    step = (np.arange(8) / 8.0)[:, None, None]
+    outline = (square + step * (np.roll(square, -1, axis=0) - square)).reshape(-1, 2)  # (32, 2)
+    half = 0.5 * _OUTLINE_SCALE * tags.size
+    right = np.column_stack([-normal[:, 1], normal[:, 0]])  # facing the tag: -normal x z
+    points = np.empty((len(xy), len(outline), 3))
+    points[..., :2] = xy[:, None] + half * outline[None, :, :1] * right[:, None]
+    points[..., 2] = tag_height + half * outline[None, :, 1]
+    c, s = np.cos(P[:, 2]), np.sin(P[:, 2])
+    centre = np.column_stack(
+        [P[:, 0] + c * mx - s * my, P[:, 1] + s * mx + c * my, np.full(len(P), camera.mount_height)]
+    )
+    # into the camera's level frame (x forward, y left, z up), then the pitched optical frame
+    d = points[None] - centre[:, None, None]  # (F, n, S, 3)
+    ch, sh = (f(P[:, 2] + yaw)[:, None, None] for f in (np.cos, np.sin))
+    level = np.stack([ch * d[..., 0] + sh * d[..., 1], ch * d[..., 1] - sh * d[..., 0], d[..., 2]])
+    optical = np.moveaxis(level, 0, -1) @ optical_axes(0.0, camera.pitch).T
+    ahead = optical[..., 2] > _NEAR
+    optical[..., 2] = np.where(ahead, optical[..., 2], 1.0)  # keep the projection finite
+    px = camera.project(optical.reshape(-1, 3)).reshape(*optical.shape[:-1], 2)
+    low, high = -0.5 + margin_px, np.array([camera.width, camera.height]) - 0.5 - margin_px
+    inside = ahead & np.all((px >= low) & (px <= high), axis=-1)
+    sight = centre[:, None, :] - np.column_stack([xy, np.full(len(xy), tag_height)])[None]
+    cos_incidence = np.einsum("fnk,nk->fn", sight[..., :2], normal) / np.maximum(
+        np.linalg.norm(sight, axis=-1), 1e-12
+    )
+    facing = (cos_incidence > 0.0) & (cos_incidence >= math.cos(max_incidence))
+    return np.all(inside, axis=-1) & facing

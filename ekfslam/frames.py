@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.arena import SEED_ARENA, Arena
-from ekfslam.camera import Camera, TagSpec, pinhole_camera
+from ekfslam.camera import TAG_SIZE, Camera, TagSpec, pinhole_camera
 from ekfslam.errors import InputError
 from ekfslam.geometry import wrap_angle
 from ekfslam.render import ArenaRenderer, RenderConfig
@@ -216,14 +216,25 @@ def with_camera(
 ) -> RunLog:
     """`run` as a run of camera frames: camera, tags and frames in its metadata, no detections.
 
-    Defaults: `ekfslam.camera.pinhole_camera()`, 0.16 m tags, the run's own mounting, a video.
+    Defaults: the run's own camera, tags and mounting; for a simulated run without a camera in
+    its metadata, the camera and tags its simulator saw with (so that its frames show the tags
+    its simulated detections saw), else `ekfslam.camera.pinhole_camera()` and 0.16 m tags; a
+    video.
     """
+    from ekfslam.simulation import config_from_dict
+
     spec = FramesSpec(kind, VIDEO_FILE if kind == "video" else IMAGE_PATTERN)  # type: ignore[arg-type]
+    sim = (run.meta.simulation or {}).get("config")
+    seen_with = config_from_dict(sim) if sim is not None else None
+    if camera is None:
+        camera = run.meta.camera or (seen_with.camera if seen_with else pinhole_camera())
+    if tags is None:
+        tags = run.meta.tags or (seen_with.tags if seen_with else TagSpec(TAG_SIZE))
     meta = dataclasses.replace(
         run.meta,
         name=name or run.meta.name,
-        camera=camera if camera is not None else pinhole_camera(),
-        tags=tags if tags is not None else TagSpec(0.16),
+        camera=camera,
+        tags=tags,
         frames=spec,
         camera_mounting=np.asarray(
             run.meta.camera_mounting if mounting is None else mounting, dtype=float

@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ekfslam.arena import Arena
-from ekfslam.camera import TagSpec
+from ekfslam.camera import TAG_HEIGHT, TagSpec
 
 Array = NDArray[np.float64]
 
@@ -91,7 +91,7 @@ def build_scene(
     tags: TagSpec,
     rng: np.random.Generator,
     wall_height: float = 0.35,
-    tag_height: float = 0.15,
+    tag_height: float = TAG_HEIGHT,
     sheet_size: tuple[float, float] = (0.21, 0.297),
     clutter: bool = True,
 ) -> tuple[Surface, ...]:

@@ -14,8 +14,10 @@ How a run is made, and why:
    wheel speeds plus Gaussian wheel-speed noise, held constant over each control interval and
    integrated exactly along the arc. Its true path is the commanded path moved by the start
    error, plus drift.
-3. **See.** At each camera frame every tag in the field of view, within range, seen from its front
-   side and not too edge-on, is detected (unless dropped out) with noisy range and bearing
+3. **See.** At each camera frame every tag wholly in the camera's image (its printed outline,
+   white border included, through the pinhole model with its distortion, height, pitch and
+   mounting: `ekfslam.camera.tags_in_view`, the rule the vision evaluation counts by), within
+   range and not too edge-on, is detected (unless dropped out) with noisy range and bearing
    (eq. 10). Optional outliers (wrong id, gross range) exercise robust filters.
 
 Random numbers come from `numpy.random.default_rng` children of one `SeedSequence(config.seed)`,
@@ -34,6 +36,15 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.arena import SEED_ARENA, Arena
+from ekfslam.camera import (
+    DEFAULT_MOUNTING,
+    TAG_HEIGHT,
+    TAG_SIZE,
+    Camera,
+    TagSpec,
+    pinhole_camera,
+    tags_in_view,
+)
 from ekfslam.geometry import wrap_angle
 from ekfslam.kinematics import MecanumGeometry, twist_to_wheels, wheels_to_twist
 from ekfslam.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta
@@ -69,10 +80,16 @@ class SimulationConfig:
         start_error : explicit (dx, dy, dθ) in m, m, rad, or None to draw it (None).
         start_error_sigma : std of the drawn error (0.03 m, 0.03 m, 0.08 rad); the seed's Table 1
         reports offsets of 2-6 cm and 0.14 rad.
-    Camera (at the robot centre, facing forward)
-        camera_fov : full horizontal field of view, rad (65°).  camera_min_range,
-        camera_max_range : m (0.1, 2.0).  max_incidence : largest angle between a tag's normal and
-        the line of sight for the tag to be read, rad (70°).
+    Camera (the one the frames runs are rendered with; see `ekfslam.camera.tags_in_view`)
+        camera : the pinhole camera, intrinsics, distortion, height and pitch
+        (`ekfslam.camera.pinhole_camera()`: 640x480, 65° horizontal field of view, mild barrel
+        distortion, 12 cm above the floor, level).  camera_mounting : its (x, y, yaw) in the
+        robot frame, m, m, rad (6 cm ahead of the centre, facing forward).  tag_size : side of
+        the tags' black squares, m (0.16).  tag_height : height of the tags' centres, m (0.15).
+        view_margin_px : how far inside the image the tag's outline must stay, px (1.0).
+        camera_min_range, camera_max_range : m from the robot centre (0.1, 2.0).
+        max_incidence : largest angle between a tag's normal and the line of sight for the tag
+        to be read, rad (75°, the angle beyond which `ekfslam.vision` refuses a tag).
     Detection noise
         range_noise_sigma : m (0.02).  range_noise_fraction : extra std as a fraction of the range
         (0.0); in quadrature.  bearing_noise_sigma : rad (0.02).  dropout : probability that a
@@ -101,10 +118,14 @@ class SimulationConfig:
     wheel_scale_sigma: float = 0.0
     start_error: tuple[float, float, float] | None = None
     start_error_sigma: tuple[float, float, float] = (0.03, 0.03, 0.08)
-    camera_fov: float = math.radians(65.0)
+    camera: Camera = field(default_factory=pinhole_camera)
+    camera_mounting: tuple[float, float, float] = DEFAULT_MOUNTING
+    tag_size: float = TAG_SIZE
+    tag_height: float = TAG_HEIGHT
+    view_margin_px: float = 1.0
     camera_min_range: float = 0.1
     camera_max_range: float = 2.0
-    max_incidence: float = math.radians(70.0)
+    max_incidence: float = math.radians(75.0)
     range_noise_sigma: float = 0.02
     range_noise_fraction: float = 0.0
     bearing_noise_sigma: float = 0.02
@@ -115,19 +136,21 @@ class SimulationConfig:
     def __post_init__(self) -> None:
         if self.trajectory not in TRAJECTORIES:
             raise ValueError(f"trajectory must be one of {TRAJECTORIES}, got {self.trajectory!r}")
-        for name in ("start_error", "start_error_sigma"):  # JSON gives lists; store tuples
+        for name in ("start_error", "start_error_sigma", "camera_mounting"):  # lists -> tuples
             value = getattr(self, name)
             if value is not None:
-                if len(value) != 3:
-                    raise ValueError(f"SimulationConfig.{name} is (dx, dy, dθ), got {value!r}")
+                if len(value) != 3 or not all(math.isfinite(float(v)) for v in value):
+                    raise ValueError(f"SimulationConfig.{name} is 3 finite numbers, got {value!r}")
                 object.__setattr__(self, name, tuple(float(v) for v in value))
+        if not isinstance(self.camera, Camera) or self.camera.mount_height is None:
+            raise ValueError("SimulationConfig.camera must be a Camera with its mount_height set")
         rules = (
             ("laps", lambda v: v == int(v) >= 1, "a positive whole number"),
             ("size controls_hz camera_hz max_speed max_turn_rate max_accel max_angular_accel "
-             "camera_fov camera_max_range max_incidence", lambda v: v > 0, "positive"),
+             "tag_size tag_height camera_max_range max_incidence", lambda v: v > 0, "positive"),
             ("heading_gain stop_duration wheel_noise_sigma wheel_noise_fraction wheel_scale_sigma "
-             "camera_min_range range_noise_sigma range_noise_fraction bearing_noise_sigma",
-             lambda v: v >= 0, "zero or positive"),
+             "camera_min_range range_noise_sigma range_noise_fraction bearing_noise_sigma "
+             "view_margin_px", lambda v: v >= 0, "zero or positive"),
             ("start_error_sigma", lambda v: min(v) >= 0, "zero or positive"),
             ("dropout outlier_wrong_id_rate outlier_range_rate", lambda v: 0 <= v <= 1,
              "a probability in [0, 1]"),
@@ -145,13 +168,19 @@ class SimulationConfig:
         """A short label such as "square-2laps"."""
         return f"{self.trajectory}-{self.laps}lap{'s' if self.laps != 1 else ''}"
 
+    @property
+    def tags(self) -> TagSpec:
+        """The printed tags (`tag_size`)."""
+        return TagSpec(self.tag_size)
+
     def to_dict(self) -> dict[str, Any]:
-        """Every field as plain JSON types (the robot as a dict, tuples as lists)."""
+        """Every field as plain JSON types (robot and camera as dicts, tuples as lists)."""
         out: dict[str, Any] = {}
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
-            if isinstance(value, MecanumGeometry):
-                value = dataclasses.asdict(value)
+            if isinstance(value, MecanumGeometry | Camera):
+                value = {k: list(v) if isinstance(v, tuple) else v
+                         for k, v in dataclasses.asdict(value).items()}  # fmt: skip
             elif isinstance(value, tuple):
                 value = list(value)
             out[f.name] = value
@@ -159,7 +188,15 @@ class SimulationConfig:
 
 
 def config_from_dict(data: dict[str, Any]) -> SimulationConfig:
-    """The inverse of `SimulationConfig.to_dict`; missing keys take their defaults."""
+    """The inverse of `SimulationConfig.to_dict`; missing keys take their defaults.
+
+    A config written before the simulator had a camera model names only ``camera_fov`` (rad,
+    the horizontal field of view); it becomes the default camera with that field of view.
+    """
+    data = dict(data)
+    fov = data.pop("camera_fov", None)
+    if fov is not None and "camera" not in data:
+        data["camera"] = pinhole_camera(horizontal_fov_deg=math.degrees(fov))
     known = {f.name for f in dataclasses.fields(SimulationConfig)}
     unknown = sorted(set(data) - known)
     if unknown:
@@ -169,6 +206,8 @@ def config_from_dict(data: dict[str, Any]) -> SimulationConfig:
     kwargs = dict(data)
     if isinstance(kwargs.get("robot"), dict):
         kwargs["robot"] = MecanumGeometry(**kwargs["robot"])
+    if isinstance(kwargs.get("camera"), dict):
+        kwargs["camera"] = Camera(**kwargs["camera"])
     for name in ("start_error", "start_error_sigma"):
         if kwargs.get(name) is not None:
             kwargs[name] = tuple(kwargs[name])
@@ -319,21 +358,20 @@ def plan_commands(config: SimulationConfig, nominal_start: ArrayLike) -> Command
 def visible(pose: ArrayLike, arena: Arena, config: SimulationConfig) -> NDArray[np.bool_]:
     """Which tags the camera can read from each pose: (F, 3) poses -> (F, n) bool.
 
-    A tag is visible when its range is within [camera_min_range, camera_max_range], its bearing
-    within ±camera_fov/2, and the camera sees its front at an incidence of at most max_incidence.
+    A tag is visible when it is fully in view of the config's camera and faces it at an
+    incidence of at most max_incidence (`ekfslam.camera.tags_in_view`: its printed outline,
+    white border included, inside the image by view_margin_px), and its range from the robot
+    centre is within [camera_min_range, camera_max_range].
     """
+    c = config
     p = np.asarray(pose, dtype=float).reshape(-1, 3)
+    in_view = tags_in_view(
+        c.camera, c.tags, c.camera_mounting, p, arena.tag_positions(), arena.tag_normals(),
+        tag_height=c.tag_height, max_incidence=c.max_incidence, margin_px=c.view_margin_px,
+    )  # fmt: skip
     d = arena.tag_positions()[None, :, :] - p[:, None, :2]  # (F, n, 2) robot -> tag
     r = np.hypot(d[..., 0], d[..., 1])
-    bearing = wrap_angle(np.arctan2(d[..., 1], d[..., 0]) - p[:, None, 2])
-    # cosine of the angle between the tag's normal and the tag -> robot direction
-    facing = -np.einsum("fnk,nk->fn", d, arena.tag_normals()) / np.maximum(r, 1e-12)
-    return (
-        (r >= config.camera_min_range)
-        & (r <= config.camera_max_range)
-        & (np.abs(bearing) <= config.camera_fov / 2.0)
-        & (facing >= math.cos(config.max_incidence))
-    )
+    return in_view & (r >= c.camera_min_range) & (r <= c.camera_max_range)
 
 
 def _true_motion(config: SimulationConfig, plan: CommandPlan, true_start: Array, rng, t_cam):
@@ -446,7 +484,7 @@ def simulate(config: SimulationConfig | None = None, arena: Arena = SEED_ARENA) 
         control_rate_hz=float(c.controls_hz),
         camera_rate_hz=float(c.camera_hz),
         robot=c.robot,
-        camera_mounting=np.zeros(3),
+        camera_mounting=np.array(c.camera_mounting, dtype=float),
         tag_map=arena.tag_map(),
         simulation=simulation,
     )

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ekfslam.camera import Camera, TagSpec
+from ekfslam.camera import Camera, TagSpec, pinhole_camera
 from ekfslam.cli import main
 from ekfslam.errors import InputError
 from ekfslam.evaluation import interpolate_poses
@@ -100,8 +100,21 @@ def test_only_a_run_with_frames_may_leave_detections_out(tmp_path: Path, short_r
 
 def test_runs_without_a_camera_keep_their_exact_run_json() -> None:
     run = simulate(SimulationConfig(trajectory="square", laps=1, seed=1))
-    text = meta_json(run.meta)
-    assert '"camera"' not in text and '"frames"' not in text and '"tags"' not in text
+    doc = json.loads(meta_json(run.meta))
+    # the simulator's config records the camera it saw with; run.json's top level has none
+    assert not {"camera", "frames", "tags"} & set(doc)
+    assert doc["simulation"]["config"]["camera"]["width"] == 640
+
+
+def test_a_simulated_run_is_framed_with_the_camera_its_simulator_saw_with() -> None:
+    camera = pinhole_camera(horizontal_fov_deg=80.0, mount_height=0.2)
+    config = SimulationConfig(laps=1, seed=2, camera=camera, tag_size=0.1,
+                              camera_mounting=(0.03, 0.0, 0.0))  # fmt: skip
+    framed = with_camera(simulate(config))
+    assert framed.meta.camera == camera and framed.meta.tags == TagSpec(0.1)
+    assert framed.meta.camera_mounting.tolist() == [0.03, 0.0, 0.0]
+    other = pinhole_camera(width=320, height=240)
+    assert with_camera(simulate(config), camera=other).meta.camera == other
 
 
 def _write_doc(folder: Path, **changes) -> Path:

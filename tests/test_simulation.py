@@ -13,12 +13,14 @@ import numpy as np
 import pytest
 
 from ekfslam.arena import SEED_ARENA, Arena, Tag
+from ekfslam.camera import Camera, pinhole_camera
 from ekfslam.simulation import (
     SimulationConfig,
     arc_increment,
     config_from_dict,
     plan_commands,
     simulate,
+    visible,
     waypoints,
 )
 
@@ -57,16 +59,40 @@ def residuals(log, arena=SEED_ARENA):
     return d.range - r_true, wrap(d.bearing - b_true), r_true
 
 
-def expected_visible(pose, tag: Tag, fov_deg=65.0, r_min=0.1, r_max=2.0, incidence_deg=70.0):
-    """(visible, distance to the nearest decision boundary) for one tag, written out by hand."""
+def expected_visible(pose, tag: Tag, r_min=0.1, r_max=2.0, incidence_deg=75.0):
+    """(visible, distance to the nearest decision boundary) for one tag, written out by hand.
+
+    The default camera: 640x480, fx = fy = 320 / tan(32.5°), centred, k1 = -0.08, k2 = 0.03,
+    12 cm above the floor, level, 6 cm ahead of the robot's centre. The tag's printed outline
+    (a 0.2 m square: the 0.16 m black square and its white module) centred 0.15 m above the
+    floor must project at least 1 px inside the image, sampled along its edges.
+    """
     x, y, th = pose
-    vx, vy = tag.position[0] - x, tag.position[1] - y
-    r = math.hypot(vx, vy)
-    bearing_deg = math.degrees(wrap(math.atan2(vy, vx) - th))
-    cos_inc = -(vx * tag.normal[0] + vy * tag.normal[1]) / r
+    cam_x, cam_y, cam_z = x + 0.06 * math.cos(th), y + 0.06 * math.sin(th), 0.12
+    f = 320.0 / math.tan(math.radians(32.5))
+    nx, ny = tag.normal
+    px_margin = math.inf
+    for s in np.linspace(-1.0, 1.0, 17):
+        for a, b in ((s, 1.0), (s, -1.0), (1.0, s), (-1.0, s)):  # (along the wall, up) / 0.1 m
+            wx, wy = tag.position[0] - ny * 0.1 * a, tag.position[1] + nx * 0.1 * a
+            dx, dy, dz = wx - cam_x, wy - cam_y, 0.15 + 0.1 * b - cam_z
+            ahead = dx * math.cos(th) + dy * math.sin(th)
+            left = -dx * math.sin(th) + dy * math.cos(th)
+            if ahead <= 0.01:
+                px_margin = -math.inf
+                continue
+            u, v = -left / ahead, -dz / ahead  # right and down, on the unit plane
+            r2 = u * u + v * v
+            k = 1.0 - 0.08 * r2 + 0.03 * r2 * r2
+            col, row = f * u * k + 319.5, f * v * k + 239.5
+            px_margin = min(px_margin, col + 0.5 - 1.0, 639.5 - 1.0 - col)
+            px_margin = min(px_margin, row + 0.5 - 1.0, 479.5 - 1.0 - row)
+    r = math.hypot(tag.position[0] - x, tag.position[1] - y)
+    sx, sy, sz = cam_x - tag.position[0], cam_y - tag.position[1], cam_z - 0.15
+    cos_inc = (sx * nx + sy * ny) / math.sqrt(sx * sx + sy * sy + sz * sz)
     incidence = math.degrees(math.acos(max(-1.0, min(1.0, cos_inc))))
-    ok = r_min <= r <= r_max and abs(bearing_deg) <= fov_deg / 2 and incidence <= incidence_deg
-    margin = min(abs(r - r_min), abs(r - r_max), abs(abs(bearing_deg) - fov_deg / 2) / 57.3)
+    ok = r_min <= r <= r_max and px_margin >= 0 and incidence <= incidence_deg
+    margin = min(abs(r - r_min), abs(r - r_max), abs(px_margin) / 500.0)
     return ok, min(margin, abs(incidence - incidence_deg) / 57.3)
 
 
@@ -193,7 +219,7 @@ def test_log_layout(square):
     meta = log.meta
     assert meta.source == "simulated" and meta.name == "square-2laps"
     assert meta.control_rate_hz == 20.0 and meta.camera_rate_hz == 10.0
-    assert meta.robot == config.robot and np.array_equal(meta.camera_mounting, np.zeros(3))
+    assert meta.robot == config.robot and np.array_equal(meta.camera_mounting, [0.06, 0, 0])
     assert np.array_equal(meta.nominal_start, SEED_ARENA.nominal_start)
     assert set(meta.tag_map) == set(range(8))
     sim = json.loads(json.dumps(meta.simulation))  # JSON-serialisable, unchanged by a round trip
@@ -209,6 +235,20 @@ def test_log_layout(square):
 def test_config_round_trip_and_validation():
     config = SimulationConfig(trajectory="octagon", laps=3, start_error=(0.01, -0.02, 0.1))
     assert config_from_dict(json.loads(json.dumps(config.to_dict()))) == config
+    camera = Camera(800, 600, 610.5, 611.25, 401.0, 297.5, (-0.1, 0.02, 0.001, -0.002),
+                    mount_height=0.2, pitch=0.05)  # fmt: skip
+    other = SimulationConfig(camera=camera, camera_mounting=[0.05, -0.01, 0.1], tag_size=0.1)
+    back = config_from_dict(json.loads(json.dumps(other.to_dict())))
+    assert back == other and back.camera == camera and back.camera_mounting == (0.05, -0.01, 0.1)
+    # a config written before the camera model: its field of view becomes the default camera's
+    legacy = {k: v for k, v in config.to_dict().items() if k != "camera"}
+    old = config_from_dict(legacy | {"camera_fov": math.radians(80.0)})
+    assert old.camera.horizontal_fov == pytest.approx(math.radians(80.0))
+    assert old.camera.mount_height == pinhole_camera().mount_height
+    with pytest.raises(ValueError, match="mount_height"):
+        SimulationConfig(camera=Camera(640, 480, 500.0, 500.0, 319.5, 239.5))
+    with pytest.raises(ValueError, match="camera_mounting"):
+        SimulationConfig(camera_mounting=(0.0, 0.0))
     with pytest.raises(ValueError, match="unknown"):
         config_from_dict({"sped": 1.0})
     with pytest.raises(ValueError, match="dropout"):
@@ -307,7 +347,33 @@ def test_exact_visible_set(noiseless):
                 assert (tag.id in seen.get(k, set())) == ok, (k, tag.id)
                 checked += 1
     assert checked > 500
-    assert seen[0] == {1, 2}  # at the start, facing +x: tag 1 ahead, tag 2 at 63° incidence
+    assert seen[0] == {1, 2}  # at the start, facing +x: tag 1 ahead, tag 2 at 62° incidence
+
+
+def test_a_tag_too_close_is_cut_by_the_top_of_the_image():
+    # facing tag 1 head-on: the horizontal field of view holds it at any distance, but closer
+    # than about 0.34 m its outline's top (0.25 m high) leaves the image of a level camera
+    # 0.12 m above the floor (25.5 degrees up at most)
+    poses = np.array([[0.75 - d, -0.375, 0.0] for d in (0.28, 0.32, 0.36, 1.0)])
+    seen = visible(poses, SEED_ARENA, SimulationConfig())[:, 1]
+    assert seen.tolist() == [False, False, True, True]
+    for pose, ok in zip(poses, seen, strict=True):
+        assert expected_visible(pose, SEED_ARENA.tags[1])[0] == ok
+    # tilted up by 5 degrees (a negative pitch), the camera sees it whole from 0.28 m
+    tilted = SimulationConfig(camera=pinhole_camera(pitch=math.radians(-5.0)))
+    assert visible(poses, SEED_ARENA, tilted)[:, 1].tolist() == [True] * 4
+
+
+def test_a_tag_half_out_of_the_side_of_the_image_is_not_seen():
+    # the tag's centre 30 degrees off the axis (inside the 32.5-degree half field of view) but
+    # its outer edge beyond it: the centre-in-view rule said "seen", the whole-tag rule does not
+    cam = np.array([0.0, -0.375])
+    tag = SEED_ARENA.tags[1].position  # (0.75, -0.375), facing -x
+    heading = math.radians(30.0)
+    pose = np.array([[*(cam - [0.06 * math.cos(heading), 0.06 * math.sin(heading)]), heading]])
+    assert not visible(pose, SEED_ARENA, SimulationConfig())[0, 1]
+    assert not expected_visible(pose[0], SEED_ARENA.tags[1])[0]
+    assert math.degrees(math.atan2(0.0, tag[0] - cam[0])) - 30.0 > -32.5
 
 
 def test_tags_are_never_seen_from_behind():

@@ -13,5 +13,6 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 python -m ekfslam simulate --trajectory square --laps 1 --seed 3 \
     --start-error -0.03 0.04 0.12 --out "$tmp/square-1lap"
+# rendered with the camera, tags and mounting the simulator saw with (its run.json's)
 python -m ekfslam render-frames "$tmp/square-1lap" --out data/runs/square-1lap-frames \
-    --name square-1lap-frames --mounting 0.06 0 0 --overwrite
+    --name square-1lap-frames --overwrite
