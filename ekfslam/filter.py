@@ -339,10 +339,17 @@ class EKFSLAM:
             S[l : l + 2, l : l + 2] = self.config.seed_init_variance * np.eye(2)
 
     def _should_reinitialise(self, j: int, z: tuple[float, float]) -> bool:
-        """Do the landmark's last `reinit_after` sightings, all rejected, agree with each other?"""
+        """Have the landmark's last sightings, all rejected, agreed on a new place?
+
+        How many: `reinit_after`, or as many as the sightings it has accepted, if more. A
+        landmark placed by one bad sighting is re-placed quickly; one that many sightings
+        confirmed is not re-placed by a short run of rejections, which on a long loop means
+        the estimate has drifted (re-placing it would throw the loop closure away).
+        """
         k = self.config.reinit_after
         if k is None:
             return False
+        k = max(k, self._sightings[j])
         seen = self._rejected[j]
         seen.append(inverse_observation(self._mu[:3], z))
         if len(seen) < k:

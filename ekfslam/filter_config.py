@@ -26,11 +26,15 @@ class FilterConfig:
     gate_after : the gate applies to a landmark once it has this many accepted sightings
         (its initialisation counts as one). With 1, the sighting after the initialisation is
         already gated: the inverse-observation covariance is what it is checked against.
-    reinit_after, reinit_radius : a landmark whose last `reinit_after` sightings were all
-        rejected by the gate, and put it within `reinit_radius` m of each other but not within
-        that of another landmark (that would be a misread id of the other one), was itself
-        initialised from a bad sighting: it is initialised again from the latest sighting,
-        its old estimate and correlations dropped. None disables.
+    reinit_after, reinit_radius : a landmark whose last `reinit_after` sightings (or, if more,
+        as many as it has accepted) were all rejected by the gate, and put it within
+        `reinit_radius` m of each other but not within that of another landmark (that would be
+        a misread id of the other one), was itself initialised from a bad sighting: it is
+        initialised again from the latest sighting, its old estimate and correlations dropped.
+        None disables. The "as many as it has accepted" keeps a well-confirmed landmark in place
+        when its sightings are rejected because the pose has drifted: re-placing it then would
+        discard the loop closure (on the 15-landmark loop, 8 in 200 clean runs did, and FEJ's
+        pose NEES left its band on 18% of steps instead of 7%).
     initial_capacity : landmarks to pre-allocate for (the storage doubles when full).
     linearization : "standard" evaluates every Jacobian at the latest estimate; "fej" is the
         First-Estimates Jacobian EKF (Huang, Mourikis & Roumeliotis, IJRR 2010): the motion

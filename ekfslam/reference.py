@@ -175,6 +175,7 @@ class LiteralEKFSLAM:
         if gated and nis > self.config.gate:
             k = self.config.reinit_after
             if k is not None:  # do the last k sightings, all rejected, agree on a new place?
+                k = max(k, self._sightings[j])  # as many as it has accepted, if more
                 self._rejected[j] = ([*self._rejected[j], inverse_observation(pose, z)])[-k:]
                 seen = np.array(self._rejected[j])
                 centre = seen.mean(axis=0)

@@ -457,3 +457,26 @@ def test_misread_ids_of_another_landmark_do_not_move_a_landmark():
         assert f.update(2, observation(np.zeros(3), a), Q) == "rejected"
     assert f.counts.reinitialised == 0
     np.testing.assert_allclose(f.landmark(2)[0], b, atol=1e-9)
+
+
+def test_a_well_confirmed_landmark_needs_as_many_agreeing_rejections_to_move():
+    """A short run of rejections of a landmark seen many times is drift, not a misplaced landmark.
+
+    On the long loop, the old rule (any `reinit_after` agreeing rejections) re-placed confirmed
+    landmarks at loop closure and threw the closure away.
+    """
+    Q = observation_noise(0.02, 0.01)
+    config = FilterConfig()
+    fast = EKFSLAM([0.0, 0.0, 0.0], config=config)
+    slow = LiteralEKFSLAM([0.0, 0.0, 0.0], config=config)
+    truth, moved = np.array([1.0, 0.5]), np.array([1.0, 0.9])
+    for k in range(6):  # initialised, then confirmed five times: six accepted sightings
+        z = observation(np.zeros(3), truth) + np.array([0.004, -0.002]) * (-1) ** k
+        assert fast.update(7, z, Q) == slow.update(7, z, Q) != "rejected"
+    assert fast._sightings[0] == 6
+    outcomes = [fast.update(7, observation(np.zeros(3), moved), Q) for _ in range(6)]
+    slow_outcomes = [slow.update(7, observation(np.zeros(3), moved), Q) for _ in range(6)]
+    assert outcomes == slow_outcomes == ["rejected"] * 5 + ["reinitialised"]
+    np.testing.assert_allclose(fast.landmark(7)[0], moved, atol=1e-9)
+    np.testing.assert_allclose(fast.mu, slow.mu, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fast.Sigma, slow.Sigma, rtol=0, atol=1e-9)
