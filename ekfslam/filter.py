@@ -12,8 +12,9 @@ Cost per step with n landmarks: prediction O(n) (only the pose rows and columns 
 O(n^2) (one symmetric rank-2 correction of the used block), landmark initialisation O(n).
 
 Storage is pre-allocated and grows geometrically, so adding a landmark never copies the matrix
-(except on the rare doubling of the capacity). The storage beyond the state is kept at zero, so
-the hot paths may work on whole (contiguous) rows of it.
+(except on the rare doubling of the capacity). The storage beyond the state is kept at zero.
+Σ is symmetric, so the steps keep only its lower triangle current (half the memory traffic of
+the O(n²) update); `Sigma` fills in the upper one when it is read.
 
 Speed: the arithmetic of a step lives in `ekfslam.kernels`, compiled with numba: as numpy calls
 on the seed's small map, per-call overhead cost ten times the arithmetic. This module keeps the
@@ -118,7 +119,12 @@ class EKFSLAM:
 
     @property
     def Sigma(self) -> Array:
-        """The state covariance (3 + 2n, 3 + 2n). A view into pre-allocated storage."""
+        """The state covariance (3 + 2n, 3 + 2n), a view into the pre-allocated storage.
+
+        The steps keep only its lower triangle current (`ekfslam.kernels`); reading it fills in
+        the upper one, O(n²). Read it again after a step rather than keeping the view.
+        """
+        kernels.mirror(self._Sigma, self._dim)
         return self._Sigma[: self._dim, : self._dim]
 
     @property
@@ -152,7 +158,8 @@ class EKFSLAM:
     def landmark(self, landmark_id: int) -> tuple[Array, Array]:
         """Mean (2,) and covariance (2, 2) of one landmark, by id (copies)."""
         l = 3 + 2 * self.slot[landmark_id]
-        return self._mu[l : l + 2].copy(), self._Sigma[l : l + 2, l : l + 2].copy()
+        (a, _), (b, c) = self._Sigma[l : l + 2, l : l + 2].tolist()  # its lower triangle
+        return self._mu[l : l + 2].copy(), np.array([[a, b], [b, c]])
 
     def landmark_map(self) -> dict[int, Array]:
         """{landmark id: mean (2,)}, the estimated map."""
@@ -328,7 +335,7 @@ class EKFSLAM:
         mu[l : l + 2] = inverse_observation(pose, z)
         if self.config.init == "inverse":
             G_p, G_z = inverse_observation_jacobians(pose, z)
-            cross = G_p @ S[:3, :d]  # cov(m_new, everything) = G_p Σ_r,m
+            cross = G_p @ S[:d, :3].T  # cov(m_new, everything) = G_p Σ_r,m (lower triangle)
             S[l : l + 2, :d] = cross
             S[:d, l : l + 2] = cross.T
             Sll = cross[:, :3] @ G_p.T + G_z @ Q @ G_z.T

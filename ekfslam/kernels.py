@@ -12,7 +12,10 @@ The compiled code is cached beside this file (``cache=True``), so only the first
 machine pays the compilation (a few seconds).
 
 Conventions: S is the (capacity, capacity) covariance storage and mu the (capacity,) mean, both
-zero beyond the state's size d; l is a landmark's first index (3 + 2j). The history's rows
+zero beyond the state's size d; l is a landmark's first index (3 + 2j). Σ is symmetric, so the
+kernels keep only its lower triangle (S[i, k], k <= i) current, plus the whole 3x3 pose block:
+the O(n²) update then touches half the memory. `mirror` fills the upper triangle when the
+filter hands Σ out. The history's rows
 are laid out as `ekfslam.history.ROW` and `ekfslam.history.OBS_ROW`.
 """
 
@@ -92,10 +95,9 @@ def propagate(mu, S, d, us, dts, use_dts, N, fej, px, py, ts, rows, r0, record):
             row[4], row[5], row[6], row[7], row[8], row[9] = s00, s01, s02, s11, s12, s22
         px, py = x, y
     mu[0], mu[1], mu[2] = x, y, th
-    for i in range(3, d):  # Σ_rm <- (Π G) Σ_rm: only the x and y rows change
-        S[0, i] += A * S[2, i]
-        S[1, i] += B * S[2, i]
-        S[i, 0], S[i, 1] = S[0, i], S[1, i]
+    for i in range(3, d):  # Σ_rm <- (Π G) Σ_rm: only x and y change (columns, in the lower half)
+        S[i, 0] += A * S[i, 2]
+        S[i, 1] += B * S[i, 2]
     S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2] = s00, s01, s02, s11, s12, s22
     S[1, 0], S[2, 0], S[2, 1] = s01, s02, s12
     return px, py
@@ -128,10 +130,16 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out):
     jr = math.sqrt(jq)
     a, b, e, f = jx / jr, jy / jr, jy / jq, jx / jq
     h0, h1 = work[0], work[1]
-    for k in range(d):
-        u, v = S[l, k] - S[0, k], S[l + 1, k] - S[1, k]
+    for k in range(d):  # Σ's rows 0, 1, 2, l, l+1, read from the lower triangle
+        if k < 3:
+            p0, p1, p2 = S[0, k], S[1, k], S[2, k]
+        else:
+            p0, p1, p2 = S[k, 0], S[k, 1], S[k, 2]
+        m0 = S[l, k] if k <= l else S[k, l]
+        m1 = S[l + 1, k] if k <= l + 1 else S[k, l + 1]
+        u, v = m0 - p0, m1 - p1
         h0[k] = a * u + b * v
-        h1[k] = -e * u + f * v - S[2, k]
+        h1[k] = -e * u + f * v - p2
     # S = H Σ Hᵀ + Q (eq. 15's innovation covariance), from H Σ's columns the same way
     s00 = a * (h0[l] - h0[0]) + b * (h0[l + 1] - h0[1]) + q00
     s01 = -e * (h0[l] - h0[0]) + f * (h0[l + 1] - h0[1]) - h0[2] + q01
@@ -164,11 +172,12 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out):
         W1[k] = f10 * p0 + f11 * p1
     if not -math.pi <= mu[2] < math.pi:
         mu[2] = wrap(mu[2])
-    for i in range(d):  # Σ -= Wᵀ W: the only O(n²) step, one pass over the used block
+    for i in range(d):  # Σ -= Wᵀ W: the only O(n²) step, one pass over the lower triangle
         a0, a1 = W0[i], W1[i]
         row = S[i]
-        for k in range(d):
+        for k in range(i + 1):
             row[k] -= a0 * W0[k] + a1 * W1[k]
+    S[0, 1], S[0, 2], S[1, 2] = S[1, 0], S[2, 0], S[2, 1]  # the pose block stays whole
     return ACCEPTED
 
 
@@ -193,4 +202,14 @@ def record(mu, S, l, t, landmark_id, z0, z1, out, outcome, rows, n, obs, m):
         o[15:21] = np.nan
     else:
         o[15], o[16] = mu[l], mu[l + 1]
-        o[17], o[18], o[19], o[20] = S[l, l], S[l, l + 1], S[l + 1, l], S[l + 1, l + 1]
+        o[17], o[18], o[19], o[20] = S[l, l], S[l + 1, l], S[l + 1, l], S[l + 1, l + 1]
+
+
+@njit(cache=True)
+def mirror(S, d):
+    """Copy Σ's lower triangle onto its upper one (the used d x d block), in 32 x 32 tiles."""
+    for ib in range(0, d, 32):
+        for kb in range(0, ib + 1, 32):  # the tiles on and below the diagonal
+            for i in range(ib, min(ib + 32, d)):
+                for k in range(kb, min(kb + 32, i)):
+                    S[k, i] = S[i, k]
