@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.arena import SEED_ARENA, Arena
-from ekfslam.camera import Camera, TagSpec, optical_axes
+from ekfslam.camera import TAG_HEIGHT, Camera, TagSpec, optical_axes, tags_in_view
 from ekfslam.corners import undistort
 from ekfslam.geometry import wrap_angle
 from ekfslam.scene import Surface, build_scene
@@ -63,7 +63,7 @@ class RenderConfig:
     """
 
     wall_height: float = 0.35
-    tag_height: float = 0.15
+    tag_height: float = TAG_HEIGHT
     sheet_size: tuple[float, float] = (0.21, 0.297)
     clutter: bool = True
     supersample: int = 2
@@ -148,51 +148,36 @@ class ArenaRenderer:
         return centre, optical_axes(theta + yaw, self.camera.pitch)
 
     def truth(self, pose: ArrayLike, margin_px: float = 1.0) -> TagTruth:
-        """Where every tag of the arena is in the image, and its true range and bearing."""
+        """Where every tag of the arena is in the image, and its true range and bearing.
+
+        in_view is `ekfslam.camera.tags_in_view` (facing the camera at any angle): the one rule
+        the simulator sees by.
+        """
         centre, R = self.camera_pose(pose)
         half = self.tags.size / 2.0
-        quiet = half * 10.0 / 8.0  # the white module around the black square
         n = len(self.arena.tags)
         corners = np.full((n, 4, 2), np.nan)
-        in_view = np.zeros(n, dtype=bool)
         incidence = np.zeros(n)
         for k, tag in enumerate(self.arena.tags):
             mid = np.array([*tag.position, self.config.tag_height])
             right = np.array([-tag.normal[1], tag.normal[0], 0.0])  # facing the tag: -normal x z
             up = np.array([0.0, 0.0, 1.0])
             square = mid + half * np.array([-right + up, right + up, right - up, -right - up])
-            outer = mid + quiet * np.array([-right + up, right + up, right - up, -right - up])
             cam_sq = (square - centre) @ R.T
-            cam_out = (outer - centre) @ R.T
             sight = centre - mid
             facing = float(np.dot(sight[:2], tag.normal))
             incidence[k] = math.acos(np.clip(facing / np.linalg.norm(sight), -1.0, 1.0))
             if np.all(cam_sq[:, 2] > _NEAR):
                 corners[k] = self.camera.project(cam_sq)
-            if np.all(cam_out[:, 2] > _NEAR) and facing > 0:
-                px = self.camera.project(cam_out)
-                inside = (px >= -0.5 + margin_px) & (
-                    px <= np.array([self.camera.width, self.camera.height]) - 0.5 - margin_px
-                )
-                in_view[k] = bool(np.all(inside)) and self._monotone(outer, centre, R)
+        in_view = tags_in_view(
+            self.camera, self.tags, self.mounting, np.asarray(pose, dtype=float)[None],
+            self.arena.tag_positions(), np.array([t.normal for t in self.arena.tags]),
+            tag_height=self.config.tag_height, margin_px=margin_px,
+        )[0]  # fmt: skip
         d = self.arena.tag_positions() - np.asarray(pose, dtype=float)[:2]
         rng = np.hypot(d[:, 0], d[:, 1])
         bearing = wrap_angle(np.arctan2(d[:, 1], d[:, 0]) - float(pose[2]))
         return TagTruth(self.arena.tag_ids, corners, in_view, incidence, rng, bearing)
-
-    def _monotone(self, outer: Array, centre: Array, R: Array) -> bool:
-        """Whether the tag's border stays inside the image along its edges, too.
-
-        Barrel distortion bends straight lines; points between the corners could leave the image
-        even when the corners are in it (only near the image border; checked on a few samples).
-        """
-        t = np.linspace(0.0, 1.0, 9)[:, None]
-        pts = np.concatenate(
-            [a + t * (b - a) for a, b in zip(outer, np.roll(outer, -1, 0), strict=True)]
-        )
-        px = self.camera.project((pts - centre) @ R.T)
-        size = np.array([self.camera.width, self.camera.height]) - 0.5
-        return bool(np.all((px >= -0.5) & (px <= size)))
 
     # -- drawing ----------------------------------------------------------------------------
 
