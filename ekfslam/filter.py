@@ -232,7 +232,7 @@ class EKFSLAM:
         else:
             r0 = rec.reserve(PREDICT, len(us))
             rows = rec.rows
-        use_dts = dts is not None
+        use_dts = dts is not None  # without, ts stands in for dts: the kernel's types are fixed
         self._prior_xy = kernels.propagate(
             self._mu, self._Sigma, self._dim, us, dts if use_dts else ts, use_dts, N,
             self._fej, *self._prior_xy, ts, rows, r0, rec is not None,
@@ -273,12 +273,10 @@ class EKFSLAM:
         j = self.slot.get(landmark_id)
         if j is None:
             if z0 * z0 <= MIN_RANGE_SQUARED:
-                self._out[:] = math.nan
-                return self._finish(landmark_id, z, REFUSED, -1)
+                return self._finish(landmark_id, z, REFUSED, -1, computed=False)
             j = self._add_landmark(landmark_id, np.array(z), np.asarray(Q, dtype=float))
             if self.config.init == "inverse":
-                self._out[:] = math.nan
-                return self._finish(landmark_id, z, INITIALISED, 3 + 2 * j)
+                return self._finish(landmark_id, z, INITIALISED, 3 + 2 * j, computed=False)
             return self._correct(landmark_id, j, z, Qf, False, True, accepted_as=INITIALISED)
         gated = self.config.gate is not None and self._sightings[j] >= self.config.gate_after
         return self._correct(landmark_id, j, z, Qf, gated=gated, fresh=False)
@@ -374,8 +372,7 @@ class EKFSLAM:
         self._rejected[j].clear()
         if self.config.init == "seed":  # eq. (3), then the update with this sighting
             return self._correct(landmark_id, j, z, Q, False, True, accepted_as=REINITIALISED)
-        self._out[:] = math.nan
-        return self._finish(landmark_id, z, REINITIALISED, l)
+        return self._finish(landmark_id, z, REINITIALISED, l, computed=False)
 
     def _grow(self) -> None:
         d = self._dim
@@ -387,8 +384,16 @@ class EKFSLAM:
         self._mu, self._Sigma = mu, S
         self._work = np.zeros((2, cap))
 
-    def _finish(self, landmark_id: int, z: tuple[float, float], outcome: int, l: int) -> str:
-        """Count the outcome and record the state after it (l < 0: the landmark has no slot)."""
+    def _finish(
+        self, landmark_id: int, z: tuple[float, float], outcome: int, l: int, computed=True
+    ) -> str:
+        """Count the outcome and record the state after it (l < 0: the landmark has no slot).
+
+        computed: whether `kernels.correct` produced this outcome's ẑ, ν, S and NIS (in
+        `_out`); otherwise they are recorded as NaN.
+        """
+        if not computed:
+            self._out[:] = math.nan
         name = OUTCOMES[outcome]
         self._counts[name] += 1
         rec = self._recorder
