@@ -26,8 +26,7 @@ import math
 import numpy as np
 from numba import njit
 
-#: Outcome codes, as `ekfslam.history.OUTCOMES` (asserted there).
-ACCEPTED, REJECTED, REFUSED = 1, 2, 3
+from ekfslam.history import ACCEPTED, REFUSED, REJECTED  # the outcome codes `correct` returns
 
 
 @njit(cache=True)
