@@ -27,6 +27,7 @@ import numpy as np
 from numba import njit
 
 from ekfslam.history import ACCEPTED, REFUSED, REJECTED  # the outcome codes `correct` returns
+from ekfslam.models import MIN_RANGE_SQUARED
 
 
 @njit(cache=True)
@@ -118,7 +119,7 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out):
     dx, dy = mu[l] - x, mu[l + 1] - y
     q = dx * dx + dy * dy
     jq = jx * jx + jy * jy
-    if not (q > 1e-12 and jq > 1e-12):  # `ekfslam.models.MIN_RANGE_SQUARED`
+    if not (q > MIN_RANGE_SQUARED and jq > MIN_RANGE_SQUARED):
         return REFUSED
     zh0, zh1 = math.sqrt(q), wrap(math.atan2(dy, dx) - th)
     nu0, nu1 = z0 - zh0, wrap(z1 - zh1)
