@@ -9,7 +9,8 @@ also let the O(n²) update of eq. (16) run in one pass over Σ with no temporary
 Each function is plain Python over floats and arrays; with the environment variable
 ``NUMBA_DISABLE_JIT=1`` they run as such, which is how to step through them in a debugger.
 The compiled code is cached beside this file (``cache=True``), so only the first import on a
-machine pays the compilation (a few seconds).
+machine pays the compilation (a few seconds). The cache is keyed on this file's source only:
+module-level constants the kernels use are therefore written here, not imported.
 
 Conventions: S is the (capacity, capacity) covariance storage and mu the (capacity,) mean, both
 zero beyond the state's size d; l is a landmark's first index (3 + 2j). Σ is symmetric, so the
@@ -26,8 +27,16 @@ import math
 import numpy as np
 from numba import njit
 
-from ekfslam.history import ACCEPTED, REFUSED, REJECTED  # the outcome codes `correct` returns
-from ekfslam.models import MIN_RANGE_SQUARED
+from ekfslam import history, models
+
+# Constants the compiled code bakes in. numba's cache is keyed on this file alone, so they are
+# written here, and checked against the modules that own them when this module is imported.
+ACCEPTED, REJECTED, REFUSED = 1, 2, 3  # the outcome codes `correct` returns
+MIN_RANGE_SQUARED = 1e-12  # m²: closer than this, a landmark cannot be linearised
+if (ACCEPTED, REJECTED, REFUSED, MIN_RANGE_SQUARED) != (
+    history.ACCEPTED, history.REJECTED, history.REFUSED, models.MIN_RANGE_SQUARED
+):  # fmt: skip
+    raise ImportError("ekfslam.kernels' constants disagree with ekfslam.history or models")
 
 
 @njit(cache=True)
