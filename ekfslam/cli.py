@@ -149,6 +149,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     result = replay(run, noise, config)
     summary = summarize(run, result, method=args.align)
     out = summary.as_dict()
+    out["seed_report"] = _seed_report(run)
     if report is not None:
         out["dropped"] = report.as_dict()
     if args.plot is not None:
@@ -177,6 +178,27 @@ def _arena_half_size(run) -> float | None:
     return SEED_ARENA.half_size if same else None
 
 
+def _seed_report(run) -> dict | None:
+    """The seed's Table 1 row (real robot) when `run` is the seed's experiment, else None.
+
+    Judged by run.json's ``simulation`` block (`ekfslam.simulation.seed_experiment`), not by
+    the run's name: a square of another seed or size is not the run the seed measured.
+    """
+    from ekfslam.simulation import seed_experiment
+
+    trajectory = seed_experiment(run.meta.simulation)
+    if trajectory is None:
+        return None
+    x0, y0, theta0, mean_error = SEED_TABLE1[trajectory]
+    return {
+        "trajectory": trajectory,
+        "x0": x0,
+        "y0": y0,
+        "theta0": theta0,
+        "mean_error": mean_error,
+    }
+
+
 def _table(summary, out: dict) -> str:
     lines = []
     a = summary.alignment
@@ -188,11 +210,12 @@ def _table(summary, out: dict) -> str:
         lines.append(
             f"{summary.name:<22}{a.x0:>9.3f}{a.y0:>9.3f}{a.theta0:>9.3f}{a.mean_error:>15.3f}"
         )
-        for key, (x0, y0, t0, err) in SEED_TABLE1.items():
-            if summary.name.startswith(key):
-                lines.append(
-                    f"{'  seed report (real)':<22}{x0:>9.3f}{y0:>9.3f}{t0:>9.3f}{err:>15.3f}"
-                )
+        seed = out.get("seed_report")
+        if seed is not None:  # only for a replay of the seed's own experiment (cmd_run)
+            lines.append(
+                f"{'  seed report (real)':<22}{seed['x0']:>9.3f}{seed['y0']:>9.3f}"
+                f"{seed['theta0']:>9.3f}{seed['mean_error']:>15.3f}"
+            )
         sp = summary.start_pose
         lines.append(f"recovered start pose: ({sp[0]:.3f}, {sp[1]:.3f}, {sp[2]:.3f})")
     if summary.true_start is not None:
@@ -228,10 +251,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if args.wheel_scale_sigma is not None:
         kwargs["wheel_scale_sigma"] = args.wheel_scale_sigma
     run = simulate(SimulationConfig(**kwargs))
-    write_run(run, args.out, overwrite=args.overwrite)
+    write_run(run, args.out, overwrite=args.overwrite, overwrite_hint="--overwrite")
     print(
-        f"wrote {args.out}: {len(run.controls.t)} controls, {len(run.detections.t)} detections, "
-        f"{run.controls.t[-1] - run.controls.t[0]:.1f} s"
+        f"wrote {args.out} ({run.meta.name}): {len(run.controls.t)} controls, "
+        f"{len(run.detections.t)} detections, "
+        f"{run.controls.t[-1] - run.controls.t[0]:.1f} s of simulated time"
     )
     return 0
 

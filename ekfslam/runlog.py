@@ -393,6 +393,7 @@ def write_run(
     *,
     overwrite: bool = False,
     with_detections: bool = True,
+    overwrite_hint: str = "overwrite=True",
 ) -> Path:
     """Write `run` as a run folder that `read_run` reads back bit for bit; returns the folder.
 
@@ -402,6 +403,8 @@ def write_run(
     and any other file in the folder is left alone. `with_detections` False leaves
     detections.csv out (and removes a stale one): a run logged as camera frames, whose
     detections ``python -m ekfslam detect`` makes; it needs ``run.meta.frames``.
+    `overwrite_hint` is how the refusal tells the caller to overwrite (a command line passes
+    its flag, "--overwrite").
     """
     folder = Path(folder)
     validate_run(run)
@@ -423,7 +426,7 @@ def write_run(
             folder,
             None,
             "folder exists and is not empty; refusing to overwrite it "
-            "(choose a new folder, or pass overwrite=True to replace its run files)",
+            f"(choose a new folder, or pass {overwrite_hint} to replace its run files)",
         )
     folder.mkdir(parents=True, exist_ok=True)
     for name, text in texts.items():

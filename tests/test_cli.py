@@ -128,12 +128,34 @@ def test_missing_run_folder_and_mrclam_without_robot(tmp_path: Path):
 
 def test_simulate_refuses_to_overwrite(tmp_path: Path):
     target = tmp_path / "r"
-    assert (
-        cli("simulate", "--trajectory", "octagon", "--laps", "1", "--out", str(target)).returncode
-        == 0
-    )
+    first = cli("simulate", "--trajectory", "octagon", "--laps", "1", "--out", str(target))
+    assert first.returncode == 0
+    # its own duration is not the command's run time
+    assert first.stdout.rstrip().endswith(" s of simulated time")
     again = cli("simulate", "--trajectory", "octagon", "--laps", "1", "--out", str(target))
     assert again.returncode == 2 and "Traceback" not in again.stderr
+    assert len(again.stderr.strip().splitlines()) == 1
+    # the command line's flag, not the library's keyword
+    assert "pass --overwrite to replace" in again.stderr and "overwrite=True" not in again.stderr
+
+
+def test_only_the_seeds_experiment_prints_the_seeds_row(tmp_path: Path):
+    """Regression: `--seed 5` was named octagon-2laps and compared with the seed's real run."""
+    made = cli("simulate", "--trajectory", "octagon", "--seed", "5", "--out", str(tmp_path / "r"))
+    assert made.returncode == 0, made.stderr
+    assert "(octagon-2laps-seed5)" in made.stdout
+    out = cli("run", str(tmp_path / "r"))
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.splitlines()[1].startswith("octagon-2laps-seed5 ")
+    assert "seed report" not in out.stdout
+    as_json = json.loads(cli("run", str(tmp_path / "r"), "--json").stdout)
+    assert as_json["seed_report"] is None
+    # the shipped run is the seed's experiment, by its run.json, and keeps its row
+    shipped = json.loads(cli("run", str(RUNS / "octagon-2laps"), "--json").stdout)
+    assert shipped["name"] == "octagon-2laps"
+    assert shipped["seed_report"] == {
+        "trajectory": "octagon", "x0": -0.04, "y0": 0.043, "theta0": 0.137, "mean_error": 0.13
+    }  # fmt: skip
 
 
 def test_a_map_too_small_to_align_says_why(tmp_path: Path):

@@ -217,7 +217,8 @@ def test_log_layout(square):
     for angles in (d.bearing, gt.pose[:, 2]):
         assert angles.min() >= -np.pi and angles.max() < np.pi
     meta = log.meta
-    assert meta.source == "simulated" and meta.name == "square-2laps"
+    # seed 1 without the seed's start error is not the shipped square-2laps: its name says so
+    assert meta.source == "simulated" and meta.name == "square-2laps-seed1"
     assert meta.control_rate_hz == 20.0 and meta.camera_rate_hz == 10.0
     assert meta.robot == config.robot and np.array_equal(meta.camera_mounting, [0.06, 0, 0])
     assert np.array_equal(meta.nominal_start, SEED_ARENA.nominal_start)
@@ -445,3 +446,26 @@ def test_outliers_are_injected_at_their_rates_and_counted():
     assert counted["wrong_id"] == wrong_id.sum()
     assert counted["range"] >= gross.sum()  # a misread tag may also carry a gross range
     assert len({(t, i) for t, i in zip(log.detections.t, log.detections.tag_id, strict=True)}) == n
+
+
+def test_a_run_is_named_after_what_makes_it_differ_from_the_seeds():
+    from ekfslam.simulation import SEED_EXPERIMENTS, seed_experiment
+
+    assert SimulationConfig(**SEED_EXPERIMENTS["octagon-2laps"]).name == "octagon-2laps"
+    assert SimulationConfig(**SEED_EXPERIMENTS["square-2laps"]).name == "square-2laps"
+    assert SimulationConfig(trajectory="octagon", seed=5).name == "octagon-2laps-seed5"
+    other = SimulationConfig(
+        trajectory="square", laps=1, seed=3, size=0.6, start_error=(-0.03, 0.04, 0.12),
+        wheel_scale_sigma=0.01,
+    )  # fmt: skip
+    assert other.name == "square-1lap-seed3-size0.6-start-0.03,0.04,0.12-wheelscale0.01"
+    # the seed's experiment with one thing changed is no longer the seed's experiment
+    changed = {**SEED_EXPERIMENTS["octagon-2laps"], "dropout": 0.2}
+    assert SimulationConfig(**changed).name == "octagon-2laps-seed2-start-0.04,0.04,0.13"
+    # judged from run.json's simulation block, digits rounded as a writer might round them
+    sim = {"config": SimulationConfig(**SEED_EXPERIMENTS["octagon-2laps"]).to_dict()}
+    sim["config"]["max_incidence"] = round(sim["config"]["max_incidence"], 6)
+    assert seed_experiment(sim) == "octagon"
+    seed5 = SimulationConfig(trajectory="octagon", seed=5).to_dict()
+    assert seed_experiment({"config": seed5}) is None
+    assert seed_experiment(None) is None and seed_experiment({"seed": 2}) is None
