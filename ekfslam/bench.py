@@ -60,6 +60,8 @@ class BenchConfig:
     mrclam_repeats: int = 3
     runs_dir: Path | None = REPO / "data" / "runs"
     mrclam_dir: Path | None = None
+    #: why there is no `mrclam_dir`, printed in the MRCLAM row (default `MRCLAM_MISSING`)
+    mrclam_note: str | None = None
 
     @classmethod
     def quick(cls, **kwargs) -> BenchConfig:
@@ -67,11 +69,24 @@ class BenchConfig:
         return cls(**{**base, **kwargs})
 
 
+#: Why the MRCLAM row is empty when no dataset folder was given or found, and how to fill it.
+MRCLAM_MISSING = (
+    "not run: MRCLAM Dataset 7 not found in the shared data or the fetch cache; "
+    "`python -m ekfslam fetch mrclam 7` downloads it"
+)
+MRCLAM_SKIPPED = "not run: --no-mrclam"
+
+
 def default_mrclam_dir() -> Path | None:
-    """MRCLAM Dataset 7 in ``$EKFSLAM_SHARED_DATA`` (else ``../shared/data``), or None."""
+    """MRCLAM Dataset 7 in ``$EKFSLAM_SHARED_DATA`` (else ``../shared/data``), else where
+    ``python -m ekfslam fetch mrclam 7`` puts it, or None."""
+    from ekfslam.fetch import mrclam_path
+
     shared = Path(os.environ.get("EKFSLAM_SHARED_DATA", REPO.parent / "shared" / "data"))
-    path = shared / "mrclam" / "MRCLAM_Dataset7"
-    return path if path.is_dir() else None
+    for path in (shared / "mrclam" / "MRCLAM_Dataset7", mrclam_path(7)):
+        if path.is_dir():
+            return path
+    return None
 
 
 def _median_time(fn: Callable[[], object], repeats: int) -> float:
@@ -122,7 +137,11 @@ def bench_mrclam(config: BenchConfig) -> dict:
     """Median replay time (s) of one MRCLAM Dataset 7 robot, or None without the data."""
     folder = config.mrclam_dir
     if folder is None:
-        return {"mrclam_replay_s": None, "mrclam_events_per_s": None, "mrclam_events": None}
+        note = config.mrclam_note or MRCLAM_MISSING
+        return {
+            "mrclam_replay_s": None, "mrclam_events_per_s": None, "mrclam_events": None,
+            "mrclam_note": note,
+        }  # fmt: skip
     from ekfslam.mrclam import load_mrclam
     from ekfslam.replay import default_noise, replay
 
@@ -130,7 +149,10 @@ def bench_mrclam(config: BenchConfig) -> dict:
     noise = default_noise(run)
     events = len(replay(run, noise).history.t)
     s = _median_time(lambda: replay(run, noise), config.mrclam_repeats)
-    return {"mrclam_replay_s": s, "mrclam_events_per_s": events / s, "mrclam_events": events}
+    return {
+        "mrclam_replay_s": s, "mrclam_events_per_s": events / s, "mrclam_events": events,
+        "mrclam_note": None,
+    }  # fmt: skip
 
 
 # --------------------------------------------------------------------------- cost against n
@@ -324,8 +346,10 @@ def markdown_table(r: dict) -> str:
         lines.append(
             f"| {name} | {_fmt(ms)} ms | {_fmt(events, digits=0)} | {_fmt(eps, digits=0)} |"
         )
+    note = r.get("mrclam_note")
     lines.append(
-        f"| MRCLAM Dataset 7, robot {MRCLAM_ROBOT} | {_fmt(r['mrclam_replay_s'], digits=3)} s | "
+        f"| MRCLAM Dataset 7, robot {MRCLAM_ROBOT}{f' ({note})' if note else ''} | "
+        f"{_fmt(r['mrclam_replay_s'], digits=3)} s | "
         f"{_fmt(r['mrclam_events'], digits=0)} | {_fmt(r['mrclam_events_per_s'], digits=0)} |"
     )
     lines += [
@@ -414,6 +438,8 @@ def add_cli(subparsers) -> None:
 
 def _cmd_bench(args: argparse.Namespace) -> int:
     kwargs: dict = {"mrclam_dir": None if args.no_mrclam else args.mrclam or default_mrclam_dir()}
+    if args.no_mrclam:
+        kwargs["mrclam_note"] = MRCLAM_SKIPPED
     if args.sizes:
         kwargs["sizes"] = tuple(sorted(set(args.sizes)))
     if args.repeats:

@@ -451,6 +451,16 @@ def _emit(args: argparse.Namespace, data: dict, text: str) -> None:
     print(json.dumps(data, indent=2) if args.json else text)
 
 
+def counts_line(counts: FilterCounts) -> str:
+    """The filters' counts over all runs, each number after its own label."""
+    c = counts
+    return (
+        f"over all runs: {c.predictions} predictions; updates {c.accepted} accepted, "
+        f"{c.rejected} rejected, {c.refused} refused; landmarks {c.initialised} initialised, "
+        f"{c.reinitialised} re-initialised"
+    )
+
+
 def _table(r: Consistency) -> str:
     d = r.as_dict()
     lines = [
@@ -470,8 +480,9 @@ def _table(r: Consistency) -> str:
     m = d["map_nees_final"]
     lines.append(
         f"final map NEES {m['mean']:.1f} ({m['dof']} dof, band [{m['band'][0]:.1f}, "
-        f"{m['band'][1]:.1f}]); updates " + ", ".join(f"{k} {v}" for k, v in d["updates"].items())
+        f"{m['band'][1]:.1f}])"
     )
+    lines.append(counts_line(r.counts))
     if "plot" in d:
         lines.append(f"figure written to {d['plot']}")
     return "\n".join(lines)

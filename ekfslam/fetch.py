@@ -43,6 +43,10 @@ class FetchError(EkfSlamError):
     """A dataset could not be downloaded, unpacked or checked; the message says what to do."""
 
 
+#: What `default_cache_dir` picks, for help texts (the dataset goes in <cache>/mrclam/...).
+CACHE_DEFAULT_HELP = "$EKFSLAM_CACHE, else $XDG_CACHE_HOME/ekfslam, else ~/.cache/ekfslam"
+
+
 def default_cache_dir() -> Path:
     """``$EKFSLAM_CACHE``, else ``$XDG_CACHE_HOME/ekfslam``, else ``~/.cache/ekfslam``."""
     if os.environ.get("EKFSLAM_CACHE"):
@@ -130,7 +134,7 @@ def add_cli(subparsers) -> None:
     p = subparsers.add_parser("fetch", help="download a public dataset into the cache")
     p.add_argument("dataset", choices=["mrclam"], help="which dataset family")
     p.add_argument("number", type=int, help="MRCLAM dataset number, 1-9")
-    p.add_argument("--cache", type=Path, help="cache folder (default: $EKFSLAM_CACHE or ~/.cache)")
+    p.add_argument("--cache", type=Path, help=f"cache folder (default: {CACHE_DEFAULT_HELP})")
     p.add_argument("--url", help="base URL holding MRCLAM<N>.zip (default: $EKFSLAM_MRCLAM_URL)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_fetch)

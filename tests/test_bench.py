@@ -37,7 +37,7 @@ def test_smoke_run_prints_the_issue_keys_and_writes_its_files(tmp_path: Path, ca
         assert positive(r["replay_ms"][run])
         assert positive(r["replay_events_per_s"][run])
         assert r["replay_events"][run] > 1000  # every prediction and observation of the run
-    assert r["mrclam_replay_s"] is None  # --no-mrclam
+    assert r["mrclam_replay_s"] is None and r["mrclam_note"] == "not run: --no-mrclam"
     assert set(r["update_ratio_vs_literal"]) == {"2", "120"}
     assert all(positive(v) for v in r["update_ratio_vs_literal"].values())
     for impl in ("efficient", "literal"):
@@ -53,6 +53,7 @@ def test_smoke_run_prints_the_issue_keys_and_writes_its_files(tmp_path: Path, ca
 
     table = (out / "bench.md").read_text()
     assert "| 120 |" in table and "octagon-2laps" in table
+    assert "| MRCLAM Dataset 7, robot 1 (not run: --no-mrclam) | – s |" in table
     assert json.loads((out / "bench.json").read_text())["sizes"] == [2, 120]
     assert (out / "cost_vs_n.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -72,3 +73,32 @@ def test_literal_twin_starts_in_the_same_state_and_stays_there():
     np.testing.assert_allclose(lit.mu, f.mu, rtol=0, atol=1e-12)
     np.testing.assert_allclose(lit.Sigma, f.Sigma, rtol=0, atol=1e-12)
     assert np.abs(f.Sigma[:3, 3:]).max() > 1e-6  # the map is correlated with the pose
+
+
+def test_without_the_data_the_mrclam_row_says_why_and_how_to_fetch_it(tmp_path, monkeypatch):
+    from ekfslam.bench import BenchConfig, bench_mrclam, default_mrclam_dir, markdown_table
+
+    monkeypatch.setenv("EKFSLAM_SHARED_DATA", str(tmp_path / "shared"))
+    monkeypatch.setenv("EKFSLAM_CACHE", str(tmp_path / "cache"))
+    assert default_mrclam_dir() is None
+    row = bench_mrclam(BenchConfig(mrclam_dir=None))
+    assert row["mrclam_replay_s"] is None
+    assert "not found" in row["mrclam_note"]
+    assert "`python -m ekfslam fetch mrclam 7`" in row["mrclam_note"]
+    # a fetched copy in the cache is found without --mrclam
+    fetched = tmp_path / "cache" / "mrclam" / "MRCLAM_Dataset7"
+    fetched.mkdir(parents=True)
+    assert default_mrclam_dir() == fetched
+    lines = [line for line in _table_with(markdown_table, row).splitlines() if "MRCLAM" in line]
+    assert lines == [f"| MRCLAM Dataset 7, robot 1 ({row['mrclam_note']}) | – s | – | – |"]
+
+
+def _table_with(markdown_table, mrclam: dict) -> str:
+    """The markdown of a tiny benchmark run with `mrclam` as its MRCLAM result."""
+    from ekfslam.bench import BenchConfig, run_benchmarks
+
+    r = run_benchmarks(
+        BenchConfig(sizes=(2, 4), replay_repeats=1, step_repeats=1, literal_repeats=1),
+        command="test",
+    )
+    return markdown_table({**r, **mrclam})

@@ -239,3 +239,25 @@ def test_a_short_long_run_keeps_sigma_positive_semidefinite(linearization):
     assert r.min_eigenvalue_ratio >= -1e-9
     assert r.max_asymmetry < 1e-12
     assert r.landmarks == 12 and r.counts.accepted > 3000
+
+
+def test_the_counts_line_puts_each_label_with_its_number():
+    """Regression: "updates predictions 25740, initialised 160" ran the labels together."""
+    from ekfslam.consistency import counts_line
+    from ekfslam.filter import FilterCounts
+
+    counts = FilterCounts(
+        predictions=25740, accepted=9000, rejected=12, refused=1, initialised=160, reinitialised=2
+    )
+    assert counts_line(counts) == (
+        "over all runs: 25740 predictions; updates 9000 accepted, 12 rejected, 1 refused; "
+        "landmarks 160 initialised, 2 re-initialised"
+    )
+
+
+def test_cli_text_prints_the_counts_line():
+    out = cli("consistency", "--runs", "1", "--trajectory", "square", "--linearization", "fej")
+    assert out.returncode == 0, out.stderr
+    last = out.stdout.strip().splitlines()[-1]
+    assert last.startswith("over all runs: ") and " predictions; updates " in last
+    assert "updates predictions" not in out.stdout

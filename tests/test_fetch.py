@@ -230,3 +230,27 @@ def test_environment_variables(server: Server, cache: Path, monkeypatch, tmp_pat
 def test_dataset_number_must_be_1_to_9(cache: Path, n) -> None:
     with pytest.raises(FetchError, match="numbered 1 to 9"):
         fetch_mrclam(n, cache_dir=cache)
+
+
+def test_help_and_readme_name_the_cache_the_code_uses(monkeypatch, tmp_path: Path) -> None:
+    """Regression: --help said ~/.cache, the README ~/.cache/ekfslam."""
+    import argparse
+
+    from ekfslam.fetch import CACHE_DEFAULT_HELP, add_cli
+
+    parser = argparse.ArgumentParser()
+    add_cli(parser.add_subparsers())
+    fetch = next(a for a in parser._subparsers._group_actions[0].choices.values())
+    cache_help = next(a.help for a in fetch._actions if "--cache" in a.option_strings)
+    assert cache_help == f"cache folder (default: {CACHE_DEFAULT_HELP})"
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    assert CACHE_DEFAULT_HELP in " ".join(readme.replace("`", "").split())
+    # ... and that is what the code does, in that order
+    monkeypatch.delenv("EKFSLAM_CACHE", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert default_cache_dir() == tmp_path / "xdg" / "ekfslam"
+    monkeypatch.delenv("XDG_CACHE_HOME")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    assert default_cache_dir() == tmp_path / "home" / ".cache" / "ekfslam"
+    monkeypatch.setenv("EKFSLAM_CACHE", str(tmp_path / "mine"))
+    assert default_cache_dir() == tmp_path / "mine"
