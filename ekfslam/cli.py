@@ -150,8 +150,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     summary = summarize(run, result, method=args.align)
     out = summary.as_dict()
     out["seed_report"] = _seed_report(run)
+    out["detections"] = _detections_source(run, report)
     if report is not None:
-        out["dropped"] = report.as_dict()
+        loading = report.as_dict()
+        out["loaded"], out["dropped"] = loading["loaded"], loading["dropped"]
     if args.plot is not None:
         from ekfslam.plotting import figure2
 
@@ -162,7 +164,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(out, indent=2))
     else:
-        print(_table(summary, out))
+        print(_table(summary, out, report))
     return 0
 
 
@@ -199,7 +201,21 @@ def _seed_report(run) -> dict | None:
     }
 
 
-def _table(summary, out: dict) -> str:
+def _detections_source(run, report) -> str:
+    """Which detections a replay used: detected from frames now, or read from which file."""
+    from ekfslam.frames import FramesReport
+    from ekfslam.mrclam import MrclamLoadReport
+
+    if isinstance(report, FramesReport):
+        return "frames (detected now)"
+    if isinstance(report, MrclamLoadReport):
+        return f"Robot{report.robot}_Measurement.dat"
+    if run.meta.frames is not None:  # `detect --in-place` wrote it: the frames are not looked at
+        return "detections.csv (not the run's frames; delete it to detect from them)"
+    return "detections.csv"
+
+
+def _table(summary, out: dict, report=None) -> str:
     lines = []
     a = summary.alignment
     header = f"{'Trajectory':<22}{'x0':>9}{'y0':>9}{'theta0':>9}{'Average Error':>15}"
@@ -229,10 +245,10 @@ def _table(summary, out: dict) -> str:
     )
     if summary.ate_rmse is not None:
         lines.append(f"trajectory ATE RMSE (no alignment) {summary.ate_rmse:.3f} m")
-    if "dropped" in out:
-        lines.append(
-            "dropped while loading: " + ", ".join(f"{k} {v}" for k, v in out["dropped"].items())
-        )
+    if "detections" in out:
+        lines.append(f"detections: {out['detections']}")
+    if report is not None:  # a loader's report: what it read, and what it dropped and why
+        lines += [report.loaded_text(), report.dropped_text()]
     lines.append(f"replay {summary.seconds * 1e3:.1f} ms")
     if "plot" in out:
         lines.append(f"figure written to {out['plot']}")

@@ -7,16 +7,18 @@ A run of camera frames is an ordinary run folder (``data/README.md``) whose run.
     frames/000000.png or one image per frame: ``{"kind": "images", "file": "frames/%06d.png"}``
     frames.csv        ``t,frame``: each frame's time (s) and its index in the video / image pattern
 
-detections.csv is optional in such a run: ``python -m ekfslam detect RUN`` makes it from the
-frames (`detect_run`), and ``python -m ekfslam run RUN`` without it detects on the fly
-(`read_frames_run`). Videos are written as MPEG-4 part 2 (``mp4v``), the one compact codec
-every ``opencv-python-headless`` wheel can write: H.264 writers do not open there.
+detections.csv is optional in such a run: ``python -m ekfslam detect RUN --out DIR`` makes a
+copy of the run with it (``--in-place`` writes the run's own; `detect_run`), and
+``python -m ekfslam run RUN`` without it detects on the fly (`read_frames_run`). Videos are
+written as MPEG-4 part 2 (``mp4v``), the one compact codec every ``opencv-python-headless``
+wheel can write: H.264 writers do not open there.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import shutil
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -303,14 +305,44 @@ def has_frames_only(folder: str | Path) -> bool:
     return read_meta(folder / RUN_JSON).frames is not None
 
 
+#: Why `ekfslam.vision.TagObserver` refuses a tag it found, by refusal reason.
+REFUSAL_REASONS = {
+    "nonfinite": "range or bearing not finite",
+    "unknown_id": "id not in the tag map",
+    "duplicate_id": "id seen twice in one frame",
+    "outside_frame": "outline not wholly in the image",
+    "edge_on": "seen too edge-on",
+}
+
+
 @dataclass(frozen=True)
 class FramesReport:
-    """What detecting a run's frames refused (``run`` prints it as "dropped while loading")."""
+    """What detecting a run's frames found, kept and refused (``run`` prints it)."""
 
     counts: VisionCounts
 
-    def as_dict(self) -> dict[str, int]:
-        return {k: v for k, v in self.counts.as_dict().items() if k.startswith("refused_")}
+    def as_dict(self) -> dict:
+        """``loaded`` (frames, tags found, detections kept) and ``dropped`` (count, reason)."""
+        c = self.counts
+        return {
+            "loaded": {"frames": c.frames, "tags_found": c.found, "detections": c.accepted},
+            "dropped": {
+                reason: {"count": int(c.refused.get(reason, 0)), "reason": why}
+                for reason, why in REFUSAL_REASONS.items()
+            },
+        }
+
+    def loaded_text(self) -> str:
+        c = self.counts
+        return f"loaded: {c.frames} frames, {c.found} tags found, {c.accepted} detections kept"
+
+    def dropped_text(self) -> str:
+        parts = [
+            f"{d['count']} {name.replace('_', ' ')} ({d['reason']})"
+            for name, d in self.as_dict()["dropped"].items()
+            if d["count"]
+        ]
+        return "dropped: " + (", ".join(parts) if parts else "nothing")
 
 
 def read_frames_run(
@@ -327,14 +359,42 @@ def detect_run(
     out: str | Path | None = None,
     config: VisionConfig | None = None,
     overwrite: bool = False,
+    *,
+    in_place: bool = False,
 ) -> tuple[Path, VisionCounts]:
-    """Write the detections found in a run's frames to `out` (default: its detections.csv)."""
+    """Detect the tags in a run's frames and write them; returns what was written, and counts.
+
+    `out` ending in ``.csv`` is written as that detections file. Any other `out` is a new run
+    folder: a copy of the run (frames included) with the detections.csv, so the original run
+    still replays from its frames. ``in_place=True`` (and no `out`) writes the run's own
+    detections.csv, which ``run`` then reads instead of the frames. Nothing existing is replaced
+    without `overwrite`; nothing is written unless the frames were all read.
+    """
     folder = Path(folder)
     meta = read_meta(folder / RUN_JSON)
-    path = Path(out) if out is not None else folder / DETECTIONS_CSV
+    if out is not None and in_place:
+        raise InputError(folder, None, "give --out or --in-place, not both")
+    if out is None and not in_place:
+        raise InputError(
+            folder, None, "say where to write the detections: --out DIR (a new run folder), "
+            "--out FILE.csv, or --in-place (this run's detections.csv, which `run` then uses "
+            "instead of the frames)",
+        )  # fmt: skip
+    if in_place:
+        target = path = folder / DETECTIONS_CSV
+    elif Path(out).suffix.lower() == ".csv":
+        target = path = Path(out)
+    else:
+        target, path = Path(out), Path(out) / DETECTIONS_CSV
+        if target.resolve().is_relative_to(folder.resolve()):
+            raise InputError(target, None, "is inside the run; use --in-place to write into it")
+    if target.is_dir() and target != path and any(target.iterdir()) and not overwrite:
+        raise InputError(target, None, "folder exists and is not empty; pass --overwrite")
     if path.exists() and not overwrite:
         raise InputError(path, None, "exists; pass --overwrite to replace it")
     detections, counts = detect_frames(folder, meta, config)
+    if target != path:  # a new run folder: the run's own files, then its detections
+        shutil.copytree(folder, target, dirs_exist_ok=True)
     return write_detections(detections, path, meta.tag_map), counts
 
 
@@ -361,7 +421,14 @@ def add_cli(subparsers) -> None:
         "detect", help="detect the AprilTags in a run's camera frames -> detections.csv"
     )
     p.add_argument("run", type=Path, help="a run folder with frames (run.json, frames.csv, ...)")
-    p.add_argument("--out", type=Path, help="where to write (default: RUN/detections.csv)")
+    p.add_argument(
+        "--out", type=Path,
+        help="a new run folder (the run copied, with detections.csv) or a FILE.csv to write",
+    )  # fmt: skip
+    p.add_argument(
+        "--in-place", action="store_true",
+        help="write RUN/detections.csv instead; `run RUN` then uses it, not the frames",
+    )  # fmt: skip
     p.add_argument("--overwrite", action="store_true", help="replace an existing file")
     p.add_argument("--detector", choices=["opencv", "opencv-subpix", "apriltag"], default="opencv")
     p.add_argument(
@@ -387,7 +454,9 @@ def _cmd_render_frames(args) -> int:
 
 def _cmd_detect(args) -> int:
     config = VisionConfig(detector=args.detector, max_incidence=math.radians(args.max_incidence))
-    path, counts = detect_run(args.run, args.out, config, overwrite=args.overwrite)
+    path, counts = detect_run(
+        args.run, args.out, config, overwrite=args.overwrite, in_place=args.in_place
+    )
     c = counts.as_dict()
     refused = ", ".join(f"{k.removeprefix('refused_')} {v}" for k, v in c.items() if "refused" in k)
     print(

@@ -29,7 +29,6 @@ Beyond loading:
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 import re
 import warnings
@@ -104,10 +103,67 @@ class MrclamLoadReport:
     start_inside_groundtruth: bool
 
     def as_dict(self) -> dict:
-        """The fields as JSON-ready values (the unknown barcodes as a sorted list)."""
-        out = dataclasses.asdict(self)
-        out["unknown_barcodes"] = sorted(self.unknown_barcodes)
-        return out
+        """JSON-ready: what was ``loaded`` and what was ``dropped`` (each with its reason).
+
+        Times in s rounded to the ms; rows out of order were sorted, not dropped, so they are
+        under ``loaded``. Every field stays available on the report itself.
+        """
+        return {
+            "dataset": self.dataset,
+            "robot": self.robot,
+            "loaded": {
+                "odometry_rows": self.odometry_rows,
+                "odometry_duplicate_times": self.odometry_duplicate_times,
+                "odometry_max_gap_s": round(self.odometry_max_gap_s, 3),
+                "measurement_rows": self.measurement_rows,
+                "measurements_kept": self.measurements_kept,
+                "groundtruth_rows": self.groundtruth_rows,
+                "groundtruth_span_s": [
+                    round(self.groundtruth_first_time, 3),
+                    round(self.groundtruth_last_time, 3),
+                ],
+                "start_time_s": round(self.start_time, 3),
+                "start_inside_groundtruth": self.start_inside_groundtruth,
+                "sorted_out_of_order_rows": {
+                    "odometry": self.odometry_out_of_order,
+                    "measurements": self.measurement_out_of_order,
+                    "groundtruth": self.groundtruth_out_of_order,
+                },
+            },
+            "dropped": {
+                "robot_sightings": {
+                    "count": self.robot_sightings_dropped,
+                    "reason": "sightings of other robots, not landmarks",
+                },
+                "unknown_barcodes": {
+                    "count": self.unknown_barcodes_dropped,
+                    "barcodes": sorted(self.unknown_barcodes),
+                    "reason": f"barcodes not in {BARCODES}",
+                },
+            },
+        }
+
+    def loaded_text(self) -> str:
+        """One line: what was read, with units (``run`` prints it)."""
+        clamped = "" if self.start_inside_groundtruth else " (the start clamped to it)"
+        return (
+            f"loaded: {self.odometry_rows} odometry rows (largest gap "
+            f"{self.odometry_max_gap_s:.3f} s, {self.odometry_duplicate_times} duplicate times), "
+            f"{self.measurements_kept} of {self.measurement_rows} measurements, "
+            f"{self.groundtruth_rows} ground-truth rows over "
+            f"{self.groundtruth_last_time - self.groundtruth_first_time:.1f} s{clamped}"
+        )
+
+    def dropped_text(self) -> str:
+        """One line: what was dropped, and why."""
+        unknown = ", ".join(str(b) for b in sorted(self.unknown_barcodes))
+        parts = [
+            f"{self.robot_sightings_dropped} robot sightings (other robots, not landmarks)",
+            f"{self.unknown_barcodes_dropped} sightings of unknown barcodes"
+            + (f" {unknown}" if unknown else "")
+            + f" (not in {BARCODES})",
+        ]
+        return "dropped: " + ", ".join(parts)
 
     def summary(self) -> str:
         """A few lines for a terminal: rows kept, rows dropped and why, time coverage."""

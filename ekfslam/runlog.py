@@ -146,7 +146,8 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
         if meta.frames is not None:
             hint = (
                 "this run is logged as camera frames: make it with "
-                f"`python -m ekfslam detect {folder}`, or replay the frames directly with "
+                f"`python -m ekfslam detect {folder} --in-place`, or replay the frames directly "
+                "with "
                 f"`python -m ekfslam run {folder}`"
             )
         raise InputError(path, None, f"missing file; {hint}")

@@ -250,17 +250,22 @@ def test_detections_from_frames_match_the_truth(video_run) -> None:
     range_error, bearing_error = _errors(run)
     assert abs(np.median(range_error)) < 0.002 and np.std(range_error) < 0.005
     assert np.std(bearing_error) < math.radians(0.05)
-    assert set(report.as_dict()) == {
-        "refused_nonfinite", "refused_unknown_id", "refused_duplicate_id",
-        "refused_outside_frame", "refused_edge_on",
+    d = report.as_dict()
+    assert set(d) == {"loaded", "dropped"}
+    assert d["loaded"]["detections"] == len(run.detections.t)
+    assert set(d["dropped"]) == {
+        "nonfinite", "unknown_id", "duplicate_id", "outside_frame", "edge_on"
     }  # fmt: skip
+    assert all(set(v) == {"count", "reason"} for v in d["dropped"].values())
 
 
 def test_detect_command_then_run_command(video_run, tmp_path: Path, capsys) -> None:
     # run straight from the frames (no detections.csv) ...
     assert main(["run", str(video_run), "--json"]) == 0
     direct = json.loads(capsys.readouterr().out)
-    assert "dropped" in direct and direct["dropped"]["refused_nonfinite"] == 0
+    assert direct["dropped"]["nonfinite"]["count"] == 0
+    assert direct["detections"] == "frames (detected now)"
+    assert direct["loaded"]["frames"] == 16
     # ... then detect once, and the same replay reads detections.csv
     out = tmp_path / "det.csv"
     assert main(["detect", str(video_run), "--out", str(out)]) == 0
@@ -277,6 +282,45 @@ def test_detect_command_then_run_command(video_run, tmp_path: Path, capsys) -> N
     from_csv = json.loads(capsys.readouterr().out)
     assert from_csv["landmarks"] == direct["landmarks"]
     assert from_csv["alignment"] == direct["alignment"]
+    assert from_csv["detections"].startswith("detections.csv (not the run's frames;")
+
+
+def test_detect_writes_into_the_run_only_when_asked(video_run, tmp_path: Path, capsys) -> None:
+    """Regression: `detect RUN` wrote RUN/detections.csv and `run` then silently used it."""
+    before = sorted(p.name for p in video_run.iterdir())
+    assert main(["detect", str(video_run)]) == 2
+    err = capsys.readouterr().err
+    assert "--out DIR" in err and "--in-place" in err and len(err.strip().splitlines()) == 1
+    both = ["detect", str(video_run), "--out", str(tmp_path / "x"), "--in-place"]
+    assert main(both) == 2 and "not both" in capsys.readouterr().err
+    assert main(["detect", str(video_run), "--out", str(video_run / "sub")]) == 2
+    assert "inside the run" in capsys.readouterr().err
+    assert sorted(p.name for p in video_run.iterdir()) == before  # nothing written
+    # --out DIR: a new run folder, the original untouched and still replayed from its frames
+    copy = tmp_path / "detected"
+    assert main(["detect", str(video_run), "--out", str(copy)]) == 0
+    assert capsys.readouterr().out.startswith(f"wrote {copy / 'detections.csv'}: ")
+    assert sorted(p.name for p in copy.iterdir()) == sorted([*before, "detections.csv"])
+    assert sorted(p.name for p in video_run.iterdir()) == before
+    assert main(["detect", str(video_run), "--out", str(copy)]) == 2  # not over a run
+    assert "not empty; pass --overwrite" in capsys.readouterr().err
+    assert main(["run", str(copy)]) == 0
+    text = capsys.readouterr().out.splitlines()
+    assert (
+        "detections: detections.csv (not the run's frames; delete it to detect from them)" in text
+    )
+    assert main(["run", str(video_run)]) == 0
+    text = capsys.readouterr().out.splitlines()
+    assert "detections: frames (detected now)" in text
+    assert "loaded: 16 frames, " in "\n".join(text)
+    assert any(line.startswith("dropped: ") for line in text)
+    # --in-place, asked for
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    for f in video_run.iterdir():
+        (scratch / f.name).write_bytes(f.read_bytes())
+    assert main(["detect", str(scratch), "--in-place"]) == 0
+    assert (scratch / "detections.csv").read_bytes() == (copy / "detections.csv").read_bytes()
 
 
 def test_the_shipped_frames_run_reads_and_detects() -> None:

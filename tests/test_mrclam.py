@@ -86,8 +86,27 @@ def test_robot_3_sees_two_unknown_barcodes(loaded: dict) -> None:
     assert report.unknown_barcodes_dropped == 9
     assert "9 unknown barcodes dropped (34, 52)" in report.summary()
     as_json = json.loads(json.dumps(report.as_dict()))
-    assert as_json["unknown_barcodes"] == [34, 52]
-    assert as_json["robot_sightings_dropped"] == report.robot_sightings_dropped
+    assert as_json["dropped"]["unknown_barcodes"]["barcodes"] == [34, 52]
+    assert as_json["dropped"]["unknown_barcodes"]["count"] == 9
+    assert as_json["dropped"]["robot_sightings"]["count"] == report.robot_sightings_dropped
+    assert "9 sightings of unknown barcodes 34, 52 (not in Barcodes.dat)" in report.dropped_text()
+
+
+def test_the_load_report_separates_what_was_loaded_from_what_was_dropped(loaded: dict) -> None:
+    """Regression: "dropped while loading: odometry_rows 61785, ..., 1.0049998760223389"."""
+    _, report = loaded[3]
+    d = report.as_dict()
+    assert set(d) == {"dataset", "robot", "loaded", "dropped"}
+    assert set(d["dropped"]) == {"robot_sightings", "unknown_barcodes"}
+    assert all("reason" in v and "count" in v for v in d["dropped"].values())
+    assert d["loaded"]["odometry_rows"] == report.odometry_rows  # loaded, not dropped
+    gap = d["loaded"]["odometry_max_gap_s"]
+    assert gap == round(report.odometry_max_gap_s, 3) and len(repr(gap)) <= 6
+    loaded_line, dropped_line = report.loaded_text(), report.dropped_text()
+    assert loaded_line.startswith(f"loaded: {report.odometry_rows} odometry rows (largest gap ")
+    assert f"gap {report.odometry_max_gap_s:.3f} s," in loaded_line
+    assert dropped_line.startswith(f"dropped: {report.robot_sightings_dropped} robot sightings ")
+    assert "odometry" not in dropped_line and "True" not in loaded_line + dropped_line
 
 
 @pytest.mark.parametrize("robot", ROBOTS)
