@@ -514,7 +514,13 @@ def convert_formats(subparsers: argparse._SubParsersAction) -> argparse._SubPars
 
 
 def add_cli(subparsers: argparse._SubParsersAction) -> None:
-    """Register ``convert mrclam``."""
+    """Register ``convert mrclam`` and ``score-mrclam``."""
+    p = subparsers.add_parser(
+        "score-mrclam",
+        help="replay every robot of a MRCLAM dataset with one noise setting; print the scores",
+    )
+    p.add_argument("number", type=int, nargs="?", default=7, help="dataset number (default: 7)")
+    p.set_defaults(func=_cmd_score_mrclam)
     p = convert_formats(subparsers).add_parser(
         "mrclam", help="one robot of a MRCLAM dataset -> a run folder (with its Vicon truth)"
     )
@@ -527,6 +533,14 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:
         help="shift and scale the commands by MRCLAM_CALIBRATION (lag 0.25 s, v x0.90, w x0.935)",
     )  # fmt: skip
     p.set_defaults(func=_cmd_convert_mrclam)
+
+
+def _cmd_score_mrclam(args: argparse.Namespace) -> int:
+    from ekfslam.mrclam_tuning import score_robots, scores_table
+
+    # not found: one line saying how to fetch it (InputError), not a traceback
+    print(scores_table(score_robots(find_dataset(args.number))))
+    return 0
 
 
 def _cmd_convert_mrclam(args: argparse.Namespace) -> int:

@@ -174,3 +174,39 @@ def test_a_map_too_small_to_align_says_why(tmp_path: Path):
     d = json.loads(cli("run", str(tmp_path / "one"), "--json").stdout)
     assert d["alignment"] is None
     assert "found 1" in d["alignment_note"]
+
+
+def test_readme_commands_exist_and_score_mrclam_fails_cleanly(tmp_path: Path, monkeypatch, capsys):
+    """Regression: the README's MRCLAM one-liner gave a traceback without the data."""
+    from ekfslam import mrclam
+    from ekfslam.cli import main
+
+    readme = (REPO / "README.md").read_text()
+    assert "`python -m ekfslam score-mrclam 7`" in readme
+    assert "`python -m ekfslam vision-eval --run\n  data/runs/square-1lap-frames`" in readme
+    assert "from ekfslam.mrclam import find_dataset;" not in readme
+    # nowhere to find it: one line on stderr that says how to fetch it, exit 2
+    monkeypatch.setenv("EKFSLAM_SHARED_DATA", str(tmp_path / "shared"))
+    monkeypatch.setenv("EKFSLAM_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(mrclam, "__file__", str(tmp_path / "a" / "ekfslam" / "mrclam.py"))
+    assert main(["score-mrclam", "7"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert err.endswith("dataset 7 not found; run `python -m ekfslam fetch mrclam 7`")
+
+
+@pytest.mark.shared_data
+def test_score_mrclam_prints_the_readmes_table(mrclam7: Path, monkeypatch):
+    monkeypatch.setenv("EKFSLAM_SHARED_DATA", str(mrclam7.parents[1]))
+    out = cli("score-mrclam", "7")
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[0].startswith("| robot | landmarks | mean error aligned (m) |")
+    assert [line.split("|")[1].strip() for line in lines[2:]] == [
+        "1",
+        "2",
+        "3",
+        "4",
+        "5",
+        "average",
+    ]
