@@ -157,7 +157,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.plot is not None:
         from ekfslam.plotting import figure2
 
-        fig = figure2(run, result, arena_half_size=_arena_half_size(run))
+        fig = figure2(
+            run, result, arena_half_size=_arena_half_size(run), alignment=summary.alignment
+        )
         args.plot.parent.mkdir(parents=True, exist_ok=True)
         fig.savefig(args.plot, dpi=120)
         out["plot"] = str(args.plot)

@@ -16,7 +16,9 @@ from matplotlib.image import AxesImage
 from matplotlib.patches import Ellipse, Rectangle
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam.alignment import Alignment
 from ekfslam.arena import Arena
+from ekfslam.geometry import rotation, wrap_angle
 from ekfslam.replay import ReplayResult
 from ekfslam.runlog import RunLog
 
@@ -70,6 +72,22 @@ def draw_trajectory(ax: Axes, poses: NDArray, arrows: int = 60, **kwargs) -> Non
     )  # fmt: skip
 
 
+def draw_true_landmarks(ax: Axes, tag_map: Mapping[int, ArrayLike]) -> None:
+    """The true landmarks as green dots, each labelled with its id, away from the map's centre."""
+    ids = sorted(tag_map)
+    truth = np.array([tag_map[i] for i in ids], dtype=float)
+    ax.plot(truth[:, 0], truth[:, 1], "o", color="tab:green", ms=8, label="true landmarks (id)")
+    centre = truth.mean(axis=0)
+    for i, p in zip(ids, truth, strict=True):
+        away = p - centre
+        norm = float(np.hypot(*away))
+        offset = 13.0 * away / norm if norm > 0 else np.array([0.0, 13.0])
+        ax.annotate(
+            str(i), tuple(p), xytext=tuple(offset), textcoords="offset points",
+            ha="center", va="center", color="darkgreen", fontweight="bold", fontsize=11,
+        )  # fmt: skip
+
+
 def plot_map(
     ax: Axes,
     run: RunLog,
@@ -78,36 +96,48 @@ def plot_map(
     arena_half_size: float | None = None,
     true_start: ArrayLike | None = None,
     confidence: float = 0.95,
+    alignment: Alignment | None = None,
 ) -> None:
     """The seed's Figure 2 on one axes.
 
-    Red arrows: the estimated trajectory; red hollow circles: estimated landmarks (before
-    alignment) with blue `confidence` ellipses; green dots: true landmarks; blue dot: the true
-    start (when known).
+    Red arrows: the estimated trajectory; red hollow circles: estimated landmarks with blue
+    `confidence` ellipses; green dots: true landmarks with their ids; blue dot: the true start
+    (when known). Without `alignment` the estimate is drawn as the filter holds it, before
+    alignment (as the seed drew it; the red labels are the estimated landmarks' ids). With it,
+    the trajectory, landmarks and ellipses are carried by eq. (17)'s transform onto the world
+    (world = R(θ0) estimate + (x0, y0), covariances R Σ Rᵀ).
     """
     if arena_half_size is not None:
         draw_arena(ax, arena_half_size)
     h = result.history
-    if len(h.pose):
-        draw_trajectory(ax, h.pose, label="estimated trajectory")
+    poses = np.asarray(h.pose, dtype=float)
+    rotate = np.eye(2)
+    if alignment is not None:
+        rotate = rotation(alignment.theta0)
+        poses = np.column_stack(
+            [alignment.apply(poses[:, :2]), wrap_angle(poses[:, 2] + alignment.theta0)]
+        ) if len(poses) else poses  # fmt: skip
+    if len(poses):
+        draw_trajectory(ax, poses, label="estimated trajectory")
     if run.meta.tag_map:
-        truth = np.array([run.meta.tag_map[i] for i in sorted(run.meta.tag_map)])
-        ax.plot(truth[:, 0], truth[:, 1], "o", color="tab:green", ms=8, label="true landmarks")
+        draw_true_landmarks(ax, run.meta.tag_map)
     if result.landmarks:
         ids = sorted(result.landmarks)
-        est = np.array([result.landmarks[i] for i in ids])
+        est = np.array([result.landmarks[i] for i in ids], dtype=float)
+        if alignment is not None:
+            est = alignment.apply(est)
         ax.plot(
             est[:, 0], est[:, 1], "o", mfc="none", mec="tab:red", ms=10, mew=1.5,
             label="estimated landmarks",
         )  # fmt: skip
-        for i in ids:
-            ax.add_patch(
-                covariance_ellipse(
-                    result.landmarks[i], result.landmark_covariances[i], confidence,
-                    color="tab:blue", lw=1.2,
-                )
-            )  # fmt: skip
-            ax.annotate(str(i), result.landmarks[i], xytext=(6, 6), textcoords="offset points")
+        for i, mean in zip(ids, est, strict=True):
+            cov = rotate @ np.asarray(result.landmark_covariances[i]) @ rotate.T
+            ax.add_patch(covariance_ellipse(mean, cov, confidence, color="tab:blue", lw=1.2))
+            if alignment is None:  # aligned, they sit on the true ids' dots
+                ax.annotate(
+                    str(i), tuple(mean), xytext=(6, 6), textcoords="offset points",
+                    color="tab:red", fontsize=10,
+                )  # fmt: skip
         ax.plot([], [], "-", color="tab:blue", label=f"{confidence:.0%} covariance ellipses")
     if true_start is not None:
         s = np.asarray(true_start, dtype=float)
@@ -124,19 +154,70 @@ def figure2(
     *,
     arena_half_size: float | None = None,
     title: str | None = None,
-    figsize: tuple[float, float] = (10.5, 7.5),
+    alignment: Alignment | None = None,
+    figsize: tuple[float, float] = (14.0, 8.0),
 ) -> Figure:
-    """A standalone Figure 2 for one run (no pyplot state: safe in scripts and tests)."""
-    fig = Figure(figsize=figsize, layout="constrained")
-    ax = fig.add_subplot()
+    """The seed's Figure 2 for one run, and beside it the same map after alignment.
+
+    Left: the estimate before alignment, in the filter's own frame, over the true tags: the
+    seed's Figure 2, whose landmarks can sit outside the walls by the start's placement error.
+    Right: the same estimate after eq. (17)'s transform (`alignment`, else the mean-distance
+    alignment of the run's tag map), which is what the printed average error measures. With
+    no tag map, or too few landmarks to align, only the left panel is drawn and its title says
+    why. No pyplot state: safe in scripts and tests.
+    """
+    from ekfslam.alignment import align
+    from ekfslam.errors import AlignmentError
+
+    note = "the run has no known tag map"
+    if alignment is None and run.meta.tag_map:
+        try:
+            alignment = align(result.landmarks, run.meta.tag_map)
+        except AlignmentError as exc:  # not an error of the run: said in the title
+            note = str(exc)
+    fig = Figure(figsize=figsize if alignment is not None else (9.0, 8.0), layout="constrained")
+    # not sharex/sharey: with equal aspects the constrained layout then misplaces the labels
+    axes = fig.subplots(1, 2 if alignment is not None else 1, squeeze=False)[0]
     true_start = None
     if run.groundtruth is not None and len(run.groundtruth.t):
         true_start = run.groundtruth.pose[0]
-    plot_map(ax, run, result, arena_half_size=arena_half_size, true_start=true_start)
-    ax.set_title(title or f"EKF SLAM: {run.meta.name}")
-    # outside the axes: inside, it hid a landmark of the seed's runs
-    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=9)
+    kwargs = dict(arena_half_size=arena_half_size, true_start=true_start)
+    plot_map(axes[0], run, result, **kwargs)
+    before = "before alignment: the filter's own frame (the seed's Figure 2)"
+    unaligned = _mean_distance(result.landmarks, run.meta.tag_map or {})
+    if unaligned is not None:
+        before += f"\nmean distance to the true landmarks {unaligned:.3f} m"
+    if alignment is None:
+        before += f"\nno aligned map: {note}"
+    axes[0].set_title(before, fontsize=12)
+    if alignment is not None:
+        plot_map(axes[1], run, result, alignment=alignment, **kwargs)
+        axes[1].set_title(
+            f"after the eq. (17) alignment (x0 {alignment.x0:+.3f} m, y0 {alignment.y0:+.3f} m, "
+            f"θ0 {alignment.theta0:+.3f} rad)\nmean error {alignment.mean_error:.3f} m "
+            f"over {len(alignment.ids)} landmarks",
+            fontsize=12,
+        )
+    if alignment is not None:  # the same window on both maps, so that they compare at a glance
+        x = [*axes[0].get_xlim(), *axes[1].get_xlim()]
+        y = [*axes[0].get_ylim(), *axes[1].get_ylim()]
+        for ax in axes:
+            ax.set_xlim(min(x), max(x))
+            ax.set_ylim(min(y), max(y))
+    fig.suptitle(title or f"EKF SLAM: {run.meta.name}", fontsize=14)
+    # below the maps: inside an axes, the legend hid a landmark of the seed's runs
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=3, fontsize=11)
     return fig
+
+
+def _mean_distance(estimated: Mapping[int, ArrayLike], truth: Mapping[int, ArrayLike]):
+    common = [i for i in estimated if i in truth]
+    if not common:
+        return None
+    return float(
+        np.mean([np.hypot(*(np.asarray(estimated[i]) - np.asarray(truth[i]))) for i in common])
+    )
 
 
 # --- helpers for the classroom notebooks --------------------------------------------------------

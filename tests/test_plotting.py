@@ -94,3 +94,41 @@ def test_update_figure_has_four_panels_and_the_corrections() -> None:
     count = [sum(isinstance(p, Ellipse) for p in ax.patches) for ax in fig.axes]
     assert count[0] == 3 and count[3] == 6
     fig.canvas.draw()  # renders without error
+
+
+def test_figure2_says_before_alignment_and_draws_the_aligned_map_beside_it() -> None:
+    """Regression: the unaligned map over the true tags, unlabelled, next to a 0.005 m error."""
+    from pathlib import Path
+
+    from matplotlib.text import Text
+
+    from ekfslam import read_run
+    from ekfslam.alignment import align
+    from ekfslam.plotting import figure2
+    from ekfslam.replay import default_config, default_noise, replay
+
+    run = read_run(Path(__file__).resolve().parents[1] / "data" / "runs" / "octagon-2laps")
+    result = replay(run, default_noise(run), default_config(run))
+    a = align(result.landmarks, run.meta.tag_map)
+    fig = figure2(run, result, arena_half_size=0.75)
+    before, after = fig.axes
+    assert before.get_title().startswith("before alignment")
+    assert after.get_title().startswith("after the eq. (17) alignment")
+    assert f"mean error {a.mean_error:.3f} m over 8 landmarks" in after.get_title()
+    # the right panel's red circles are the aligned estimate, where the error is measured
+    (circles,) = [line for line in after.lines if line.get_label() == "estimated landmarks"]
+    np.testing.assert_allclose(np.column_stack(circles.get_data()), a.aligned, atol=1e-12)
+    (raw,) = [line for line in before.lines if line.get_label() == "estimated landmarks"]
+    ids = sorted(result.landmarks)
+    np.testing.assert_allclose(
+        np.column_stack(raw.get_data()), [result.landmarks[i] for i in ids], atol=1e-12
+    )
+    # the true tags carry their ids on both panels
+    for ax in (before, after):
+        green = {t.get_text() for t in ax.texts if t.get_color() == "darkgreen"}
+        assert green == {str(i) for i in range(8)}
+    (legend,) = fig.legends
+    assert min(t.get_fontsize() for t in legend.get_texts()) >= 11
+    assert "true landmarks (id)" in [t.get_text() for t in legend.get_texts()]
+    assert isinstance(fig.texts[0], Text)  # the suptitle names the run
+    assert fig.texts[0].get_text() == "EKF SLAM: octagon-2laps"
