@@ -185,10 +185,10 @@ def _arena_half_size(run) -> float | None:
 def _seed_report(run) -> dict | None:
     """The seed's Table 1 row (real robot) when `run` is the seed's experiment, else None.
 
-    Judged by run.json's ``simulation`` block (`ekfslam.simulation.seed_experiment`), not by
+    Judged by run.json's ``simulation`` block (`ekfslam.evaluation.seed_experiment`), not by
     the run's name: a square of another seed or size is not the run the seed measured.
     """
-    from ekfslam.simulation import seed_experiment
+    from ekfslam.evaluation import seed_experiment
 
     trajectory = seed_experiment(run.meta.simulation)
     if trajectory is None:
@@ -250,7 +250,7 @@ def _table(summary, out: dict, report=None) -> str:
     if "detections" in out:
         lines.append(f"detections: {out['detections']}")
     if report is not None:  # a loader's report: what it read, and what it dropped and why
-        lines += [report.loaded_text(), report.dropped_text()]
+        lines += report.lines()
     lines.append(f"replay {summary.seconds * 1e3:.1f} ms")
     if "plot" in out:
         lines.append(f"figure written to {out['plot']}")

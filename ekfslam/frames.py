@@ -332,17 +332,18 @@ class FramesReport:
             },
         }
 
-    def loaded_text(self) -> str:
+    def lines(self) -> tuple[str, str]:
+        """ "loaded: ..." (frames, tags found, detections kept) and "dropped: ..." (what, why)."""
         c = self.counts
-        return f"loaded: {c.frames} frames, {c.found} tags found, {c.accepted} detections kept"
-
-    def dropped_text(self) -> str:
-        parts = [
+        dropped = [
             f"{d['count']} {name.replace('_', ' ')} ({d['reason']})"
             for name, d in self.as_dict()["dropped"].items()
             if d["count"]
         ]
-        return "dropped: " + (", ".join(parts) if parts else "nothing")
+        return (
+            f"loaded: {c.frames} frames, {c.found} tags found, {c.accepted} detections kept",
+            "dropped: " + (", ".join(dropped) if dropped else "nothing"),
+        )
 
 
 def read_frames_run(

@@ -15,15 +15,12 @@ along its heading, so a measurement is already the (r, φ) of eq. (10).
 Nothing is dropped silently: every sighting that does not become a detection is counted in the
 `MrclamLoadReport` returned beside the run. Times stay on the dataset's own clock (Unix seconds).
 
-Beyond loading:
+Beyond loading, in `ekfslam.mrclam_tuning`: `calibrate_commands` (an optional correction of
+the logged commands, `MRCLAM_CALIBRATION`, off by default); `score_robots`, `scores_table` and
+``python -m ekfslam score-mrclam N`` (the per-robot table); `tune_noise` (the grid search that
+chose `ekfslam.replay.MRCLAM_NOISE`, one setting for all robots).
 
-- `calibrate_commands` / `fit_command_calibration`: an optional correction of the logged
-  commands, which the robots followed about 0.25 s late and short (0.90x the distance, 0.935x
-  the turn, `MRCLAM_CALIBRATION`, fitted against Vicon). Off by default: the tuned noise does as
-  well without it (see `ekfslam.replay.MRCLAM_NOISE`).
-- `score_robots`, `scores_table`, `tune_noise`: the per-robot results table and the grid search
-  that chose `ekfslam.replay.MRCLAM_NOISE` (one setting for all robots).
-- ``python -m ekfslam convert mrclam DATASET --robot N --out DIR``: a robot as a run folder.
+``python -m ekfslam convert mrclam DATASET --robot N --out DIR`` writes a robot as a run folder.
 """
 
 from __future__ import annotations
@@ -103,90 +100,46 @@ class MrclamLoadReport:
     start_inside_groundtruth: bool
 
     def as_dict(self) -> dict:
-        """JSON-ready: what was ``loaded`` and what was ``dropped`` (each with its reason).
-
-        Times in s rounded to the ms; rows out of order were sorted, not dropped, so they are
-        under ``loaded``. Every field stays available on the report itself.
-        """
-        return {
-            "dataset": self.dataset,
-            "robot": self.robot,
-            "loaded": {
-                "odometry_rows": self.odometry_rows,
-                "odometry_duplicate_times": self.odometry_duplicate_times,
-                "odometry_max_gap_s": round(self.odometry_max_gap_s, 3),
-                "measurement_rows": self.measurement_rows,
-                "measurements_kept": self.measurements_kept,
-                "groundtruth_rows": self.groundtruth_rows,
-                "groundtruth_span_s": [
-                    round(self.groundtruth_first_time, 3),
-                    round(self.groundtruth_last_time, 3),
-                ],
-                "start_time_s": round(self.start_time, 3),
-                "start_inside_groundtruth": self.start_inside_groundtruth,
-                "sorted_out_of_order_rows": {
-                    "odometry": self.odometry_out_of_order,
-                    "measurements": self.measurement_out_of_order,
-                    "groundtruth": self.groundtruth_out_of_order,
-                },
-            },
-            "dropped": {
-                "robot_sightings": {
-                    "count": self.robot_sightings_dropped,
-                    "reason": "sightings of other robots, not landmarks",
-                },
-                "unknown_barcodes": {
-                    "count": self.unknown_barcodes_dropped,
-                    "barcodes": sorted(self.unknown_barcodes),
-                    "reason": f"barcodes not in {BARCODES}",
-                },
-            },
+        """JSON-ready ``loaded`` (rows out of order were sorted, not dropped) and ``dropped``
+        (count and reason); times in s, rounded to the ms."""
+        first, last = round(self.groundtruth_first_time, 3), round(self.groundtruth_last_time, 3)
+        loaded = {k: getattr(self, k) for k in _LOADED} | {
+            "odometry_max_gap_s": round(self.odometry_max_gap_s, 3),
+            "groundtruth_span_s": [first, last],
+            "start_time_s": round(self.start_time, 3),
         }
+        robots = {"count": self.robot_sightings_dropped, "reason": _ROBOTS_WHY}
+        unknown = {"count": self.unknown_barcodes_dropped, "reason": _UNKNOWN_WHY,
+                   "barcodes": sorted(self.unknown_barcodes)}  # fmt: skip
+        dropped = {"robot_sightings": robots, "unknown_barcodes": unknown}
+        return {"dataset": self.dataset, "robot": self.robot, "loaded": loaded, "dropped": dropped}
 
-    def loaded_text(self) -> str:
-        """One line: what was read, with units (``run`` prints it)."""
-        clamped = "" if self.start_inside_groundtruth else " (the start clamped to it)"
+    def lines(self) -> tuple[str, str]:
+        """ "loaded: ..." (what was read, with units) and "dropped: ..." (what and why)."""
+        unsorted = sum(getattr(self, k) for k in _LOADED if k.endswith("out_of_order"))
+        span = self.groundtruth_last_time - self.groundtruth_first_time
+        unknown = "".join(f" {b}," for b in sorted(self.unknown_barcodes)).rstrip(",")
         return (
             f"loaded: {self.odometry_rows} odometry rows (largest gap "
             f"{self.odometry_max_gap_s:.3f} s, {self.odometry_duplicate_times} duplicate times), "
             f"{self.measurements_kept} of {self.measurement_rows} measurements, "
-            f"{self.groundtruth_rows} ground-truth rows over "
-            f"{self.groundtruth_last_time - self.groundtruth_first_time:.1f} s{clamped}"
+            f"{self.groundtruth_rows} ground-truth rows over {span:.1f} s"
+            + ("" if self.start_inside_groundtruth else " (the start clamped to it)")
+            + (f"; {unsorted} rows out of time order, sorted" if unsorted else ""),
+            f"dropped: {self.robot_sightings_dropped} robot sightings ({_ROBOTS_WHY}), "
+            f"{self.unknown_barcodes_dropped} sightings of unknown barcodes{unknown} "
+            f"({_UNKNOWN_WHY})",
         )
 
-    def dropped_text(self) -> str:
-        """One line: what was dropped, and why."""
-        unknown = ", ".join(str(b) for b in sorted(self.unknown_barcodes))
-        parts = [
-            f"{self.robot_sightings_dropped} robot sightings (other robots, not landmarks)",
-            f"{self.unknown_barcodes_dropped} sightings of unknown barcodes"
-            + (f" {unknown}" if unknown else "")
-            + f" (not in {BARCODES})",
-        ]
-        return "dropped: " + ", ".join(parts)
-
     def summary(self) -> str:
-        """A few lines for a terminal: rows kept, rows dropped and why, time coverage."""
-        unknown = ", ".join(str(b) for b in sorted(self.unknown_barcodes)) or "none"
-        lines = [
-            f"MRCLAM dataset {self.dataset}, robot {self.robot}",
-            f"  odometry: {self.odometry_rows} rows, {self.odometry_duplicate_times} duplicate "
-            f"times, largest gap {self.odometry_max_gap_s:.3f} s, "
-            f"{self.odometry_out_of_order} out of order",
-            f"  measurements: {self.measurement_rows} rows, {self.measurements_kept} kept, "
-            f"{self.robot_sightings_dropped} robot sightings dropped, "
-            f"{self.unknown_barcodes_dropped} unknown barcodes dropped ({unknown}), "
-            f"{self.measurement_out_of_order} out of order",
-            f"  ground truth: {self.groundtruth_rows} rows, "
-            f"{self.groundtruth_first_time:.3f} s to {self.groundtruth_last_time:.3f} s, "
-            f"{self.groundtruth_out_of_order} out of order",
-        ]
-        if not self.start_inside_groundtruth:
-            lines.append(
-                f"  start time {self.start_time:.3f} s is outside the ground truth: "
-                "start pose clamped to the nearest ground-truth pose"
-            )
-        return "\n".join(lines)
+        """A few lines for a terminal: the dataset, what was loaded, what was dropped and why."""
+        return "\n  ".join([f"MRCLAM dataset {self.dataset}, robot {self.robot}", *self.lines()])
+
+
+_LOADED = ("odometry_rows", "odometry_duplicate_times", "odometry_out_of_order", "measurement_rows",
+           "measurements_kept", "measurement_out_of_order", "groundtruth_rows",
+           "groundtruth_out_of_order", "start_inside_groundtruth")  # fmt: skip
+_ROBOTS_WHY, _UNKNOWN_WHY = "other robots, not landmarks", f"not in {BARCODES}"
 
 
 def load_mrclam(dataset_dir: str | Path, robot: int) -> tuple[RunLog, MrclamLoadReport]:
@@ -514,13 +467,10 @@ def convert_formats(subparsers: argparse._SubParsersAction) -> argparse._SubPars
 
 
 def add_cli(subparsers: argparse._SubParsersAction) -> None:
-    """Register ``convert mrclam`` and ``score-mrclam``."""
-    p = subparsers.add_parser(
-        "score-mrclam",
-        help="replay every robot of a MRCLAM dataset with one noise setting; print the scores",
-    )
-    p.add_argument("number", type=int, nargs="?", default=7, help="dataset number (default: 7)")
-    p.set_defaults(func=_cmd_score_mrclam)
+    """Register ``convert mrclam``, and ``score-mrclam`` (`ekfslam.mrclam_tuning`)."""
+    from ekfslam.mrclam_tuning import add_score_cli
+
+    add_score_cli(subparsers)
     p = convert_formats(subparsers).add_parser(
         "mrclam", help="one robot of a MRCLAM dataset -> a run folder (with its Vicon truth)"
     )
@@ -533,14 +483,6 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:
         help="shift and scale the commands by MRCLAM_CALIBRATION (lag 0.25 s, v x0.90, w x0.935)",
     )  # fmt: skip
     p.set_defaults(func=_cmd_convert_mrclam)
-
-
-def _cmd_score_mrclam(args: argparse.Namespace) -> int:
-    from ekfslam.mrclam_tuning import score_robots, scores_table
-
-    # not found: one line saying how to fetch it (InputError), not a traceback
-    print(scores_table(score_robots(find_dataset(args.number))))
-    return 0
 
 
 def _cmd_convert_mrclam(args: argparse.Namespace) -> int:

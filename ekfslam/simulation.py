@@ -166,24 +166,10 @@ class SimulationConfig:
 
     @property
     def name(self) -> str:
-        """The run's name: "octagon-2laps" for the seed's experiment, else what makes it differ.
+        """The run's name, from what was simulated (`ekfslam.evaluation.run_name`)."""
+        from ekfslam.evaluation import run_name
 
-        One of `SEED_EXPERIMENTS` keeps its short name (the shipped data/runs); any other run
-        adds its seed and every non-default size, start error and wheel scale, as in
-        "octagon-2laps-seed5-size0.6-start0.02,0,-0.1-wheelscale0.01", so that two different
-        runs are not mistaken for one another (or for the seed's).
-        """
-        base = f"{self.trajectory}-{self.laps}lap{'s' if self.laps != 1 else ''}"
-        if same_experiment(self.to_dict(), SEED_EXPERIMENTS.get(base)):
-            return base
-        parts = [base, f"seed{self.seed}"]
-        if self.size != DEFAULT_SIZE:
-            parts.append(f"size{self.size:g}")
-        if self.start_error is not None:
-            parts.append("start" + ",".join(f"{v:g}" for v in self.start_error))
-        if self.wheel_scale_sigma != 0.0:
-            parts.append(f"wheelscale{self.wheel_scale_sigma:g}")
-        return "-".join(parts)
+        return run_name(self)
 
     @property
     def tags(self) -> TagSpec:
@@ -229,58 +215,6 @@ def config_from_dict(data: dict[str, Any]) -> SimulationConfig:
         if kwargs.get(name) is not None:
             kwargs[name] = tuple(kwargs[name])
     return SimulationConfig(**kwargs)
-
-
-#: The seed's two experiments as data/runs/generate.sh simulates them: two laps of each path,
-#: with fixed seeds and placement errors of the size the seed's Table 1 reports. Their replays
-#: are the ones compared with the seed's real-robot row (`seed_experiment`).
-SEED_EXPERIMENTS: dict[str, dict[str, Any]] = {
-    "square-2laps": dict(trajectory="square", laps=2, seed=1, start_error=(-0.02, 0.05, 0.14)),
-    "octagon-2laps": dict(trajectory="octagon", laps=2, seed=2, start_error=(-0.04, 0.04, 0.13)),
-}
-
-
-def same_experiment(config: dict[str, Any] | None, kwargs: dict[str, Any] | None) -> bool:
-    """Whether a config dict (`SimulationConfig.to_dict`, or as read back from run.json) is
-    the `SimulationConfig(**kwargs)` experiment, every field compared.
-
-    Numbers agree to a relative 1e-4, so a run.json written with fewer digits still counts.
-    """
-    if config is None or kwargs is None:
-        return False
-    try:
-        wanted = SimulationConfig(**kwargs).to_dict()
-    except (TypeError, ValueError):
-        return False
-    return _close(config, wanted)
-
-
-def _close(a: Any, b: Any) -> bool:
-    if isinstance(a, dict) and isinstance(b, dict):
-        return a.keys() == b.keys() and all(_close(a[k], b[k]) for k in a)
-    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
-        return len(a) == len(b) and all(_close(x, y) for x, y in zip(a, b, strict=True))
-    if isinstance(a, bool | str | None) or isinstance(b, bool | str | None):
-        return a == b
-    try:
-        return math.isclose(float(a), float(b), rel_tol=1e-4, abs_tol=1e-12)
-    except (TypeError, ValueError):
-        return False
-
-
-def seed_experiment(simulation: dict[str, Any] | None) -> str | None:
-    """The trajectory ("square" / "octagon") if a run is one of the seed's experiments, else None.
-
-    Decided by the run's ``simulation.config`` (run.json), not by its name: a run renamed, or
-    a different run named like one, is judged by what was simulated.
-    """
-    config = (simulation or {}).get("config")
-    if not isinstance(config, dict):
-        return None
-    for kwargs in SEED_EXPERIMENTS.values():
-        if same_experiment(config, kwargs):
-            return str(kwargs["trajectory"])
-    return None
 
 
 def waypoints(trajectory: str = "square", size: float = 0.75, laps: int = 2) -> Array:

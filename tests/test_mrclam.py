@@ -84,12 +84,12 @@ def test_robot_3_sees_two_unknown_barcodes(loaded: dict) -> None:
     _, report = loaded[3]
     assert report.unknown_barcodes == {34, 52}
     assert report.unknown_barcodes_dropped == 9
-    assert "9 unknown barcodes dropped (34, 52)" in report.summary()
+    assert "9 sightings of unknown barcodes 34, 52 (not in Barcodes.dat)" in report.summary()
     as_json = json.loads(json.dumps(report.as_dict()))
     assert as_json["dropped"]["unknown_barcodes"]["barcodes"] == [34, 52]
     assert as_json["dropped"]["unknown_barcodes"]["count"] == 9
     assert as_json["dropped"]["robot_sightings"]["count"] == report.robot_sightings_dropped
-    assert "9 sightings of unknown barcodes 34, 52 (not in Barcodes.dat)" in report.dropped_text()
+    assert "9 sightings of unknown barcodes 34, 52 (not in Barcodes.dat)" in report.lines()[1]
 
 
 def test_the_load_report_separates_what_was_loaded_from_what_was_dropped(loaded: dict) -> None:
@@ -102,7 +102,7 @@ def test_the_load_report_separates_what_was_loaded_from_what_was_dropped(loaded:
     assert d["loaded"]["odometry_rows"] == report.odometry_rows  # loaded, not dropped
     gap = d["loaded"]["odometry_max_gap_s"]
     assert gap == round(report.odometry_max_gap_s, 3) and len(repr(gap)) <= 6
-    loaded_line, dropped_line = report.loaded_text(), report.dropped_text()
+    loaded_line, dropped_line = report.lines()
     assert loaded_line.startswith(f"loaded: {report.odometry_rows} odometry rows (largest gap ")
     assert f"gap {report.odometry_max_gap_s:.3f} s," in loaded_line
     assert dropped_line.startswith(f"dropped: {report.robot_sightings_dropped} robot sightings ")
