@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ekfslam.errors import ConfigError
 from ekfslam.filter import EKFSLAM, FilterConfig
 from ekfslam.models import observation_noise
 
@@ -42,6 +43,9 @@ if TYPE_CHECKING:  # the literal filter pulls in sympy: import it only when benc
     from ekfslam.reference import LiteralEKFSLAM
 
 SIZES = (10, 50, 100, 200, 400, 800, 1000)
+#: Largest map size: Σ of a 2000-landmark map is 4003² float64, 128 MB, and one literal step
+#: would take minutes; beyond that a benchmark measures the swap file.
+MAX_SIZE = 2000
 #: The literal reference is skipped at sizes where one step is predicted to take longer (s).
 LITERAL_MAX_STEP_S = 2.0
 REPO = Path(__file__).resolve().parents[1]
@@ -60,6 +64,17 @@ class BenchConfig:
     mrclam_repeats: int = 3
     runs_dir: Path | None = REPO / "data" / "runs"
     mrclam_dir: Path | None = None
+
+    def __post_init__(self) -> None:
+        sizes = self.sizes
+        if not sizes or not all(isinstance(n, int) and not isinstance(n, bool) for n in sizes):
+            raise ConfigError(f"BenchConfig.sizes must be whole numbers, got {sizes!r}")
+        if not all(1 <= n <= MAX_SIZE for n in sizes):
+            raise ConfigError(f"BenchConfig.sizes must be in 1..{MAX_SIZE}, got {sizes!r}")
+        for name in ("replay_repeats", "step_repeats", "literal_repeats", "mrclam_repeats"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ConfigError(f"BenchConfig.{name} must be a whole number >= 1, got {value!r}")
 
     @classmethod
     def quick(cls, **kwargs) -> BenchConfig:

@@ -39,7 +39,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ekfslam.errors import InputError
+from ekfslam.errors import ConfigError, InputError
 from ekfslam.geometry import wrap_angle
 from ekfslam.kinematics import MecanumGeometry
 from ekfslam.runlog import Controls, Detections, RunLog, RunMeta
@@ -85,15 +85,15 @@ class RosbagSpec:
 
     def __post_init__(self) -> None:
         if (self.twist_topic is None) == (self.wheels_topic is None):
-            raise ValueError("give exactly one of twist_topic or wheels_topic")
+            raise ConfigError("give exactly one of twist_topic or wheels_topic")
         if self.wheels_topic is not None and (self.wheel_joints is None or self.robot is None):
-            raise ValueError(
+            raise ConfigError(
                 "wheel speeds need wheel_joints (FL, FR, RL, RR) and the robot geometry"
             )
         if self.wheel_joints is not None and len(self.wheel_joints) != 4:
-            raise ValueError("wheel_joints must name 4 joints: FL, FR, RL, RR")
+            raise ConfigError("wheel_joints must name 4 joints: FL, FR, RL, RR")
         if self.camera_axes not in ("optical", "body"):
-            raise ValueError(f"camera_axes must be 'optical' or 'body', got {self.camera_axes!r}")
+            raise ConfigError(f"camera_axes must be 'optical' or 'body', got {self.camera_axes!r}")
         re.compile(self.tag_frame_pattern)
 
 
