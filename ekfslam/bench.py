@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ekfslam.cli_args import atomic_write_text, save_figure
 from ekfslam.errors import ConfigError
 from ekfslam.filter import EKFSLAM, FilterConfig
 from ekfslam.models import observation_noise
@@ -402,27 +403,34 @@ def plot_costs(r: dict, path: Path) -> None:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path)
     plt.close(fig)
 
 
 def write_outputs(r: dict, out: Path) -> None:
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "bench.md").write_text(markdown_table(r) + "\n")
-    (out / "bench.json").write_text(json.dumps(r, indent=2) + "\n")
+    # each file is renamed into place when complete: a failed run keeps the previous outputs
+    atomic_write_text(out / "bench.md", markdown_table(r) + "\n")
+    atomic_write_text(out / "bench.json", json.dumps(r, indent=2) + "\n")
     plot_costs(r, out / "cost_vs_n.png")
 
 
 def add_cli(subparsers) -> None:
     """``python -m ekfslam bench [--quick] [--json] [--out DIR]``."""
+    from ekfslam import cli_args as ca
+
     p = subparsers.add_parser("bench", help="time replays and per-step costs against map size")
     p.add_argument("--quick", action="store_true", help="fewer repeats (about a minute)")
     p.add_argument("--json", action="store_true", help="print the results as JSON")
-    p.add_argument("--out", type=Path, default=Path("out/bench"), help="where to write the "
-                   "table, the JSON and the plot (default: %(default)s)")  # fmt: skip
-    p.add_argument("--sizes", type=int, nargs="+", help=f"map sizes n (default: {SIZES})")
-    p.add_argument("--repeats", type=int, help="repeats of every measurement (a smoke run: 1)")
-    p.add_argument("--mrclam", type=Path, help="MRCLAM Dataset 7 folder (default: shared data)")
+    p.add_argument("--out", type=ca.output_folder, default=Path("out/bench"),
+                   help="where to write the table, the JSON and the plot (default: %(default)s; "
+                   "created if missing)")  # fmt: skip
+    p.add_argument("--sizes", type=ca.whole(1, MAX_SIZE, why="Σ would not fit in memory"),
+                   nargs="+", help=f"map sizes n, 1 to {MAX_SIZE} (default: {SIZES})")  # fmt: skip
+    p.add_argument("--repeats", type=ca.whole(1, 1000),
+                   help="repeats of every measurement, >= 1 (a smoke run: 1; default: the "
+                   "config's, fewer with --quick)")  # fmt: skip
+    p.add_argument("--mrclam", type=ca.input_path,
+                   help="MRCLAM Dataset 7 folder (default: shared data)")  # fmt: skip
     p.add_argument("--no-mrclam", action="store_true", help="skip the MRCLAM replay")
     p.set_defaults(func=_cmd_bench)
 
@@ -431,7 +439,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     kwargs: dict = {"mrclam_dir": None if args.no_mrclam else args.mrclam or default_mrclam_dir()}
     if args.sizes:
         kwargs["sizes"] = tuple(sorted(set(args.sizes)))
-    if args.repeats:
+    if args.repeats is not None:
         kwargs.update(dict.fromkeys(
             ("replay_repeats", "step_repeats", "literal_repeats", "mrclam_repeats"), args.repeats
         ))  # fmt: skip

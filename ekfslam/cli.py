@@ -317,8 +317,12 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run one command; returns its exit status (2: a bad option, path or input, one line)."""
     parser = build_parser()
-    args = parser.parse_args(argv)  # a bad option ends here: one line, exit 2
+    try:
+        args = parser.parse_args(argv)  # a bad option ends here, before any work
+    except SystemExit as exc:  # --help (0) or a refused option (2): a status, as for the rest
+        return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
     try:
         return args.func(args)
     except (InputError, ConfigError) as exc:

@@ -174,7 +174,8 @@ def export_tum(run: RunLog, result: ReplayResult, folder: str | os.PathLike) -> 
 
 def add_cli(subparsers: argparse._SubParsersAction) -> None:
     """``python -m ekfslam tum RUN [--robot N] --out DIR``: replay a run and export it."""
-    from ekfslam.cli import add_noise_arguments
+    from ekfslam import cli_args as ca
+    from ekfslam.cli import add_noise_arguments, add_robot_argument
 
     p = subparsers.add_parser(
         "tum",
@@ -182,8 +183,9 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:
         description=__doc__.split("\n\n")[0],
     )
     p.add_argument("run", type=Path, help="a run folder or a MRCLAM dataset folder")
-    p.add_argument("--robot", type=int, help="MRCLAM only: which robot (1-5)")
-    p.add_argument("--out", type=Path, required=True, help="folder for the .tum files")
+    add_robot_argument(p)
+    p.add_argument("--out", type=ca.output_folder, required=True,
+                   help="folder for the .tum files (created if missing)")  # fmt: skip
     add_noise_arguments(p)
     p.set_defaults(func=_cmd_tum)
 
