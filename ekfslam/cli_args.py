@@ -18,13 +18,10 @@ import argparse
 import math
 import os
 import re
-import sys
 import tempfile
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any, NoReturn
-
-from ekfslam.errors import ConfigError
 
 #: What ``--plot`` writes (matplotlib infers the format from the suffix; these need no extras).
 PLOT_FORMATS: tuple[str, ...] = (".png", ".pdf", ".svg")
@@ -293,11 +290,19 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], object]) -> Pa
     tmp = Path(name)
     try:
         write(tmp)
+        # mkstemp's file is private (0600); give it the mode the file has or a new one would get
+        os.chmod(tmp, path.stat().st_mode & 0o777 if path.exists() else 0o666 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
     return path
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)  # the only portable way to read it is to set it
+    os.umask(mask)
+    return mask
 
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
@@ -309,13 +314,3 @@ def save_figure(fig: Any, path: str | os.PathLike, dpi: int = 120) -> Path:
     """``fig.savefig`` to `path` atomically, in the format its suffix names."""
     fmt = Path(path).suffix.lstrip(".").lower() or None
     return atomic_write(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=dpi))
-
-
-def fail(message: str) -> NoReturn:
-    """Raise a ConfigError (for checks that need more than the parser can see)."""
-    raise ConfigError(message)
-
-
-def print_error(message: str) -> None:
-    """The one line of a refused command, on stderr."""
-    print(f"error: {' '.join(message.split())}", file=sys.stderr)
