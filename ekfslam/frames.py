@@ -335,6 +335,8 @@ def detect_run(
     if path.exists() and not overwrite:
         raise InputError(path, None, "exists; pass --overwrite to replace it")
     detections, counts = detect_frames(folder, meta, config)
+    # a new --out folder is made only once there is something to write into it
+    path.parent.mkdir(parents=True, exist_ok=True)
     return write_detections(detections, path, meta.tag_map), counts
 
 

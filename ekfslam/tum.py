@@ -101,9 +101,9 @@ def write_tum(path: str | os.PathLike, rows: ArrayLike) -> Path:
     if not np.isfinite(rows).all():
         raise ValueError(f"{path}: non-finite values cannot be written in the TUM format")
     lines = [" ".join(repr(v) for v in row) for row in rows.tolist()]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("".join(line + "\n" for line in lines), encoding="utf-8")
-    return path
+    from ekfslam.cli_args import atomic_write_text
+
+    return atomic_write_text(path, "".join(line + "\n" for line in lines))
 
 
 def read_tum(path: str | os.PathLike) -> tuple[Array, Array]:

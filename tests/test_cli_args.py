@@ -210,3 +210,19 @@ def test_run_plot_into_new_folders_reports_the_real_path(tmp_path, capsys):
     assert out["plot"] == str(plot)
     assert plot.read_bytes()[:4] == b"%PDF"
     assert [p.name for p in plot.parent.iterdir()] == ["fig2.pdf"]
+
+
+def test_tum_out_into_new_folders(tmp_path, capsys):
+    out = tmp_path / "a" / "b"
+    assert main(["tum", str(RUN), "--out", str(out)]) == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert "trajectory.tum" in names and not any(n.startswith(".") for n in names)
+
+
+@pytest.mark.slow
+def test_detect_out_into_a_missing_folder_writes_there(tmp_path, capsys):
+    run = shutil.copytree(RUN.parent / "square-1lap-frames", tmp_path / "run")
+    out = tmp_path / "new" / "folder" / "det.csv"
+    assert main(["detect", str(run), "--out", str(out)]) == 0
+    assert out.read_text().startswith("t,tag_id,range,bearing\n")
+    assert f"wrote {out}:" in capsys.readouterr().out
