@@ -1,7 +1,8 @@
 """The command line: ``python -m ekfslam run|simulate|fetch ...``.
 
 Bad input ends with one line on stderr that names the file, the line and the problem, and exit
-status 2; never a traceback.
+status 2; never a traceback. A bad option value or output path is refused the same way while
+the command line is parsed, before any work (the types and checks are in `ekfslam.cli_args`).
 """
 
 from __future__ import annotations
