@@ -13,13 +13,15 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam.errors import ConfigError
+
 Array = NDArray[np.float64]
 
 
 def _frozen_array(values: ArrayLike, shape: tuple[int, ...], name: str) -> Array:
     a = np.array(values, dtype=float)
     if a.shape != shape or not np.all(np.isfinite(a)):
-        raise ValueError(f"{name} must be finite with shape {shape}, got {values!r}")
+        raise ConfigError(f"{name} must be finite with shape {shape}, got {values!r}")
     a.flags.writeable = False  # the dataclasses are frozen; their arrays should be too
     return a
 
@@ -39,7 +41,7 @@ class Tag:
         object.__setattr__(self, "position", _frozen_array(self.position, (2,), "Tag.position"))
         normal = _frozen_array(self.normal, (2,), "Tag.normal")
         if not np.isclose(np.hypot(*normal), 1.0):
-            raise ValueError(f"Tag.normal must be a unit vector, got {normal.tolist()}")
+            raise ConfigError(f"Tag.normal must be a unit vector, got {normal.tolist()}")
         object.__setattr__(self, "normal", normal)
 
 
@@ -58,10 +60,10 @@ class Arena:
 
     def __post_init__(self) -> None:
         if not np.isfinite(self.half_size) or self.half_size <= 0:
-            raise ValueError(f"Arena.half_size must be a positive length, got {self.half_size!r}")
+            raise ConfigError(f"Arena.half_size must be a positive length, got {self.half_size!r}")
         ids = [tag.id for tag in self.tags]
         if len(set(ids)) != len(ids):
-            raise ValueError(f"Arena tag ids must be unique, got {ids}")
+            raise ConfigError(f"Arena tag ids must be unique, got {ids}")
         start = _frozen_array(self.nominal_start, (3,), "Arena.nominal_start")
         object.__setattr__(self, "nominal_start", start)
         object.__setattr__(self, "tags", tuple(self.tags))

@@ -35,6 +35,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ekfslam.cli_args import atomic_write_text, save_figure
+from ekfslam.errors import ConfigError
 from ekfslam.filter import EKFSLAM, FilterConfig
 from ekfslam.models import observation_noise
 
@@ -42,6 +44,9 @@ if TYPE_CHECKING:  # the literal filter pulls in sympy: import it only when benc
     from ekfslam.reference import LiteralEKFSLAM
 
 SIZES = (10, 50, 100, 200, 400, 800, 1000)
+#: Largest map size: Σ of a 2000-landmark map is 4003² float64, 128 MB, and one literal step
+#: would take minutes; beyond that a benchmark measures the swap file.
+MAX_SIZE = 2000
 #: The literal reference is skipped at sizes where one step is predicted to take longer (s).
 LITERAL_MAX_STEP_S = 2.0
 REPO = Path(__file__).resolve().parents[1]
@@ -62,6 +67,17 @@ class BenchConfig:
     mrclam_dir: Path | None = None
     #: why there is no `mrclam_dir`, printed in the MRCLAM row (default `MRCLAM_MISSING`)
     mrclam_note: str | None = None
+
+    def __post_init__(self) -> None:
+        sizes = self.sizes
+        if not sizes or not all(isinstance(n, int) and not isinstance(n, bool) for n in sizes):
+            raise ConfigError(f"BenchConfig.sizes must be whole numbers, got {sizes!r}")
+        if not all(1 <= n <= MAX_SIZE for n in sizes):
+            raise ConfigError(f"BenchConfig.sizes must be in 1..{MAX_SIZE}, got {sizes!r}")
+        for name in ("replay_repeats", "step_repeats", "literal_repeats", "mrclam_repeats"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ConfigError(f"BenchConfig.{name} must be a whole number >= 1, got {value!r}")
 
     @classmethod
     def quick(cls, **kwargs) -> BenchConfig:
@@ -411,27 +427,34 @@ def plot_costs(r: dict, path: Path) -> None:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path)
     plt.close(fig)
 
 
 def write_outputs(r: dict, out: Path) -> None:
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "bench.md").write_text(markdown_table(r) + "\n")
-    (out / "bench.json").write_text(json.dumps(r, indent=2) + "\n")
+    # each file is renamed into place when complete: a failed run keeps the previous outputs
+    atomic_write_text(out / "bench.md", markdown_table(r) + "\n")
+    atomic_write_text(out / "bench.json", json.dumps(r, indent=2) + "\n")
     plot_costs(r, out / "cost_vs_n.png")
 
 
 def add_cli(subparsers) -> None:
     """``python -m ekfslam bench [--quick] [--json] [--out DIR]``."""
+    from ekfslam import cli_args as ca
+
     p = subparsers.add_parser("bench", help="time replays and per-step costs against map size")
     p.add_argument("--quick", action="store_true", help="fewer repeats (about a minute)")
     p.add_argument("--json", action="store_true", help="print the results as JSON")
-    p.add_argument("--out", type=Path, default=Path("out/bench"), help="where to write the "
-                   "table, the JSON and the plot (default: %(default)s)")  # fmt: skip
-    p.add_argument("--sizes", type=int, nargs="+", help=f"map sizes n (default: {SIZES})")
-    p.add_argument("--repeats", type=int, help="repeats of every measurement (a smoke run: 1)")
-    p.add_argument("--mrclam", type=Path, help="MRCLAM Dataset 7 folder (default: shared data)")
+    p.add_argument("--out", type=ca.output_folder, default=Path("out/bench"),
+                   help="where to write the table, the JSON and the plot (default: %(default)s; "
+                   "created if missing)")  # fmt: skip
+    p.add_argument("--sizes", type=ca.whole(1, MAX_SIZE, why="Σ would not fit in memory"),
+                   nargs="+", help=f"map sizes n, 1 to {MAX_SIZE} (default: {SIZES})")  # fmt: skip
+    p.add_argument("--repeats", type=ca.whole(1, 1000),
+                   help="repeats of every measurement, >= 1 (a smoke run: 1; default: the "
+                   "config's, fewer with --quick)")  # fmt: skip
+    p.add_argument("--mrclam", type=ca.input_path,
+                   help="MRCLAM Dataset 7 folder (default: shared data)")  # fmt: skip
     p.add_argument("--no-mrclam", action="store_true", help="skip the MRCLAM replay")
     p.set_defaults(func=_cmd_bench)
 
@@ -442,7 +465,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         kwargs["mrclam_note"] = MRCLAM_SKIPPED
     if args.sizes:
         kwargs["sizes"] = tuple(sorted(set(args.sizes)))
-    if args.repeats:
+    if args.repeats is not None:
         kwargs.update(dict.fromkeys(
             ("replay_repeats", "step_repeats", "literal_repeats", "mrclam_repeats"), args.repeats
         ))  # fmt: skip

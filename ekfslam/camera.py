@@ -25,6 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam.errors import ConfigError
+
 Array = NDArray[np.float64]
 
 #: The AprilTag family the arena's tags are printed from (36 data bits, Hamming distance 11).
@@ -67,25 +69,25 @@ class Camera:
         for name in ("width", "height"):
             value = getattr(self, name)
             if isinstance(value, bool) or int(value) != value or value <= 0:
-                raise ValueError(f"Camera.{name} must be a positive whole number of pixels")
+                raise ConfigError(f"Camera.{name} must be a positive whole number of pixels")
             object.__setattr__(self, name, int(value))
         for name in ("fx", "fy", "cx", "cy", "pitch"):
             value = float(getattr(self, name))
             if not math.isfinite(value):
-                raise ValueError(f"Camera.{name} must be finite, got {value!r}")
+                raise ConfigError(f"Camera.{name} must be finite, got {value!r}")
             object.__setattr__(self, name, value)
         if self.fx <= 0 or self.fy <= 0:
-            raise ValueError("Camera focal lengths fx, fy must be positive")
+            raise ConfigError("Camera focal lengths fx, fy must be positive")
         dist = tuple(float(d) for d in self.distortion)
         if len(dist) not in (4, 5) or not all(math.isfinite(d) for d in dist):
-            raise ValueError(
+            raise ConfigError(
                 "Camera.distortion must be 4 or 5 finite numbers (k1, k2, p1, p2[, k3])"
             )
         object.__setattr__(self, "distortion", dist + (0.0,) * (5 - len(dist)))
         if self.mount_height is not None:
             h = float(self.mount_height)
             if not (math.isfinite(h) and h > 0):
-                raise ValueError("Camera.mount_height must be a positive height in m, or None")
+                raise ConfigError("Camera.mount_height must be a positive height in m, or None")
             object.__setattr__(self, "mount_height", h)
 
     @property
@@ -172,9 +174,9 @@ class TagSpec:
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.size) and self.size > 0):
-            raise ValueError(f"TagSpec.size must be a positive length in m, got {self.size!r}")
+            raise ConfigError(f"TagSpec.size must be a positive length in m, got {self.size!r}")
         if self.family != TAG_FAMILY:
-            raise ValueError(f"only the {TAG_FAMILY} family is supported, got {self.family!r}")
+            raise ConfigError(f"only the {TAG_FAMILY} family is supported, got {self.family!r}")
         object.__setattr__(self, "size", float(self.size))
 
 

@@ -1,7 +1,8 @@
 """The command line: ``python -m ekfslam run|simulate|fetch ...``.
 
 Bad input ends with one line on stderr that names the file, the line and the problem, and exit
-status 2; never a traceback.
+status 2; never a traceback. A bad option value or output path is refused the same way while
+the command line is parsed, before any work (the types and checks are in `ekfslam.cli_args`).
 """
 
 from __future__ import annotations
@@ -9,13 +10,24 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import math
 import sys
 from pathlib import Path
 
-from ekfslam.errors import EkfSlamError, InputError
+from ekfslam import cli_args as ca
+from ekfslam.errors import ConfigError, EkfSlamError, InputError
 from ekfslam.evaluation import SEED_TABLE1
 
 EXIT_BAD_INPUT = 2
+
+#: Upper bounds of the noise options: beyond them σ² dt, and Σ, lose every digit of the poses.
+MAX_MOTION_SIGMA = 10.0  # m/√s and rad/√s
+MAX_RANGE_SIGMA = 100.0  # m
+#: The simulated path must stay this far inside the seed's arena walls (m).
+ARENA_MARGIN = 0.05
+#: Laps: 100 laps of the largest square take about 4500 s, within the controller's 10^4 s.
+MAX_LAPS = 100
+ROBOTS = range(1, 6)
 
 #: Modules with an ``add_cli(subparsers)`` that registers a subcommand (``set_defaults(func=...)``).
 _COMMAND_MODULES: tuple[str, ...] = (
@@ -34,39 +46,44 @@ def add_noise_arguments(p: argparse.ArgumentParser) -> None:
     from ekfslam.filter import CHI2_2DOF_99
 
     g = p.add_argument_group("noise (R, eq. 9, and Q, eq. 11) and filter options")
-    g.add_argument("--sigma-x", type=float, help="motion noise along the body x axis, m/√s")
-    g.add_argument("--sigma-y", type=float, help="motion noise along the body y axis, m/√s")
-    g.add_argument("--sigma-theta", type=float, help="heading noise, rad/√s")
-    g.add_argument("--sigma-range", type=float, help="range noise σ_r, m")
-    g.add_argument("--sigma-bearing", type=float, help="bearing noise σ_φ, rad")
+    motion = ca.non_negative(MAX_MOTION_SIGMA, why="larger noise swamps every pose")
+    g.add_argument("--sigma-x", type=motion, help="motion noise along the body x axis, m/√s")
+    g.add_argument("--sigma-y", type=motion, help="motion noise along the body y axis, m/√s")
+    g.add_argument("--sigma-theta", type=motion, help="heading noise, rad/√s")
+    g.add_argument(
+        "--sigma-range", type=ca.positive(MAX_RANGE_SIGMA, why="m"), help="range noise σ_r, m"
+    )
+    g.add_argument(
+        "--sigma-bearing", type=ca.positive(math.pi, why="π rad"), help="bearing noise σ_φ, rad"
+    )
     g.add_argument(
         "--init", choices=["inverse", "seed"], default="inverse",
         help="landmark initialisation: inverse observation (default) or the seed's eq. (3)",
     )  # fmt: skip
     g.add_argument(
-        "--gate", type=float, default=CHI2_2DOF_99,
+        "--gate", type=ca.non_negative(1e6), default=CHI2_2DOF_99,
         help="NIS gate (chi-square, 2 dof); 0 turns gating off (default: %(default).2f)",
     )  # fmt: skip
     g.add_argument(
-        "--reinit-after", type=int,
+        "--reinit-after", type=ca.whole(2, 10**6, also=(0,)),
         help="re-initialise a landmark after this many agreeing rejected sightings; 0: never "
         "(default: 3, but never for MRCLAM)",
     )  # fmt: skip
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = ca.Parser(
         prog="python -m ekfslam",
         description="Landmark EKF SLAM after the UCSD CSE276A HW3 report.",
     )
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=ca.Parser)
 
     run = sub.add_parser("run", help="replay a run (our run-log folder, or a MRCLAM dataset)")
     run.add_argument(
         "run", type=Path, help="a run folder (run.json ...) or a MRCLAM dataset folder"
     )
-    run.add_argument("--robot", type=int, help="MRCLAM only: which robot (1-5)")
-    run.add_argument("--plot", type=Path, help="write the seed's Figure 2 for the run to FILE")
+    add_robot_argument(run)
+    add_plot_argument(run, "write the seed's Figure 2 for the run to FILE")
     run.add_argument("--json", action="store_true", help="print one JSON object")
     run.add_argument(
         "--align", choices=["mean_distance", "least_squares"], default="mean_distance",
@@ -77,25 +94,91 @@ def build_parser() -> argparse.ArgumentParser:
 
     sim = sub.add_parser("simulate", help="simulate the seed's robot and write a run folder")
     sim.add_argument("--trajectory", choices=["square", "octagon"], required=True)
-    sim.add_argument("--laps", type=int, default=2)
-    sim.add_argument("--size", type=float, help="side of the square / size of the octagon, m")
-    sim.add_argument("--seed", type=int, default=1)
+    sim.add_argument("--laps", type=ca.whole(1, MAX_LAPS, why="the controller's time limit"),
+                     default=2, help=f"laps, 1 to {MAX_LAPS} (default: %(default)s)")  # fmt: skip
     sim.add_argument(
-        "--start-error", type=float, nargs=3, metavar=("DX", "DY", "DTHETA"),
-        help="the robot's true placement error, m, m, rad (default: drawn from the seed)",
+        "--size", type=ca.positive(),
+        help="side of the square / size of the octagon, m; the path must stay "
+        f"{ARENA_MARGIN * 100:.0f} cm inside the seed's arena",
+    )  # fmt: skip
+    sim.add_argument("--seed", type=ca.seed(), default=1)
+    sim.add_argument(
+        "--start-error", type=ca.finite(), nargs=3, metavar=("DX", "DY", "DTHETA"),
+        help="the robot's true placement error, m, m, rad, within ±0.5 m and ±π "
+        "(default: drawn from the seed)",
     )  # fmt: skip
     sim.add_argument(
-        "--wheel-scale-sigma", type=float,
+        "--wheel-scale-sigma", type=ca.non_negative(0.3, why="a 3σ scale must stay positive"),
         help="std of a per-wheel calibration error (a fraction; default 0: none)",
     )  # fmt: skip
-    sim.add_argument("--out", type=Path, required=True, help="the run folder to write")
-    sim.add_argument("--overwrite", action="store_true", help="replace an existing run folder")
+    add_run_folder_arguments(sim)
+    sim.add_check(_check_path_in_arena)
+    sim.add_check(triple_check("--start-error", (0.5, 0.5, math.pi), ("DX", "DY", "DTHETA")))
     sim.set_defaults(func=cmd_simulate)
 
     # Commands that live with their concept: each module adds its own subparser.
     for module in _COMMAND_MODULES:
         importlib.import_module(module).add_cli(sub)
     return parser
+
+
+def add_robot_argument(p: argparse.ArgumentParser) -> None:
+    """``--robot N`` for commands that read MRCLAM datasets (their robots are 1-5)."""
+    p.add_argument(
+        "--robot", type=ca.one_of(ROBOTS, "MRCLAM robots"), help="MRCLAM only: which robot (1-5)"
+    )
+
+
+def add_plot_argument(p: argparse.ArgumentParser, what: str) -> None:
+    """``--plot FILE``: checked before the work; the suffix names the format and is required."""
+    p.add_argument(
+        "--plot", type=ca.output_file(ca.PLOT_FORMATS), metavar="FILE",
+        help=f"{what}; FILE must end in {', '.join(ca.PLOT_FORMATS)} (no extension is added); "
+        "missing folders are created",
+    )  # fmt: skip
+
+
+def add_run_folder_arguments(p: argparse.ArgumentParser, required: bool = True) -> None:
+    """``--out DIR --overwrite`` for commands that write a run folder, checked before the work."""
+    p.add_argument("--out", type=ca.output_folder, required=required, metavar="DIR",
+                   help="the run folder to write (created if missing)")  # fmt: skip
+    p.add_argument("--overwrite", action="store_true", help="replace an existing run folder")
+    p.add_check(ca.new_run_folder("--out"))
+
+
+def triple_check(option: str, bounds: tuple[float, float, float], names: tuple[str, ...]):
+    """A parser check: each of the 3 values of `option` lies within ±its bound."""
+    dest = option.lstrip("-").replace("-", "_")
+
+    def check(args: argparse.Namespace) -> str | None:
+        values = getattr(args, dest, None)
+        if values is None:
+            return None
+        for name, value, bound in zip(names, values, bounds, strict=True):
+            if abs(value) > bound:
+                return f"argument {option}: {name} must be within ±{bound:.4g}, got {value:g}"
+        return None
+
+    return check
+
+
+def _check_path_in_arena(args: argparse.Namespace) -> str | None:
+    """The simulated path must stay inside the seed's arena, whose walls hold every tag."""
+    from ekfslam.arena import SEED_ARENA
+
+    if args.size is None:
+        return None
+    # the square's corners lie at ±size/2; the octagon's vertices at size/√2 on the axes
+    reach = args.size / 2.0 if args.trajectory == "square" else args.size / math.sqrt(2.0)
+    limit = SEED_ARENA.half_size - ARENA_MARGIN
+    if reach > limit:
+        largest = 2.0 * limit if args.trajectory == "square" else math.sqrt(2.0) * limit
+        return (
+            f"argument --size: the {args.trajectory} must stay {ARENA_MARGIN * 100:.0f} cm "
+            f"inside the arena's walls (±{SEED_ARENA.half_size:g} m): at most {largest:.3f} m, "
+            f"got {args.size:g}"
+        )
+    return None
 
 
 def load_run(args: argparse.Namespace):
@@ -160,9 +243,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         fig = figure2(
             run, result, arena_half_size=_arena_half_size(run), alignment=summary.alignment
         )
-        args.plot.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(args.plot, dpi=120)
-        out["plot"] = str(args.plot)
+        out["plot"] = str(ca.save_figure(fig, args.plot))
     if args.json:
         print(json.dumps(out, indent=2))
     else:
@@ -279,12 +360,16 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run one command; returns its exit status (2: a bad option, path or input, one line)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)  # a bad option ends here, before any work
+    except SystemExit as exc:  # --help (0) or a refused option (2): a status, as for the rest
+        return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
     try:
         return args.func(args)
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+    except (InputError, ConfigError) as exc:
+        print(f"error: {' '.join(str(exc).split())}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except EkfSlamError as exc:
         print(f"error: {exc}", file=sys.stderr)

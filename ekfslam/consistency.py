@@ -26,12 +26,12 @@ import json
 import math
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ekfslam.cli_args import save_figure
 from ekfslam.filter import CHI2_2DOF_99, FilterConfig, FilterCounts
 from ekfslam.geometry import wrap_angle
 from ekfslam.history import OUTCOMES
@@ -351,45 +351,48 @@ def plot_consistency(results, title: str | None = None, figsize=(9.0, 9.0)) -> F
 # ---------------------------------------------------------------------------------- command line
 def add_cli(subparsers) -> None:
     """``python -m ekfslam consistency``: NEES/NIS over runs; --outliers, --long-run, --mrclam."""
+    from ekfslam import cli_args as ca
+    from ekfslam.cli import add_plot_argument
+
     p = subparsers.add_parser(
         "consistency", help="NEES/NIS over Monte Carlo runs; outlier gating; a long Σ run"
     )
-    p.add_argument("--runs", type=_positive, default=50, help="Monte Carlo runs (default 50)")
+    p.add_argument("--runs", type=ca.whole(1, 10_000), default=50,
+                   help="Monte Carlo runs, 1 to 10000 (default 50)")  # fmt: skip
     p.add_argument("--trajectory", choices=SCENARIOS, default="octagon", help="the scenario")
     p.add_argument(
         "--linearization", choices=["standard", "fej", "both"],
         help="default: standard for simulated runs, both with --mrclam",
     )  # fmt: skip
-    p.add_argument("--seed", type=int, default=0, help="seed of the first run (then +1, +2...)")
+    p.add_argument("--seed", type=ca.seed(), default=0,
+                   help="seed of the first run (then +1, +2...)")  # fmt: skip
     p.add_argument(
-        "--gate", type=float, default=CHI2_2DOF_99, help="NIS gate; 0 turns it off (%(default).2f)"
-    )
-    p.add_argument("--wheel-noise", type=float, help="override the scenario's wheel noise, rad/s")
+        "--gate", type=ca.non_negative(1e6), default=CHI2_2DOF_99,
+        help="NIS gate; 0 turns it off (%(default).2f)",
+    )  # fmt: skip
+    p.add_argument("--wheel-noise", type=ca.non_negative(10.0, why="rad/s"),
+                   help="override the scenario's wheel noise, rad/s")  # fmt: skip
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--plot", type=Path, help="draw the averages and their bands to FILE")
+    add_plot_argument(p, "draw the averages and their bands to FILE")
     mode = p.add_mutually_exclusive_group()
     mode.add_argument(
-        "--outliers", type=float, metavar="RATE", help="outlier study at this rate (e.g. 0.05)"
+        "--outliers",
+        type=ca.probability(),
+        metavar="RATE",
+        help="outlier study at this rate, in [0, 1] (e.g. 0.05)",
     )
     mode.add_argument(
-        "--long-run", type=_positive, nargs="?", const=100_000, metavar="STEPS",
+        "--long-run", type=ca.whole(1, 10**7), nargs="?", const=100_000, metavar="STEPS",
         help="drive STEPS steps (default 10^5) and check Σ's smallest eigenvalue",
     )  # fmt: skip
     p.add_argument(
-        "--gate-after", type=_positive, default=FilterConfig.gate_after,
+        "--gate-after", type=ca.whole(1, 10**6), default=FilterConfig.gate_after,
         help="outlier study: gate_after (default: the filter's, %(default)s)",
     )  # fmt: skip
     from ekfslam import mrclam_consistency  # here: that module imports this one
 
     mrclam_consistency.add_arguments(p)
     p.set_defaults(func=_cmd_consistency)
-
-
-def _positive(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive whole number, got {text}")
-    return value
 
 
 def _cmd_consistency(args: argparse.Namespace) -> int:
@@ -439,8 +442,7 @@ def _cmd_consistency(args: argparse.Namespace) -> int:
     )  # fmt: skip
     out = {r.linearization: r.as_dict() for r in results}
     if args.plot is not None:
-        args.plot.parent.mkdir(parents=True, exist_ok=True)
-        plot_consistency(results).savefig(args.plot, dpi=120)
+        save_figure(plot_consistency(results), args.plot)
         for d in out.values():
             d["plot"] = str(args.plot)
     _emit(args, out if len(out) > 1 else out[lins[0]], "\n\n".join(map(_table, results)))

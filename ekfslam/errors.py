@@ -23,3 +23,11 @@ class InputError(EkfSlamError):
 
 class AlignmentError(EkfSlamError):
     """The map cannot be aligned (for example, fewer than two landmarks in common)."""
+
+
+class ConfigError(EkfSlamError, ValueError):
+    """A setting out of its range: a bad option value or config field (``gate must be > 0``).
+
+    A ValueError too, so callers (and tests) that caught the ValueError the config dataclasses
+    raised before this type existed keep working.
+    """

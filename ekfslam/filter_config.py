@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+from ekfslam.errors import ConfigError
+
 #: chi-square(2 dof) 99% quantile: the default Mahalanobis gate on (r, φ) innovations.
 CHI2_2DOF_99 = 9.21034037197618
 
@@ -54,23 +56,23 @@ class FilterConfig:
 
     def __post_init__(self) -> None:
         if self.linearization not in ("standard", "fej"):
-            raise ValueError(
+            raise ConfigError(
                 f"linearization must be 'standard' or 'fej', got {self.linearization!r}"
             )
         if self.init not in ("inverse", "seed"):
-            raise ValueError(f"init must be 'inverse' or 'seed', got {self.init!r}")
+            raise ConfigError(f"init must be 'inverse' or 'seed', got {self.init!r}")
         if not self.seed_init_variance > 0:
-            raise ValueError("seed_init_variance must be positive")
+            raise ConfigError("seed_init_variance must be positive")
         if self.gate is not None and not self.gate > 0:
-            raise ValueError("gate must be positive or None")
+            raise ConfigError("gate must be positive or None")
         if self.gate_after < 1:
-            raise ValueError("gate_after must be at least 1")
+            raise ConfigError("gate_after must be at least 1")
         if self.reinit_after is not None and self.reinit_after < 2:
-            raise ValueError("reinit_after must be at least 2 (or None)")
+            raise ConfigError("reinit_after must be at least 2 (or None)")
         if not self.reinit_radius > 0:
-            raise ValueError("reinit_radius must be positive")
+            raise ConfigError("reinit_radius must be positive")
         if self.initial_capacity < 1:
-            raise ValueError("initial_capacity must be at least 1")
+            raise ConfigError("initial_capacity must be at least 1")
 
 
 @dataclass(frozen=True)

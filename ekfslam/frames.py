@@ -396,26 +396,41 @@ def detect_run(
     detections, counts = detect_frames(folder, meta, config)
     if target != path:  # a new run folder: the run's own files, then its detections
         shutil.copytree(folder, target, dirs_exist_ok=True)
+    else:  # a FILE.csv: its folder is made only once there is something to write into it
+        path.parent.mkdir(parents=True, exist_ok=True)
     return write_detections(detections, path, meta.tag_map), counts
+
+
+def _detect_out(text: str) -> Path:
+    """``detect --out``: a FILE.csv to write, or a new run folder."""
+    from ekfslam import cli_args as ca
+
+    if Path(text).suffix.lower() == ".csv":
+        return ca.output_file((".csv",))(text)
+    return ca.output_folder(text)
 
 
 def add_cli(subparsers) -> None:
     """Two commands: ``detect RUN ...`` and ``render-frames RUN --out DIR ...``."""
+    from ekfslam import cli_args as ca
+    from ekfslam.cli import add_run_folder_arguments, triple_check
+
     p = subparsers.add_parser(
         "render-frames",
         help="render the camera frames of a simulated run (a run of frames, no detections)",
     )
     p.add_argument("run", type=Path, help="a run folder with ground truth (e.g. from simulate)")
-    p.add_argument("--out", type=Path, required=True, help="the run folder to write")
-    p.add_argument("--name", help="the new run's name (default: the run's)")
+    add_run_folder_arguments(p)
+    p.add_argument("--name", type=ca.non_empty, help="the new run's name (default: the run's)")
     p.add_argument(
-        "--mounting", type=float, nargs=3, metavar=("X", "Y", "YAW"),
-        help="camera position (m) and yaw (rad) in the robot frame (default: the run's)",
+        "--mounting", type=ca.finite(), nargs=3, metavar=("X", "Y", "YAW"),
+        help="camera position (m, within ±0.5) and yaw (rad, within ±π) in the robot frame "
+        "(default: the run's)",
     )  # fmt: skip
+    p.add_check(triple_check("--mounting", (0.5, 0.5, math.pi), ("X", "Y", "YAW")))
     p.add_argument("--images", action="store_true", help="PNG images instead of an mp4v video")
     p.add_argument("--keep-detections", action="store_true", help="write detections.csv too")
-    p.add_argument("--seed", type=int, default=0, help="texture and sensor-noise seed")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing run folder")
+    p.add_argument("--seed", type=ca.seed(), default=0, help="texture and sensor-noise seed")
     p.set_defaults(func=_cmd_render_frames)
 
     p = subparsers.add_parser(
@@ -423,8 +438,9 @@ def add_cli(subparsers) -> None:
     )
     p.add_argument("run", type=Path, help="a run folder with frames (run.json, frames.csv, ...)")
     p.add_argument(
-        "--out", type=Path,
-        help="a new run folder (the run copied, with detections.csv) or a FILE.csv to write",
+        "--out", type=_detect_out, metavar="DIR|FILE.csv",
+        help="a new run folder (the run copied, with detections.csv) or a FILE.csv to write; "
+        "missing folders are created",
     )  # fmt: skip
     p.add_argument(
         "--in-place", action="store_true",
@@ -433,8 +449,8 @@ def add_cli(subparsers) -> None:
     p.add_argument("--overwrite", action="store_true", help="replace an existing file")
     p.add_argument("--detector", choices=["opencv", "opencv-subpix", "apriltag"], default="opencv")
     p.add_argument(
-        "--max-incidence", type=float, default=75.0,
-        help="refuse tags seen more edge-on than this, degrees (default: %(default)s)",
+        "--max-incidence", type=ca.real(0.0, 90.0, lo_open=True), default=75.0,
+        help="refuse tags seen more edge-on than this, degrees in (0, 90] (default: %(default)s)",
     )  # fmt: skip
     p.set_defaults(func=_cmd_detect)
 

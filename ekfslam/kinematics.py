@@ -31,6 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam.errors import ConfigError
+
 
 @dataclass(frozen=True)
 class MecanumGeometry:
@@ -47,7 +49,9 @@ class MecanumGeometry:
         for name in ("wheel_radius", "lx", "ly"):
             value = getattr(self, name)
             if not np.isfinite(value) or value <= 0:
-                raise ValueError(f"MecanumGeometry.{name} must be a positive length, got {value!r}")
+                raise ConfigError(
+                    f"MecanumGeometry.{name} must be a positive length, got {value!r}"
+                )
 
     @property
     def wheels_to_twist_matrix(self) -> NDArray[np.float64]:

@@ -474,10 +474,13 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:
     p = convert_formats(subparsers).add_parser(
         "mrclam", help="one robot of a MRCLAM dataset -> a run folder (with its Vicon truth)"
     )
+    from ekfslam import cli_args as ca
+    from ekfslam.cli import ROBOTS, add_run_folder_arguments
+
     p.add_argument("dataset", type=Path, help="a MRCLAM_Dataset<N> folder")
-    p.add_argument("--robot", type=int, required=True, help="which robot (1-5)")
-    p.add_argument("--out", type=Path, required=True, help="the run folder to write")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing run folder")
+    p.add_argument("--robot", type=ca.one_of(ROBOTS, "MRCLAM robots"), required=True,
+                   help="which robot (1-5)")  # fmt: skip
+    add_run_folder_arguments(p)
     p.add_argument(
         "--calibrate", action="store_true",
         help="shift and scale the commands by MRCLAM_CALIBRATION (lag 0.25 s, v x0.90, w x0.935)",

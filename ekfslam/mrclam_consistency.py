@@ -409,8 +409,9 @@ def run_cli(args: argparse.Namespace) -> int:
     study = mrclam_consistency(folder, args.noise, tuple(args.robots), lins, config)
     out = study.as_dict()
     if args.plot is not None:
-        args.plot.parent.mkdir(parents=True, exist_ok=True)
-        plot_mrclam_nees(study).savefig(args.plot, dpi=120)
+        from ekfslam.cli_args import save_figure
+
+        save_figure(plot_mrclam_nees(study), args.plot)
         out["plot"] = str(args.plot)
     print(json.dumps(out, indent=2) if args.json else table(study, out.get("plot")))
     return 0

@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 from ekfslam.arena import SEED_ARENA, Arena
 from ekfslam.camera import TAG_HEIGHT, Camera, TagSpec, optical_axes, tags_in_view
 from ekfslam.corners import undistort
+from ekfslam.errors import ConfigError
 from ekfslam.geometry import wrap_angle
 from ekfslam.scene import Surface, build_scene
 
@@ -77,13 +78,13 @@ class RenderConfig:
 
     def __post_init__(self) -> None:
         if int(self.supersample) != self.supersample or self.supersample < 1:
-            raise ValueError("RenderConfig.supersample must be a whole number >= 1")
+            raise ConfigError("RenderConfig.supersample must be a whole number >= 1")
         for name in ("wall_height", "tag_height", "exposure"):
             if not getattr(self, name) > 0:
-                raise ValueError(f"RenderConfig.{name} must be positive")
+                raise ConfigError(f"RenderConfig.{name} must be positive")
         for name in ("blur_sigma", "vignetting", "exposure_jitter", "read_noise", "shot_noise"):
             if not getattr(self, name) >= 0:
-                raise ValueError(f"RenderConfig.{name} must be zero or positive")
+                raise ConfigError(f"RenderConfig.{name} must be zero or positive")
 
 
 @dataclass(frozen=True, eq=False)

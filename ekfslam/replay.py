@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam.errors import ConfigError
 from ekfslam.filter import EKFSLAM, FilterConfig, FilterCounts
 from ekfslam.history import History
 from ekfslam.models import observation_noise
@@ -53,13 +54,13 @@ class NoiseConfig:
         for name in ("sigma_x", "sigma_y", "sigma_theta", "sigma_range", "sigma_bearing"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
-                raise ValueError(f"NoiseConfig.{name} must be a finite non-negative number")
+                raise ConfigError(f"NoiseConfig.{name} must be a finite non-negative number")
         if self.sigma_range == 0 or self.sigma_bearing == 0:
-            raise ValueError("observation noise must be positive (Q would be singular)")
+            raise ConfigError("observation noise must be positive (Q would be singular)")
         if self.R_per_step is not None:
             R = np.asarray(self.R_per_step, dtype=float)
             if R.shape != (3, 3) or not np.allclose(R, R.T) or np.linalg.eigvalsh(R).min() < 0:
-                raise ValueError("R_per_step must be a symmetric positive semi-definite 3x3")
+                raise ConfigError("R_per_step must be a symmetric positive semi-definite 3x3")
 
     @property
     def Q(self) -> Array:

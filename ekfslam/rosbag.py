@@ -30,6 +30,7 @@ bag recorded them. ROS ``Twist`` has no header, so its times are the bag's.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import re
 from collections.abc import Sequence
@@ -39,7 +40,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ekfslam.errors import InputError
+from ekfslam.errors import ConfigError, InputError
 from ekfslam.geometry import wrap_angle
 from ekfslam.kinematics import MecanumGeometry
 from ekfslam.runlog import Controls, Detections, RunLog, RunMeta
@@ -85,15 +86,15 @@ class RosbagSpec:
 
     def __post_init__(self) -> None:
         if (self.twist_topic is None) == (self.wheels_topic is None):
-            raise ValueError("give exactly one of twist_topic or wheels_topic")
+            raise ConfigError("give exactly one of twist_topic or wheels_topic")
         if self.wheels_topic is not None and (self.wheel_joints is None or self.robot is None):
-            raise ValueError(
+            raise ConfigError(
                 "wheel speeds need wheel_joints (FL, FR, RL, RR) and the robot geometry"
             )
         if self.wheel_joints is not None and len(self.wheel_joints) != 4:
-            raise ValueError("wheel_joints must name 4 joints: FL, FR, RL, RR")
+            raise ConfigError("wheel_joints must name 4 joints: FL, FR, RL, RR")
         if self.camera_axes not in ("optical", "body"):
-            raise ValueError(f"camera_axes must be 'optical' or 'body', got {self.camera_axes!r}")
+            raise ConfigError(f"camera_axes must be 'optical' or 'body', got {self.camera_axes!r}")
         re.compile(self.tag_frame_pattern)
 
 
@@ -361,6 +362,8 @@ def camera_to_robot(
 
 def add_cli(subparsers: argparse._SubParsersAction) -> None:
     """Register ``convert rosbag`` under the shared ``convert`` command."""
+    from ekfslam import cli_args as ca
+    from ekfslam.cli import add_run_folder_arguments, triple_check
     from ekfslam.mrclam import convert_formats
 
     p = convert_formats(subparsers).add_parser(
@@ -369,25 +372,34 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:
         description=__doc__.split("\n\n")[0],
     )
     p.add_argument("bag", type=Path, nargs="+", help="ROS 2 bag folder, or ROS 1 .bag file(s)")
-    p.add_argument("--out", type=Path, required=True, help="the run folder to write")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing run folder")
-    p.add_argument("--detections-topic", required=True, help="TFMessage or AprilTag detections")
+    add_run_folder_arguments(p)
+    p.add_argument("--detections-topic", required=True, type=ca.non_empty,
+                   help="TFMessage or AprilTag detections")  # fmt: skip
     motion = p.add_mutually_exclusive_group(required=True)
-    motion.add_argument("--twist-topic", help="Twist, TwistStamped or Odometry")
-    motion.add_argument("--wheels-topic", help="JointState with four wheel speeds (rad/s)")
-    p.add_argument("--wheel-joints", nargs=4, metavar=("FL", "FR", "RL", "RR"))
-    p.add_argument("--wheel-geometry", nargs=3, type=float, metavar=("RADIUS", "LX", "LY"),
-                   help="mecanum wheel radius, lx, ly in m (with --wheels-topic)")  # fmt: skip
-    p.add_argument("--camera-mounting", nargs=3, type=float, default=(0.0, 0.0, 0.0),
-                   metavar=("X", "Y", "YAW"), help="camera on the robot, m, m, rad")  # fmt: skip
-    p.add_argument("--camera-pitch", type=float, default=0.0, help="rad, positive looks down")
+    motion.add_argument("--twist-topic", type=ca.non_empty, help="Twist, TwistStamped or Odometry")
+    motion.add_argument("--wheels-topic", type=ca.non_empty,
+                        help="JointState with four wheel speeds (rad/s)")  # fmt: skip
+    p.add_argument("--wheel-joints", nargs=4, type=ca.non_empty, metavar=("FL", "FR", "RL", "RR"))
+    p.add_argument("--wheel-geometry", nargs=3, type=ca.positive(1.0, why="m"),
+                   metavar=("RADIUS", "LX", "LY"),
+                   help="mecanum wheel radius, lx, ly in m, each in (0, 1] "
+                   "(with --wheels-topic)")  # fmt: skip
+    p.add_argument("--camera-mounting", nargs=3, type=ca.finite(), default=(0.0, 0.0, 0.0),
+                   metavar=("X", "Y", "YAW"),
+                   help="camera on the robot, m, m, rad (within ±1 m, ±π)")  # fmt: skip
+    p.add_argument("--camera-pitch", type=ca.real(-math.pi / 2, math.pi / 2), default=0.0,
+                   help="rad, positive looks down, within ±π/2")  # fmt: skip
     p.add_argument("--camera-axes", choices=["optical", "body"], default="optical")
-    p.add_argument("--camera-frame", help="keep only TF transforms from this parent frame")
-    p.add_argument("--tag-frame-pattern", default=RosbagSpec.tag_frame_pattern,
+    p.add_argument("--camera-frame", type=ca.non_empty,
+                   help="keep only TF transforms from this parent frame")  # fmt: skip
+    p.add_argument("--tag-frame-pattern", type=ca.regex, default=RosbagSpec.tag_frame_pattern,
                    help="regex on TF child frames; group 1 is the tag id")  # fmt: skip
-    p.add_argument("--start", nargs=3, type=float, default=(0.0, 0.0, 0.0),
-                   metavar=("X", "Y", "THETA"), help="nominal start pose, m, m, rad")  # fmt: skip
-    p.add_argument("--name", help="the run's name (default: the bag's name)")
+    p.add_argument("--start", nargs=3, type=ca.finite(), default=(0.0, 0.0, 0.0),
+                   metavar=("X", "Y", "THETA"),
+                   help="nominal start pose, m, m, rad (within ±1000 m, ±π)")  # fmt: skip
+    p.add_argument("--name", type=ca.non_empty, help="the run's name (default: the bag's name)")
+    p.add_check(triple_check("--camera-mounting", (1.0, 1.0, math.pi), ("X", "Y", "YAW")))
+    p.add_check(triple_check("--start", (1000.0, 1000.0, math.pi), ("X", "Y", "THETA")))
     p.set_defaults(func=_cmd_convert_rosbag)
 
 

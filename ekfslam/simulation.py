@@ -45,6 +45,7 @@ from ekfslam.camera import (
     pinhole_camera,
     tags_in_view,
 )
+from ekfslam.errors import ConfigError
 from ekfslam.geometry import wrap_angle
 from ekfslam.kinematics import MecanumGeometry, twist_to_wheels, wheels_to_twist
 from ekfslam.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta
@@ -136,15 +137,15 @@ class SimulationConfig:
 
     def __post_init__(self) -> None:
         if self.trajectory not in TRAJECTORIES:
-            raise ValueError(f"trajectory must be one of {TRAJECTORIES}, got {self.trajectory!r}")
+            raise ConfigError(f"trajectory must be one of {TRAJECTORIES}, got {self.trajectory!r}")
         for name in ("start_error", "start_error_sigma", "camera_mounting"):  # lists -> tuples
             value = getattr(self, name)
             if value is not None:
                 if len(value) != 3 or not all(math.isfinite(float(v)) for v in value):
-                    raise ValueError(f"SimulationConfig.{name} is 3 finite numbers, got {value!r}")
+                    raise ConfigError(f"SimulationConfig.{name} is 3 finite numbers, got {value!r}")
                 object.__setattr__(self, name, tuple(float(v) for v in value))
         if not isinstance(self.camera, Camera) or self.camera.mount_height is None:
-            raise ValueError("SimulationConfig.camera must be a Camera with its mount_height set")
+            raise ConfigError("SimulationConfig.camera must be a Camera with its mount_height set")
         rules = (
             ("laps", lambda v: v == int(v) >= 1, "a positive whole number"),
             ("size controls_hz camera_hz max_speed max_turn_rate max_accel max_angular_accel "
@@ -159,7 +160,7 @@ class SimulationConfig:
         for names, ok, what in rules:
             for name in names.split():
                 if not ok(getattr(self, name)):
-                    raise ValueError(
+                    raise ConfigError(
                         f"SimulationConfig.{name} must be {what}, got {getattr(self, name)!r}"
                     )
         object.__setattr__(self, "laps", int(self.laps))

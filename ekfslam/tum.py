@@ -101,9 +101,9 @@ def write_tum(path: str | os.PathLike, rows: ArrayLike) -> Path:
     if not np.isfinite(rows).all():
         raise ValueError(f"{path}: non-finite values cannot be written in the TUM format")
     lines = [" ".join(repr(v) for v in row) for row in rows.tolist()]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("".join(line + "\n" for line in lines), encoding="utf-8")
-    return path
+    from ekfslam.cli_args import atomic_write_text
+
+    return atomic_write_text(path, "".join(line + "\n" for line in lines))
 
 
 def read_tum(path: str | os.PathLike) -> tuple[Array, Array]:
@@ -174,7 +174,8 @@ def export_tum(run: RunLog, result: ReplayResult, folder: str | os.PathLike) -> 
 
 def add_cli(subparsers: argparse._SubParsersAction) -> None:
     """``python -m ekfslam tum RUN [--robot N] --out DIR``: replay a run and export it."""
-    from ekfslam.cli import add_noise_arguments
+    from ekfslam import cli_args as ca
+    from ekfslam.cli import add_noise_arguments, add_robot_argument
 
     p = subparsers.add_parser(
         "tum",
@@ -182,8 +183,9 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:
         description=__doc__.split("\n\n")[0],
     )
     p.add_argument("run", type=Path, help="a run folder or a MRCLAM dataset folder")
-    p.add_argument("--robot", type=int, help="MRCLAM only: which robot (1-5)")
-    p.add_argument("--out", type=Path, required=True, help="folder for the .tum files")
+    add_robot_argument(p)
+    p.add_argument("--out", type=ca.output_folder, required=True,
+                   help="folder for the .tum files (created if missing)")  # fmt: skip
     add_noise_arguments(p)
     p.set_defaults(func=_cmd_tum)
 

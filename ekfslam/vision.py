@@ -37,6 +37,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.camera import Camera, TagSpec, optical_to_robot
 from ekfslam.corners import Undistorter, distort, refine_corners
+from ekfslam.errors import ConfigError
 from ekfslam.geometry import wrap_angle
 
 Array = NDArray[np.float64]
@@ -202,9 +203,9 @@ class VisionConfig:
 
     def __post_init__(self) -> None:
         if self.detector not in DETECTORS:
-            raise ValueError(f"VisionConfig.detector must be one of {', '.join(DETECTORS)}")
+            raise ConfigError(f"VisionConfig.detector must be one of {', '.join(DETECTORS)}")
         if not 0 < self.max_incidence <= math.pi / 2:
-            raise ValueError("VisionConfig.max_incidence must be in (0, pi/2] rad")
+            raise ConfigError("VisionConfig.max_incidence must be in (0, pi/2] rad")
 
 
 @dataclass(frozen=True, eq=False)

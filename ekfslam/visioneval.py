@@ -323,17 +323,28 @@ def compare_replays(folder: str | Path, config: VisionConfig | None = None) -> R
     return ReplayComparison(run.meta.name, *errors, *counts)
 
 
+#: Command-line limits: poses each render a 640x480 frame (about 0.1 s); a blur wider than
+#: this smears a tag's 1-2 px quiet zone into its neighbours.
+MAX_POSES = 100_000
+MAX_BLUR = 20.0
+
+
 def add_cli(subparsers) -> None:
     """``python -m ekfslam vision-eval [--poses N] [--seed S] [--detector D] [--run RUN]``."""
+    from ekfslam import cli_args as ca
+
     p = subparsers.add_parser(
         "vision-eval", help="score range and bearing from rendered frames against the truth"
     )
-    p.add_argument("--poses", type=int, default=200, help="random poses (default: %(default)s)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--poses", type=ca.whole(1, MAX_POSES, why="each pose renders a frame"),
+                   default=200, help="random poses (default: %(default)s)")  # fmt: skip
+    p.add_argument("--seed", type=ca.seed(), default=0)
     p.add_argument("--detector", choices=["opencv", "opencv-subpix", "apriltag"], default="opencv")
     p.add_argument("--no-refine", action="store_true", help="keep the detector's own corners")
-    p.add_argument("--blur", type=float, help="lens blur sigma, px (default: RenderConfig's)")
-    p.add_argument("--run", type=Path, help="also compare replays of this simulated frames run")
+    p.add_argument("--blur", type=ca.non_negative(MAX_BLUR, why="px; the tags would vanish"),
+                   help="lens blur sigma, px (default: RenderConfig's)")  # fmt: skip
+    p.add_argument("--run", type=ca.input_path,
+                   help="also compare replays of this simulated frames run")  # fmt: skip
     p.set_defaults(func=_cmd_vision_eval)
 
 

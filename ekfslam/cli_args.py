@@ -1,0 +1,316 @@
+"""What the command line accepts: the parser, option types with their ranges, and safe writes.
+
+Every bad option value is refused while the command line is parsed, before any work, with ONE
+line on stderr and exit status 2::
+
+    python -m ekfslam run: error: argument --sigma-range: must be > 0, got 0 (see ... --help)
+
+Output paths (``--plot``, ``--out``) are checked the same way: the format is known, the path is
+not a folder, it does not lie under a regular file, and its nearest existing folder is writable.
+Missing parent folders are created when the file is written, and every file is written to a
+temporary file beside it and renamed into place (`atomic_write`), so a failed or interrupted
+write never leaves half a file and keeps the old one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import re
+import tempfile
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any, NoReturn
+
+#: What ``--plot`` writes (matplotlib infers the format from the suffix; these need no extras).
+PLOT_FORMATS: tuple[str, ...] = (".png", ".pdf", ".svg")
+
+Check = Callable[[argparse.Namespace], str | None]
+
+
+class Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors are one line, and which runs cross-option checks.
+
+    `add_check(fn)` registers ``fn(namespace) -> message or None``; a message is an error, in
+    the same one-line form as argparse's own (start it with ``argument --opt:``).
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._checks: list[Check] = []
+
+    def add_check(self, check: Check) -> None:
+        self._checks.append(check)
+
+    def parse_known_args(self, args=None, namespace=None):  # type: ignore[no-untyped-def]
+        namespace, extras = super().parse_known_args(args, namespace)
+        for check in self._checks:
+            problem = check(namespace)
+            if problem is not None:
+                self.error(problem)
+        return namespace, extras
+
+    def error(self, message: str) -> NoReturn:
+        # argparse prints the whole usage first; one line that points at --help reads better
+        one_line = " ".join(message.split())
+        self.exit(2, f"{self.prog}: error: {one_line} (see {self.prog} --help)\n")
+
+
+# ------------------------------------------------------------------------------- value types
+def _name(fn: Callable[[str], Any], name: str) -> Callable[[str], Any]:
+    fn.__name__ = name  # argparse's fallback message says "invalid <name> value"
+    return fn
+
+
+def _bound_text(value: float) -> str:
+    return f"{value:g}"
+
+
+def real(
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    lo_open: bool = False,
+    why: str = "",
+) -> Callable[[str], float]:
+    """A finite float in [lo, hi] (or (lo, hi] with `lo_open`); `why` explains the upper bound.
+
+    >>> real(0, lo_open=True)("0")
+    Traceback (most recent call last):
+    argparse.ArgumentTypeError: must be > 0, got 0
+    """
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
+        if lo is not None and (value <= lo if lo_open else value < lo):
+            raise argparse.ArgumentTypeError(
+                f"must be {'>' if lo_open else '>='} {_bound_text(lo)}, got {text}"
+            )
+        if hi is not None and value > hi:
+            reason = f" ({why})" if why else ""
+            raise argparse.ArgumentTypeError(
+                f"must be at most {_bound_text(hi)}{reason}, got {text}"
+            )
+        return value
+
+    return _name(parse, "number")
+
+
+def finite(bound: float | None = None, why: str = "") -> Callable[[str], float]:
+    """A finite float, within ±`bound` when given."""
+    if bound is None:
+        return real()
+
+    def parse(text: str) -> float:
+        value = real()(text)
+        if abs(value) > bound:
+            reason = f" ({why})" if why else ""
+            raise argparse.ArgumentTypeError(
+                f"must be between -{_bound_text(bound)} and {_bound_text(bound)}{reason}, "
+                f"got {text}"
+            )
+        return value
+
+    return _name(parse, "number")
+
+
+def positive(hi: float | None = None, why: str = "") -> Callable[[str], float]:
+    """A finite float > 0 (and <= `hi`)."""
+    return real(0.0, hi, lo_open=True, why=why)
+
+
+def non_negative(hi: float | None = None, why: str = "") -> Callable[[str], float]:
+    """A finite float >= 0 (and <= `hi`)."""
+    return real(0.0, hi, why=why)
+
+
+def probability() -> Callable[[str], float]:
+    """A probability in [0, 1]."""
+    return real(0.0, 1.0, why="a probability")
+
+
+def whole(
+    lo: int | None = None, hi: int | None = None, *, why: str = "", also: Iterable[int] = ()
+) -> Callable[[str], int]:
+    """A whole number in [lo, hi]; the values in `also` are accepted too (``0`` for "off")."""
+    extra = tuple(also)
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
+        if value in extra:
+            return value
+        alt = "".join(f" or {v}" for v in extra)
+        if lo is not None and value < lo:
+            raise argparse.ArgumentTypeError(f"must be >= {lo}{alt}, got {text}")
+        if hi is not None and value > hi:
+            reason = f" ({why})" if why else ""
+            raise argparse.ArgumentTypeError(f"must be at most {hi}{reason}, got {text}")
+        return value
+
+    return _name(parse, "whole number")
+
+
+def seed() -> Callable[[str], int]:
+    """A random seed: a whole number in [0, 2^63) (numpy refuses negative seeds)."""
+    return whole(0, 2**63 - 1)
+
+
+def one_of(values: Iterable[int], what: str) -> Callable[[str], int]:
+    """A whole number among `values`; the message lists them (``MRCLAM datasets``: 1, ..., 9)."""
+    allowed = tuple(values)
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value not in allowed:
+            listed = ", ".join(map(str, allowed))
+            raise argparse.ArgumentTypeError(f"{what} are {listed}; got {text!r}")
+        return value
+
+    return _name(parse, "whole number")
+
+
+def regex(text: str) -> str:
+    """A regular expression that compiles."""
+    try:
+        re.compile(text)
+    except re.error as exc:
+        message = f"not a valid regular expression ({exc}): {text!r}"
+        raise argparse.ArgumentTypeError(message) from None
+    return text
+
+
+def non_empty(text: str) -> str:
+    if not text.strip():
+        raise argparse.ArgumentTypeError("must not be empty")
+    return text
+
+
+# ------------------------------------------------------------------------------ output paths
+def check_output_path(path: Path, *, folder: bool = False) -> str | None:
+    """Why `path` cannot be written (as a file, or as a folder to fill), or None if it can.
+
+    Missing parents are fine (they are created on writing) as long as the nearest existing
+    ancestor is a writable folder.
+    """
+    if folder:
+        if path.exists() and not path.is_dir():
+            return f"{path} exists and is not a folder"
+    elif path.is_dir():
+        return f"{path} is a folder; name a file"
+    ancestor = path if folder and path.is_dir() else path.parent
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        return f"{path} lies under {ancestor}, which is a file, not a folder"
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        return f"cannot write into {ancestor} (permission denied)"
+    return None
+
+
+def output_file(suffixes: Iterable[str] | None = None) -> Callable[[str], Path]:
+    """A file to write; with `suffixes`, its name must end in one of them (no suffix is refused).
+
+    A name without a suffix is refused rather than given one, so the path the command reports
+    is the path the user typed.
+    """
+    allowed = tuple(suffixes) if suffixes is not None else None
+
+    def parse(text: str) -> Path:
+        path = Path(text).expanduser()
+        if allowed is not None and path.suffix.lower() not in allowed:
+            listed = ", ".join(allowed)
+            got = f"{path.suffix!r} in {text!r}" if path.suffix else f"no extension in {text!r}"
+            raise argparse.ArgumentTypeError(f"the file must end in {listed}; got {got}")
+        problem = check_output_path(path)
+        if problem is not None:
+            raise argparse.ArgumentTypeError(problem)
+        return path
+
+    return _name(parse, "path")
+
+
+def output_folder(text: str) -> Path:
+    """A folder to write into (created if missing)."""
+    path = Path(text).expanduser()
+    problem = check_output_path(path, folder=True)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(problem)
+    return path
+
+
+def input_path(text: str) -> Path:
+    """An existing file or folder to read."""
+    path = Path(text).expanduser()
+    if not path.exists():
+        raise argparse.ArgumentTypeError(f"{text} does not exist")
+    return path
+
+
+def new_run_folder(option: str = "--out") -> Check:
+    """A check: the run folder `option` may be written (empty, missing, or ``--overwrite``)."""
+    dest = option.lstrip("-").replace("-", "_")
+
+    def check(args: argparse.Namespace) -> str | None:
+        path = getattr(args, dest, None)
+        if path is None or getattr(args, "overwrite", False):
+            return None
+        if path.is_dir() and any(path.iterdir()):
+            return f"argument {option}: {path} is not empty; pass --overwrite to replace its run"
+        return None
+
+    return check
+
+
+# ---------------------------------------------------------------------------- atomic writes
+def atomic_write(path: str | os.PathLike, write: Callable[[Path], object]) -> Path:
+    """Have ``write(tmp)`` write a temporary file beside `path`, then rename it onto `path`.
+
+    The rename is atomic on one file system, so `path` is either the old file or the complete
+    new one: a failure inside `write` (or an interrupt) removes the temporary file and leaves an
+    existing `path` untouched. Missing parent folders are created. The temporary file keeps
+    `path`'s suffix, so writers that pick a format from the name (matplotlib) still can.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".partial{path.suffix}",
+                                dir=path.parent)  # fmt: skip
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        write(tmp)
+        # mkstemp's file is private (0600); give it the mode the file has or a new one would get
+        os.chmod(tmp, path.stat().st_mode & 0o777 if path.exists() else 0o666 & ~_umask())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)  # the only portable way to read it is to set it
+    os.umask(mask)
+    return mask
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
+    """Write `text` (UTF-8, ``\\n`` line ends) to `path` atomically (see `atomic_write`)."""
+    return atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8", newline="\n"))
+
+
+def save_figure(fig: Any, path: str | os.PathLike, dpi: int = 120) -> Path:
+    """``fig.savefig`` to `path` atomically, in the format its suffix names."""
+    fmt = Path(path).suffix.lstrip(".").lower() or None
+    return atomic_write(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=dpi))
