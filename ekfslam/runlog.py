@@ -137,11 +137,10 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
         problem = "is not a folder" if folder.exists() else "run folder not found"
         raise InputError(folder, None, f"{problem}; a run is a folder holding {_FILES_HINT}")
     for name in (RUN_JSON, CONTROLS_CSV):
-        if not (folder / name).is_file():
-            raise InputError(folder / name, None, f"missing file; a run folder holds {_FILES_HINT}")
+        require_file(folder / name, f"a run folder holds {_FILES_HINT}")
     meta = read_meta(folder / RUN_JSON)
     path = folder / DETECTIONS_CSV
-    if detections is None and not path.is_file():
+    if detections is None:
         hint = f"a run folder holds {_FILES_HINT}"
         if meta.frames is not None:
             hint = (
@@ -149,7 +148,7 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
                 f"`python -m ekfslam detect {folder}`, or replay the frames directly with "
                 f"`python -m ekfslam run {folder}`"
             )
-        raise InputError(path, None, f"missing file; {hint}")
+        require_file(path, hint)
 
     path = folder / CONTROLS_CSV
     kind, columns = _read_csv(path, CONTROL_COLUMNS)
@@ -175,7 +174,22 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
         _, columns = _read_csv(path, {"groundtruth": GROUNDTRUTH_COLUMNS})
         groundtruth = GroundTruth(t=columns[0], pose=np.column_stack(columns[1:]))
         _check_groundtruth(groundtruth, path)
-    return RunLog(meta=meta, controls=controls, detections=detections, groundtruth=groundtruth)
+    run = RunLog(meta=meta, controls=controls, detections=detections, groundtruth=groundtruth)
+    check_time_spans(run, folder)
+    return run
+
+
+def require_file(path: Path, hint: str) -> None:
+    """Raise `InputError` unless `path` is a readable file: missing, a folder, a dead link."""
+    if path.is_file():
+        return
+    if path.is_dir():
+        problem = "is a folder, not a file"
+    elif path.is_symlink():  # is_file() follows links: a loop or a dangling link ends here
+        problem = "is a symbolic link that leads to no file (dangling, or a loop)"
+    else:
+        problem = "missing file"
+    raise InputError(path, None, f"{problem}; {hint}")
 
 
 _FILES_HINT = (
@@ -296,6 +310,53 @@ def validate_run(run: RunLog, folder: str | os.PathLike | None = None) -> None:
     _check_detections(run.detections, base / DETECTIONS_CSV, run.meta.tag_map)
     if run.groundtruth is not None:
         _check_groundtruth(run.groundtruth, base / GROUNDTRUTH_CSV)
+    check_time_spans(run, base)
+
+
+#: Other files may reach this far outside the controls' time span: max(1 s, 10 % of the span).
+SPAN_MARGIN_S, SPAN_MARGIN_FRACTION = 1.0, 0.1
+
+
+def check_time_spans(run: RunLog, folder: Path, names: tuple[str, str, str] | None = None) -> None:
+    """Raise `InputError` unless detections and ground truth share the controls' clock.
+
+    The rule (``data/README.md``): with the controls spanning [c0, c1] and the margin
+    m = max(1 s, 10 % of c1 - c0), every detection and ground-truth time lies in
+    [c0 - m, c1 + m], and at least half of each file's own span lies inside [c0, c1];
+    ground truth must also cover at least half of [c0, c1]. Files on different clocks
+    (nanoseconds beside seconds, bag time beside wall time) break it; a sensor that starts a
+    few seconds early (MRCLAM's Vicon, 6-9 s) does not. `names` are the three files' names
+    in messages (controls, detections, ground truth); the run format's by default.
+    """
+    c_name, d_name, g_name = names or (CONTROLS_CSV, DETECTIONS_CSV, GROUNDTRUTH_CSV)
+    c = np.asarray(run.controls.t, dtype=float)
+    c0, c1 = float(c[0]), float(c[-1])
+    margin = max(SPAN_MARGIN_S, SPAN_MARGIN_FRACTION * (c1 - c0))
+    files = [(d_name, np.asarray(run.detections.t, dtype=float), False)]
+    if run.groundtruth is not None:
+        files.append((g_name, np.asarray(run.groundtruth.t, dtype=float), True))
+    for name, t, covers in files:
+        if not len(t):
+            continue
+        t0, t1 = float(t[0]), float(t[-1])
+        outside = np.flatnonzero((t < c0 - margin) | (t > c1 + margin))
+        inside = max(0.0, min(t1, c1) - max(t0, c0))
+        if outside.size:
+            problem = f"time {_num(t[outside[0]])} s is more than {margin:.3g} s outside"
+            line = int(outside[0]) + 2
+        elif t1 > t0 and inside < 0.5 * (t1 - t0):
+            problem, line = "less than half of its time span overlaps", None
+        elif covers and c1 > c0 and inside < 0.5 * (c1 - c0):
+            problem, line = "it covers less than half of", None
+        else:
+            continue
+        raise InputError(
+            folder / name,
+            line,
+            f"{problem} {c_name}'s time span: {name} spans {t0:.6g} to {t1:.6g} s, "
+            f"{c_name} {c0:.6g} to {c1:.6g} s (are the files on different clocks, "
+            "such as nanoseconds and seconds?)",
+        )
 
 
 def _check_rows(path: Path, t: Array, columns: dict[str, Array], extra=()) -> None:
