@@ -42,7 +42,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.errors import InputError
 from ekfslam.geometry import wrap_angle
-from ekfslam.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta
+from ekfslam.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta, check_time_spans
 
 if TYPE_CHECKING:
     pass
@@ -179,6 +179,7 @@ def load_mrclam(dataset_dir: str | Path, robot: int) -> tuple[RunLog, MrclamLoad
     odometry, odo_unsorted = _sorted_by_time(_read_table(paths["Odometry"], _ODOMETRY_COLUMNS))
     measurements = _read_table(paths["Measurement"], _MEASUREMENT_COLUMNS)
     _check_measurements(paths["Measurement"], measurements)
+    _check_landmarks_known(paths["Measurement"], measurements, barcode_to_subject, tag_map)
     measurements, meas_unsorted = _sorted_by_time(measurements)
     groundtruth, gt_unsorted = _sorted_by_time(
         _read_table(paths["Groundtruth"], _GROUNDTRUTH_COLUMNS)
@@ -234,7 +235,16 @@ def load_mrclam(dataset_dir: str | Path, robot: int) -> tuple[RunLog, MrclamLoad
         start_time=start_time,
         start_inside_groundtruth=bool(truth.t[0] <= start_time <= truth.t[-1]),
     )
-    return RunLog(meta=meta, controls=controls, detections=detections, groundtruth=truth), report
+    run = RunLog(meta=meta, controls=controls, detections=detections, groundtruth=truth)
+    try:  # the measurements must share the odometry's clock; the Vicon truth's cover is reported
+        check_time_spans(
+            dataclasses.replace(run, groundtruth=None),
+            folder,
+            tuple(paths[k].name for k in ROBOT_KINDS),
+        )
+    except InputError as err:  # the rows were sorted and filtered: no line to point at
+        raise InputError(err.path, None, err.problem) from None
+    return run, report
 
 
 def interpolate_pose(t: ArrayLike, pose: ArrayLike, at: float) -> Array:
@@ -330,11 +340,34 @@ def _sorted_by_time(table: Array) -> tuple[Array, int]:
 
 
 def _check_measurements(path: Path, table: Array) -> None:
+    """The rules of our own reader (`ekfslam.runlog`): range >= 0, bearing in [-π, π]."""
     _require_integers(path, table, _MEASUREMENT_COLUMNS, (1,))
-    negative = np.flatnonzero(table[:, 2] < 0)
-    if negative.size:
-        row = int(negative[0])
-        _raise_at_row(path, row, f"negative range {table[row, 2]:g} m")
+    negative = table[:, 2] < 0
+    outside = np.abs(table[:, 3]) > math.pi
+    bad = np.flatnonzero(negative | outside)
+    if bad.size:
+        row = int(bad[0])
+        if negative[row]:
+            _raise_at_row(path, row, f"negative range {table[row, 2]:g} m")
+        _raise_at_row(
+            path,
+            row,
+            f"bearing {float(table[row, 3])!r} rad is outside [-pi, pi] (degrees by mistake?)",
+        )
+
+
+def _check_landmarks_known(
+    path: Path, table: Array, barcode_to_subject: dict[int, int], tag_map: dict[int, Array]
+) -> None:
+    """Every sighted landmark (a subject of Barcodes.dat, not a robot) has a true position."""
+    for row, barcode in enumerate(table[:, 1].astype(np.int64).tolist()):
+        subject = barcode_to_subject.get(barcode)
+        if subject is not None and subject not in ROBOTS and subject not in tag_map:
+            _raise_at_row(
+                path,
+                row,
+                f"landmark {subject} (barcode {barcode} in {BARCODES}) is not in {LANDMARKS}",
+            )
 
 
 def _require_integers(
@@ -474,13 +507,19 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_convert_mrclam(args: argparse.Namespace) -> int:
-    from ekfslam.runlog import write_run
+    from ekfslam.runlog import validate_run, write_run
 
     run, report = load_mrclam(args.dataset, args.robot)
     if args.calibrate:
         from ekfslam.mrclam_tuning import MRCLAM_CALIBRATION, calibrate_commands
 
         run = calibrate_commands(run, MRCLAM_CALIBRATION)
+    try:  # load_mrclam checks what it reads; this names the dataset, not files it never had
+        validate_run(run)
+    except InputError as err:
+        raise InputError(
+            args.dataset, None, f"robot {args.robot} does not convert to a valid run ({err})"
+        ) from None
     write_run(run, args.out, overwrite=args.overwrite)
     print(report.summary())
     print(f"wrote {args.out}")

@@ -353,8 +353,8 @@ def check_time_spans(run: RunLog, folder: Path, names: tuple[str, str, str] | No
         raise InputError(
             folder / name,
             line,
-            f"{problem} {c_name}'s time span: {name} spans {t0:.6g} to {t1:.6g} s, "
-            f"{c_name} {c0:.6g} to {c1:.6g} s (are the files on different clocks, "
+            f"{problem} {c_name}'s time span: {name} spans {t0:.3f} to {t1:.3f} s, "
+            f"{c_name} {c0:.3f} to {c1:.3f} s (are the files on different clocks, "
             "such as nanoseconds and seconds?)",
         )
 
