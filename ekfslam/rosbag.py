@@ -32,6 +32,8 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import re._constants as _re_constants  # the parsed form of a pattern, to check its group 1
+import re._parser as _re_parser
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,6 +44,7 @@ import numpy as np
 from ekfslam.errors import InputError
 from ekfslam.geometry import wrap_angle
 from ekfslam.kinematics import MecanumGeometry
+from ekfslam.runjson import MAX_HEADING, MAX_POSITION
 from ekfslam.runlog import Controls, Detections, RunLog, RunMeta
 
 TWIST_TYPES = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped", "nav_msgs/msg/Odometry")
@@ -94,7 +97,95 @@ class RosbagSpec:
             raise ValueError("wheel_joints must name 4 joints: FL, FR, RL, RR")
         if self.camera_axes not in ("optical", "body"):
             raise ValueError(f"camera_axes must be 'optical' or 'body', got {self.camera_axes!r}")
-        re.compile(self.tag_frame_pattern)
+        check_tag_frame_pattern(self.tag_frame_pattern)
+        for what, values in (
+            ("nominal_start (--start)", self.nominal_start),
+            ("camera_mounting (--camera-mounting)", self.camera_mounting),
+        ):
+            v = np.asarray(values, dtype=np.float64)
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise ValueError(f"{what} must be 3 finite numbers (x, y, theta), got {values}")
+            if np.any(np.abs(v[:2]) > MAX_POSITION) or abs(v[2]) > MAX_HEADING:
+                raise ValueError(
+                    f"{what} {tuple(values)} is not a plausible pose: |x|, |y| <= "
+                    f"{MAX_POSITION:g} m and |theta| <= 2 pi rad"
+                )
+
+
+def check_tag_frame_pattern(pattern: str) -> None:
+    """Raise ValueError unless `pattern` compiles and its group 1 can match only digits.
+
+    The tag id is ``int(match.group(1))``: a pattern without a group, or whose group 1 holds
+    letters (``(tag)_\\d+``), would fail on the first transform, deep inside the bag.
+    """
+    try:
+        compiled = re.compile(pattern)
+    except re.error as err:
+        raise ValueError(
+            f"tag frame pattern {pattern!r} is not a regular expression: {err}"
+        ) from None
+    group = _group_one(_re_parser.parse(pattern)) if compiled.groups else None
+    if group is None or not _digits_only(group):
+        raise ValueError(
+            f"tag frame pattern {pattern!r} needs a group 1 that matches the tag id's digits, "
+            r"e.g. 'tag_(\d+)$'"
+        )
+
+
+def _group_one(items: Any) -> Any:
+    """The parsed body of capturing group 1 in a `re._parser` tree, or None."""
+    for op, av in items:
+        if op is _re_constants.SUBPATTERN and av[0] == 1:
+            return av[-1]
+        for child in _children(op, av):
+            found = _group_one(child)
+            if found is not None:
+                return found
+    return None
+
+
+def _children(op: Any, av: Any) -> list:
+    c = _re_constants
+    if op is c.SUBPATTERN:
+        return [av[-1]]
+    if op in (c.MAX_REPEAT, c.MIN_REPEAT, getattr(c, "POSSESSIVE_REPEAT", None)):
+        return [av[2]]
+    if op is c.BRANCH:
+        return list(av[1])
+    if op in (c.ASSERT, c.ASSERT_NOT, getattr(c, "ATOMIC_GROUP", None)):
+        return [av[-1]]
+    return []
+
+
+def _digits_only(items: Any) -> bool:
+    """Whether a parsed pattern matches only (at least one) ASCII or Unicode digits."""
+    c = _re_constants
+
+    def digit_set(op: Any, av: Any) -> bool:
+        if op is c.LITERAL:
+            return chr(av).isdigit()
+        if op is c.RANGE:
+            return all(chr(k).isdigit() for k in range(av[0], av[1] + 1))
+        return op is c.CATEGORY and av is c.CATEGORY_DIGIT
+
+    if not items:
+        return False
+    for op, av in items:
+        if op is c.IN:
+            ok = all(digit_set(o, a) for o, a in av)
+        elif op in (c.LITERAL, c.CATEGORY):
+            ok = digit_set(op, av)
+        elif op in (c.MAX_REPEAT, c.MIN_REPEAT, getattr(c, "POSSESSIVE_REPEAT", None)):
+            ok = av[0] >= 1 and _digits_only(av[2])
+        elif op is c.SUBPATTERN:
+            ok = _digits_only(av[-1])
+        elif op is c.BRANCH:
+            ok = all(_digits_only(b) for b in av[1])
+        else:
+            ok = False
+        if not ok:
+            return False
+    return True
 
 
 @dataclass(frozen=True)
@@ -150,6 +241,11 @@ def read_rosbag(
     for path in paths:
         if not path.exists():
             raise InputError(path, None, "bag not found (a ROS 1 .bag file or a ROS 2 bag folder)")
+        if path.is_dir() and not (path / "metadata.yaml").is_file():
+            raise InputError(
+                path, None, "not a ROS 2 bag: the folder has no metadata.yaml (a ROS 1 bag is a "
+                ".bag file)"
+            )  # fmt: skip
     motion_topic = spec.twist_topic or spec.wheels_topic
     try:
         with AnyReader(paths, default_typestore=get_typestore(Stores.LATEST)) as reader:
@@ -170,7 +266,7 @@ def read_rosbag(
                     motion.add(msg, bag_ns)
                 else:
                     sightings.add(msg, bag_ns)
-    except AnyReaderError as exc:
+    except (AnyReaderError, OSError) as exc:
         raise InputError(first, None, f"cannot read the bag: {exc}") from None
 
     if not motion.t:
