@@ -394,7 +394,7 @@ def plot_costs(r: dict, path: Path) -> None:
 def write_outputs(r: dict, out: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
     (out / "bench.md").write_text(markdown_table(r) + "\n")
-    (out / "bench.json").write_text(json.dumps(r, indent=2) + "\n")
+    (out / "bench.json").write_text(json.dumps(r, indent=2, allow_nan=False) + "\n")
     plot_costs(r, out / "cost_vs_n.png")
 
 
@@ -424,7 +424,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     r = run_benchmarks(config, command=_command(args))
     write_outputs(r, args.out)
     if args.json:
-        print(json.dumps(r, indent=2))
+        print(json.dumps(r, indent=2, allow_nan=False))
     else:
         print(markdown_table(r))
         print(f"\nwritten: {args.out / 'bench.md'}, bench.json, cost_vs_n.png")

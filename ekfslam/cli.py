@@ -179,7 +179,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         fig.savefig(args.plot, dpi=120)
         out["plot"] = str(args.plot)
     if args.json:
-        print(json.dumps(out, indent=2))
+        print(json.dumps(out, indent=2, allow_nan=False))
     else:
         print(_table(summary, out))
     return 0
@@ -223,6 +223,7 @@ def _table(summary, out: dict) -> str:
         f"updates accepted {summary.accepted}, rejected {summary.rejected}, "
         f"refused {summary.refused}, initialised {summary.initialised}, "
         f"re-initialised {summary.reinitialised}"
+        + (f", singular S {summary.singular}" if summary.singular else "")
     )
     if summary.ate_rmse is not None:
         lines.append(f"trajectory ATE RMSE (no alignment) {summary.ate_rmse:.3f} m")

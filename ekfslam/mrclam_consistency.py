@@ -412,7 +412,9 @@ def run_cli(args: argparse.Namespace) -> int:
         args.plot.parent.mkdir(parents=True, exist_ok=True)
         plot_mrclam_nees(study).savefig(args.plot, dpi=120)
         out["plot"] = str(args.plot)
-    print(json.dumps(out, indent=2) if args.json else table(study, out.get("plot")))
+    print(
+        json.dumps(out, indent=2, allow_nan=False) if args.json else table(study, out.get("plot"))
+    )
     return 0
 
 
