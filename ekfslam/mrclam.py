@@ -35,7 +35,6 @@ import re
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -43,9 +42,6 @@ from numpy.typing import ArrayLike, NDArray
 from ekfslam.errors import InputError
 from ekfslam.geometry import wrap_angle
 from ekfslam.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta, check_time_spans
-
-if TYPE_CHECKING:
-    pass
 
 Array = NDArray[np.float64]
 
@@ -178,8 +174,7 @@ def load_mrclam(dataset_dir: str | Path, robot: int) -> tuple[RunLog, MrclamLoad
     tag_map = read_landmarks(folder / LANDMARKS)
     odometry, odo_unsorted = _sorted_by_time(_read_table(paths["Odometry"], _ODOMETRY_COLUMNS))
     measurements = _read_table(paths["Measurement"], _MEASUREMENT_COLUMNS)
-    _check_measurements(paths["Measurement"], measurements)
-    _check_landmarks_known(paths["Measurement"], measurements, barcode_to_subject, tag_map)
+    _check_measurements(paths["Measurement"], measurements, barcode_to_subject, tag_map)
     measurements, meas_unsorted = _sorted_by_time(measurements)
     groundtruth, gt_unsorted = _sorted_by_time(
         _read_table(paths["Groundtruth"], _GROUNDTRUTH_COLUMNS)
@@ -236,14 +231,9 @@ def load_mrclam(dataset_dir: str | Path, robot: int) -> tuple[RunLog, MrclamLoad
         start_inside_groundtruth=bool(truth.t[0] <= start_time <= truth.t[-1]),
     )
     run = RunLog(meta=meta, controls=controls, detections=detections, groundtruth=truth)
-    try:  # the measurements must share the odometry's clock; the Vicon truth's cover is reported
-        check_time_spans(
-            dataclasses.replace(run, groundtruth=None),
-            folder,
-            tuple(paths[k].name for k in ROBOT_KINDS),
-        )
-    except InputError as err:  # the rows were sorted and filtered: no line to point at
-        raise InputError(err.path, None, err.problem) from None
+    # the measurements share the odometry's clock; the Vicon truth's cover is only reported
+    names = tuple(paths[k].name for k in ROBOT_KINDS)
+    check_time_spans(dataclasses.replace(run, groundtruth=None), folder, names, lines=False)
     return run, report
 
 
@@ -339,35 +329,19 @@ def _sorted_by_time(table: Array) -> tuple[Array, int]:
     return table, out_of_order
 
 
-def _check_measurements(path: Path, table: Array) -> None:
-    """The rules of our own reader (`ekfslam.runlog`): range >= 0, bearing in [-π, π]."""
+def _check_measurements(path: Path, table: Array, subjects: dict, tag_map: dict) -> None:
+    """Our own reader's rules (`ekfslam.runlog`): range >= 0, bearing in [-π, π], and every
+    sighted landmark (a subject of Barcodes.dat, not a robot) in Landmark_Groundtruth.dat."""
     _require_integers(path, table, _MEASUREMENT_COLUMNS, (1,))
-    negative = table[:, 2] < 0
-    outside = np.abs(table[:, 3]) > math.pi
-    bad = np.flatnonzero(negative | outside)
-    if bad.size:
-        row = int(bad[0])
-        if negative[row]:
-            _raise_at_row(path, row, f"negative range {table[row, 2]:g} m")
-        _raise_at_row(
-            path,
-            row,
-            f"bearing {float(table[row, 3])!r} rad is outside [-pi, pi] (degrees by mistake?)",
-        )
-
-
-def _check_landmarks_known(
-    path: Path, table: Array, barcode_to_subject: dict[int, int], tag_map: dict[int, Array]
-) -> None:
-    """Every sighted landmark (a subject of Barcodes.dat, not a robot) has a true position."""
-    for row, barcode in enumerate(table[:, 1].astype(np.int64).tolist()):
-        subject = barcode_to_subject.get(barcode)
-        if subject is not None and subject not in ROBOTS and subject not in tag_map:
-            _raise_at_row(
-                path,
-                row,
-                f"landmark {subject} (barcode {barcode} in {BARCODES}) is not in {LANDMARKS}",
-            )
+    for row, (_, barcode, r, b) in enumerate(table.tolist()):
+        s = subjects.get(int(barcode), ROBOTS[0])
+        if r < 0:
+            _raise_at_row(path, row, f"negative range {r:g} m")
+        if abs(b) > math.pi:
+            _raise_at_row(path, row, f"bearing {b!r} rad is outside [-pi, pi] (degrees?)")
+        if s not in ROBOTS and s not in tag_map:
+            where = f"(barcode {int(barcode)} in {BARCODES}) is not in {LANDMARKS}"
+            _raise_at_row(path, row, f"landmark {s} {where}")
 
 
 def _require_integers(
@@ -514,12 +488,10 @@ def _cmd_convert_mrclam(args: argparse.Namespace) -> int:
         from ekfslam.mrclam_tuning import MRCLAM_CALIBRATION, calibrate_commands
 
         run = calibrate_commands(run, MRCLAM_CALIBRATION)
-    try:  # load_mrclam checks what it reads; this names the dataset, not files it never had
+    try:  # load_mrclam checks what it reads; name the dataset, not a file the user never gave
         validate_run(run)
     except InputError as err:
-        raise InputError(
-            args.dataset, None, f"robot {args.robot} does not convert to a valid run ({err})"
-        ) from None
+        raise InputError(args.dataset, None, f"robot {args.robot}: {err.problem}") from None
     write_run(run, args.out, overwrite=args.overwrite)
     print(report.summary())
     print(f"wrote {args.out}")

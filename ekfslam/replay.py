@@ -23,7 +23,7 @@ from ekfslam.errors import EkfSlamError
 from ekfslam.filter import EKFSLAM, FilterConfig, FilterCounts
 from ekfslam.history import History
 from ekfslam.models import observation_noise
-from ekfslam.runjson import MAX_HEADING, MAX_POSITION
+from ekfslam.plausibility import MAX_HEADING, MAX_POSITION
 from ekfslam.runlog import RunLog
 
 Array = NDArray[np.float64]

@@ -44,7 +44,7 @@ import numpy as np
 from ekfslam.errors import InputError
 from ekfslam.geometry import wrap_angle
 from ekfslam.kinematics import MecanumGeometry
-from ekfslam.runjson import MAX_HEADING, MAX_POSITION
+from ekfslam.plausibility import implausible_pose
 from ekfslam.runlog import Controls, Detections, RunLog, RunMeta
 
 TWIST_TYPES = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped", "nav_msgs/msg/Odometry")
@@ -105,11 +105,8 @@ class RosbagSpec:
             v = np.asarray(values, dtype=np.float64)
             if v.shape != (3,) or not np.all(np.isfinite(v)):
                 raise ValueError(f"{what} must be 3 finite numbers (x, y, theta), got {values}")
-            if np.any(np.abs(v[:2]) > MAX_POSITION) or abs(v[2]) > MAX_HEADING:
-                raise ValueError(
-                    f"{what} {tuple(values)} is not a plausible pose: |x|, |y| <= "
-                    f"{MAX_POSITION:g} m and |theta| <= 2 pi rad"
-                )
+            if problem := implausible_pose(v, what):
+                raise ValueError(problem)
 
 
 def check_tag_frame_pattern(pattern: str) -> None:
@@ -119,73 +116,57 @@ def check_tag_frame_pattern(pattern: str) -> None:
     letters (``(tag)_\\d+``), would fail on the first transform, deep inside the bag.
     """
     try:
-        compiled = re.compile(pattern)
+        groups = re.compile(pattern).groups
     except re.error as err:
-        raise ValueError(
-            f"tag frame pattern {pattern!r} is not a regular expression: {err}"
-        ) from None
-    group = _group_one(_re_parser.parse(pattern)) if compiled.groups else None
-    if group is None or not _digits_only(group):
+        problem = f"tag frame pattern {pattern!r} is not a regular expression: {err}"
+        raise ValueError(problem) from None
+    if not (groups and _digits_only(_group_one(_re_parser.parse(pattern)) or [])):
         raise ValueError(
             f"tag frame pattern {pattern!r} needs a group 1 that matches the tag id's digits, "
             r"e.g. 'tag_(\d+)$'"
         )
 
 
+_C = _re_constants
+_REPEATS = (_C.MAX_REPEAT, _C.MIN_REPEAT, _C.POSSESSIVE_REPEAT)
+
+
+def _parts(op: Any, av: Any) -> list:
+    """The sub-patterns of one parsed item (a group, a repeat, a branch, a lookaround)."""
+    if op in (_C.SUBPATTERN, _C.ASSERT, _C.ASSERT_NOT, _C.ATOMIC_GROUP):
+        return [av[-1]]
+    return [av[2]] if op in _REPEATS else list(av[1]) if op is _C.BRANCH else []
+
+
 def _group_one(items: Any) -> Any:
     """The parsed body of capturing group 1 in a `re._parser` tree, or None."""
     for op, av in items:
-        if op is _re_constants.SUBPATTERN and av[0] == 1:
+        if op is _C.SUBPATTERN and av[0] == 1:
             return av[-1]
-        for child in _children(op, av):
-            found = _group_one(child)
+        for found in (_group_one(part) for part in _parts(op, av)):
             if found is not None:
                 return found
     return None
 
 
-def _children(op: Any, av: Any) -> list:
-    c = _re_constants
-    if op is c.SUBPATTERN:
-        return [av[-1]]
-    if op in (c.MAX_REPEAT, c.MIN_REPEAT, getattr(c, "POSSESSIVE_REPEAT", None)):
-        return [av[2]]
-    if op is c.BRANCH:
-        return list(av[1])
-    if op in (c.ASSERT, c.ASSERT_NOT, getattr(c, "ATOMIC_GROUP", None)):
-        return [av[-1]]
-    return []
-
-
 def _digits_only(items: Any) -> bool:
-    """Whether a parsed pattern matches only (at least one) ASCII or Unicode digits."""
-    c = _re_constants
+    """Whether a parsed pattern matches only (at least one) digits."""
 
-    def digit_set(op: Any, av: Any) -> bool:
-        if op is c.LITERAL:
-            return chr(av).isdigit()
-        if op is c.RANGE:
+    def digit(op: Any, av: Any) -> bool:
+        if op is _C.RANGE:
             return all(chr(k).isdigit() for k in range(av[0], av[1] + 1))
-        return op is c.CATEGORY and av is c.CATEGORY_DIGIT
+        return (op is _C.LITERAL and chr(av).isdigit()) or av is _C.CATEGORY_DIGIT
 
-    if not items:
-        return False
-    for op, av in items:
-        if op is c.IN:
-            ok = all(digit_set(o, a) for o, a in av)
-        elif op in (c.LITERAL, c.CATEGORY):
-            ok = digit_set(op, av)
-        elif op in (c.MAX_REPEAT, c.MIN_REPEAT, getattr(c, "POSSESSIVE_REPEAT", None)):
-            ok = av[0] >= 1 and _digits_only(av[2])
-        elif op is c.SUBPATTERN:
-            ok = _digits_only(av[-1])
-        elif op is c.BRANCH:
-            ok = all(_digits_only(b) for b in av[1])
-        else:
-            ok = False
-        if not ok:
-            return False
-    return True
+    def ok(op: Any, av: Any) -> bool:
+        if op is _C.IN:
+            return all(digit(o, a) for o, a in av)
+        if op in _REPEATS:
+            return av[0] >= 1 and _digits_only(av[2])
+        if op in (_C.SUBPATTERN, _C.BRANCH):
+            return all(_digits_only(part) for part in _parts(op, av))
+        return digit(op, av)
+
+    return bool(items) and all(ok(op, av) for op, av in items)
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from ekfslam.camera import Camera, TagSpec
 from ekfslam.errors import InputError
 from ekfslam.kinematics import MecanumGeometry
+from ekfslam.plausibility import implausible_pose as _implausible
 
 FORMAT = "ekfslam-run"
 FORMAT_VERSION = 1
@@ -135,7 +136,7 @@ def check_meta(meta: RunMeta, path: Path) -> None:
     ):
         check_shape(path, what, value, (n,))
         require(bool(np.all(np.isfinite(value))), f"{what} must be {n} finite numbers")
-        problem = _implausible(np.asarray(value, dtype=np.float64), what, pose=True)
+        problem = _implausible(value, what, pose=True)
         require(problem is None, str(problem))
     for what, rate in (("controls_hz", meta.control_rate_hz), ("camera_hz", meta.camera_rate_hz)):
         require(rate is None or (math.isfinite(rate) and rate > 0), f"{what} must be > 0 or null")
@@ -147,7 +148,7 @@ def check_meta(meta: RunMeta, path: Path) -> None:
         require(isinstance(tag, int | np.integer), f"tag_map id {tag!r} is not an integer")
         check_shape(path, f"tag_map[{tag}]", xy, (2,))
         require(bool(np.all(np.isfinite(xy))), f"tag_map[{tag}] must be 2 finite numbers")
-        problem = _implausible(np.asarray(xy, dtype=np.float64), f"tag_map[{tag}]", pose=False)
+        problem = _implausible(xy, f"tag_map[{tag}]", pose=False)
         require(problem is None, str(problem))
     try:
         _dump_json(meta.simulation, indent=2)
@@ -410,27 +411,6 @@ def _shown(value: Any) -> str:
     """`value` as JSON for a message, cut to 60 characters (a huge integer stays readable)."""
     text = json.dumps(value)
     return text if len(text) <= 60 else text[:57] + "..."
-
-
-#: |x|, |y| in metres beyond which a position is a mistake (10,000 km: UTM northings fit).
-MAX_POSITION = 1e7
-#: |θ| in radians beyond which a heading is a mistake (degrees, or a sum never wrapped).
-MAX_HEADING = 2 * math.pi
-
-
-def _implausible(values: Array, what: str, pose: bool) -> str | None:
-    """Why finite `values` (x, y[, θ]) cannot be a place in m (and heading in rad), or None.
-
-    A finite but huge number (1e308) makes the filter's arithmetic overflow to NaN.
-    """
-    if np.any(np.abs(values[:2]) > MAX_POSITION):
-        return f"{what}: a position beyond {MAX_POSITION:g} m is not plausible, got {values[:2]}"
-    if pose and abs(values[2]) > MAX_HEADING:
-        return (
-            f"{what}: heading {values[2]!r} rad is beyond ±2π (degrees by mistake?); "
-            "give the heading in radians"
-        )
-    return None
 
 
 def _plain(value: Any) -> Any:

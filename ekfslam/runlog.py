@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 
 from ekfslam.errors import InputError
 from ekfslam.kinematics import MecanumGeometry, wheels_to_twist
+from ekfslam.plausibility import check_clocks
 from ekfslam.runjson import (  # noqa: F401  (FORMAT... re-exported: the public API of runlog)
     FORMAT,
     FORMAT_VERSION,
@@ -163,6 +164,7 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
     _check_controls(controls, path)
 
     path = folder / DETECTIONS_CSV
+    found_in_frames = detections is not None
     if detections is None:
         _, (t, tag_id, rng, bearing) = _read_csv(path, {"detections": DETECTION_COLUMNS})
         detections = Detections(t=t, tag_id=tag_id, range=rng, bearing=bearing)
@@ -175,21 +177,20 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
         groundtruth = GroundTruth(t=columns[0], pose=np.column_stack(columns[1:]))
         _check_groundtruth(groundtruth, path)
     run = RunLog(meta=meta, controls=controls, detections=detections, groundtruth=groundtruth)
-    check_time_spans(run, folder)
+    if found_in_frames:  # the detections' times are the frames': name the file that has them
+        check_time_spans(run, folder, (CONTROLS_CSV, "frames.csv", GROUNDTRUTH_CSV), lines=False)
+    else:
+        check_time_spans(run, folder)
     return run
 
 
 def require_file(path: Path, hint: str) -> None:
-    """Raise `InputError` unless `path` is a readable file: missing, a folder, a dead link."""
-    if path.is_file():
-        return
-    if path.is_dir():
-        problem = "is a folder, not a file"
-    elif path.is_symlink():  # is_file() follows links: a loop or a dangling link ends here
-        problem = "is a symbolic link that leads to no file (dangling, or a loop)"
-    else:
-        problem = "missing file"
-    raise InputError(path, None, f"{problem}; {hint}")
+    """Raise `InputError` unless `path` is a file: missing, a folder, a dead link or a loop."""
+    if not path.is_file():  # is_file() follows links: a loop or a dangling link ends here too
+        problem = "is a folder, not a file" if path.is_dir() else "missing file"
+        if path.is_symlink() and not path.is_dir():
+            problem = "is a symbolic link that leads to no file (dangling, or a loop)"
+        raise InputError(path, None, f"{problem}; {hint}")
 
 
 _FILES_HINT = (
@@ -313,50 +314,17 @@ def validate_run(run: RunLog, folder: str | os.PathLike | None = None) -> None:
     check_time_spans(run, base)
 
 
-#: Other files may reach this far outside the controls' time span: max(1 s, 10 % of the span).
-SPAN_MARGIN_S, SPAN_MARGIN_FRACTION = 1.0, 0.1
+def check_time_spans(run: RunLog, folder: Path, names: tuple = (), lines: bool = True) -> None:
+    """`ekfslam.plausibility.check_clocks` on a run: detections and truth on the controls' clock.
 
-
-def check_time_spans(run: RunLog, folder: Path, names: tuple[str, str, str] | None = None) -> None:
-    """Raise `InputError` unless detections and ground truth share the controls' clock.
-
-    The rule (``data/README.md``): with the controls spanning [c0, c1] and the margin
-    m = max(1 s, 10 % of c1 - c0), every detection and ground-truth time lies in
-    [c0 - m, c1 + m], and at least half of each file's own span lies inside [c0, c1];
-    ground truth must also cover at least half of [c0, c1]. Files on different clocks
-    (nanoseconds beside seconds, bag time beside wall time) break it; a sensor that starts a
-    few seconds early (MRCLAM's Vicon, 6-9 s) does not. `names` are the three files' names
-    in messages (controls, detections, ground truth); the run format's by default.
+    `names`: the three files' names (controls, detections, ground truth), the run format's by
+    default; `lines` False when rows are not the files' lines (sorted, filtered, from frames).
     """
     c_name, d_name, g_name = names or (CONTROLS_CSV, DETECTIONS_CSV, GROUNDTRUTH_CSV)
-    c = np.asarray(run.controls.t, dtype=float)
-    c0, c1 = float(c[0]), float(c[-1])
-    margin = max(SPAN_MARGIN_S, SPAN_MARGIN_FRACTION * (c1 - c0))
-    files = [(d_name, np.asarray(run.detections.t, dtype=float), False)]
+    others = [(folder / d_name, run.detections.t, False)]
     if run.groundtruth is not None:
-        files.append((g_name, np.asarray(run.groundtruth.t, dtype=float), True))
-    for name, t, covers in files:
-        if not len(t):
-            continue
-        t0, t1 = float(t[0]), float(t[-1])
-        outside = np.flatnonzero((t < c0 - margin) | (t > c1 + margin))
-        inside = max(0.0, min(t1, c1) - max(t0, c0))
-        if outside.size:
-            problem = f"time {_num(t[outside[0]])} s is more than {margin:.3g} s outside"
-            line = int(outside[0]) + 2
-        elif t1 > t0 and inside < 0.5 * (t1 - t0):
-            problem, line = "less than half of its time span overlaps", None
-        elif covers and c1 > c0 and inside < 0.5 * (c1 - c0):
-            problem, line = "it covers less than half of", None
-        else:
-            continue
-        raise InputError(
-            folder / name,
-            line,
-            f"{problem} {c_name}'s time span: {name} spans {t0:.3f} to {t1:.3f} s, "
-            f"{c_name} {c0:.3f} to {c1:.3f} s (are the files on different clocks, "
-            "such as nanoseconds and seconds?)",
-        )
+        others.append((folder / g_name, run.groundtruth.t, True))
+    check_clocks((c_name, run.controls.t), others, lines)
 
 
 def _check_rows(path: Path, t: Array, columns: dict[str, Array], extra=()) -> None:

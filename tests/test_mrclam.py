@@ -256,7 +256,7 @@ MALFORMED = [
     ("Robot1_Measurement.dat", 17, b"1248446190.0 61 -0.5 0.1", "negative range -0.5"),
     ("Robot1_Measurement.dat", 18, b"1248446190.0 61.5 1.0 0.1", "barcode 61.5 is not a whole"),
     ("Robot1_Measurement.dat", 19, b"1248446190.0 61 1.0 45.0", "45.0 rad is outside [-pi, pi]"),
-    ("Robot1_Measurement.dat", 20, b"1248446190.0 61 1.0 -3.2", "degrees by mistake"),
+    ("Robot1_Measurement.dat", 20, b"1248446190.0 61 1.0 -3.2", "(degrees?)"),
     ("Barcodes.dat", 12, b" 8 \t 63", "barcode 63 is mapped twice"),
     ("Barcodes.dat", 13, b" 1 \t 99", "subject 1 has two barcodes"),
     ("Landmark_Groundtruth.dat", 9, b" 6 1 2 0 0", "landmark 6 is listed twice"),

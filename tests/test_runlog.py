@@ -666,7 +666,7 @@ def test_files_on_another_clock_are_refused_naming_both_files(
 ) -> None:
     err = error_of(make_run(tmp_path, detections=detections, groundtruth=groundtruth))
     assert (err.path, err.line) == (str(tmp_path / bad), line)
-    assert "controls.csv" in err.problem and "0 to 1 s" in err.problem
+    assert "controls.csv" in err.problem and "0.000 to 1.000 s" in err.problem
     assert "different clocks" in err.problem
 
 
