@@ -15,6 +15,14 @@ The concepts, one module each:
 The names below are the public API the notebooks use.
 """
 
+import os
+
+# OpenCV, its FFmpeg and its codecs print their own warnings on stderr (a damaged mp4 printed
+# 5,174 FFmpeg lines before our one-line error). They read these variables once, when cv2 is
+# first imported, and every cv2 import in ekfslam comes after this package's __init__.
+os.environ.setdefault("OPENCV_LOG_LEVEL", "OFF")
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
+
 from ekfslam.alignment import Alignment, align, align_least_squares, align_mean_distance
 from ekfslam.arena import SEED_ARENA, Arena, Tag
 from ekfslam.errors import AlignmentError, EkfSlamError, InputError

@@ -434,7 +434,7 @@ def plot_costs(r: dict, path: Path) -> None:
 def write_outputs(r: dict, out: Path) -> None:
     # each file is renamed into place when complete: a failed run keeps the previous outputs
     atomic_write_text(out / "bench.md", markdown_table(r) + "\n")
-    atomic_write_text(out / "bench.json", json.dumps(r, indent=2) + "\n")
+    atomic_write_text(out / "bench.json", json.dumps(r, indent=2, allow_nan=False) + "\n")
     plot_costs(r, out / "cost_vs_n.png")
 
 
@@ -473,7 +473,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     r = run_benchmarks(config, command=_command(args))
     write_outputs(r, args.out)
     if args.json:
-        print(json.dumps(r, indent=2))
+        print(json.dumps(r, indent=2, allow_nan=False))
     else:
         print(markdown_table(r))
         print(f"\nwritten: {args.out / 'bench.md'}, bench.json, cost_vs_n.png")

@@ -182,17 +182,37 @@ def _check_path_in_arena(args: argparse.Namespace) -> str | None:
 
 
 def load_run(args: argparse.Namespace):
-    """A RunLog from either format, plus a note on anything the loader dropped."""
-    folder: Path = args.run
-    if (folder / "Barcodes.dat").is_file():
-        from ekfslam.mrclam import load_mrclam
+    """A RunLog from either format, plus a note on anything the loader dropped.
 
+    The format is what the folder holds: run.json is our run format; Barcodes.dat, or any of
+    MRCLAM's other files (Landmark_Groundtruth.dat, RobotN_*.dat), a MRCLAM dataset.
+    """
+    folder: Path = args.run
+    if not folder.is_dir():
+        problem = "is not a folder" if folder.exists() else "run folder not found"
+        raise InputError(folder, None, f"{problem}; give a run folder or a MRCLAM dataset folder")
+    ours = (folder / "run.json").exists() or (folder / "run.json").is_symlink()
+    mrclam = (folder / "Barcodes.dat").exists() or (
+        not ours
+        and ((folder / "Landmark_Groundtruth.dat").exists() or any(folder.glob("Robot*_*.dat")))
+    )
+    if mrclam:
+        from ekfslam.mrclam import BARCODES, load_mrclam
+
+        if not (folder / BARCODES).is_file():
+            raise InputError(
+                folder / BARCODES, None, "missing file; this MRCLAM dataset folder needs it"
+            )
         if args.robot is None:
             raise InputError(folder, None, "a MRCLAM dataset needs --robot N (1-5)")
         run, report = load_mrclam(folder, args.robot)
         return run, report
     if args.robot is not None:
         raise InputError(folder, None, "--robot is only for MRCLAM datasets (no Barcodes.dat)")
+    if not ours and not any((folder / name).exists() for name in ("controls.csv", "frames.csv")):
+        raise InputError(
+            folder, None, "no run.json (our run format) and no Barcodes.dat (MRCLAM) in this folder"
+        )
     # A run logged as camera frames, with no detections.csv yet: detect the tags in its frames.
     from ekfslam.frames import has_frames_only, read_frames_run
 
@@ -245,7 +265,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         )
         out["plot"] = str(ca.save_figure(fig, args.plot))
     if args.json:
-        print(json.dumps(out, indent=2))
+        print(json.dumps(out, indent=2, allow_nan=False))
     else:
         print(_table(summary, out, report))
     return 0
@@ -325,6 +345,7 @@ def _table(summary, out: dict, report=None) -> str:
         f"updates accepted {summary.accepted}, rejected {summary.rejected}, "
         f"refused {summary.refused}, initialised {summary.initialised}, "
         f"re-initialised {summary.reinitialised}"
+        + (f", singular S {summary.singular}" if summary.singular else "")
     )
     if summary.ate_rmse is not None:
         lines.append(f"trajectory ATE RMSE (no alignment) {summary.ate_rmse:.3f} m")

@@ -450,7 +450,7 @@ def _cmd_consistency(args: argparse.Namespace) -> int:
 
 
 def _emit(args: argparse.Namespace, data: dict, text: str) -> None:
-    print(json.dumps(data, indent=2) if args.json else text)
+    print(json.dumps(data, indent=2, allow_nan=False) if args.json else text)
 
 
 def counts_line(counts: FilterCounts) -> str:

@@ -154,6 +154,7 @@ class RunSummary:
     nis_mean: float | None
     seconds: float
     alignment_note: str | None = None
+    singular: int = 0  # updates skipped: S singular or not finite (`ekfslam.history.OUTCOMES`)
 
     def as_dict(self) -> dict:
         """Nested JSON-ready dict (``alignment.x0`` is ``{"alignment": {"x0": ...}}``)."""
@@ -187,6 +188,7 @@ class RunSummary:
                 "refused": self.refused,
                 "initialised": self.initialised,
                 "reinitialised": self.reinitialised,
+                "singular": self.singular,
             },
             "predictions": self.predictions,
             "trajectory": {"ate_rmse": opt(self.ate_rmse)},
@@ -238,6 +240,7 @@ def summarize(run: RunLog, result: ReplayResult, method: str = "mean_distance") 
         refused=c.refused,
         initialised=c.initialised,
         reinitialised=c.reinitialised,
+        singular=c.singular,
         nis_mean=float(np.mean(nis)) if len(nis) else None,
         seconds=result.seconds,
         alignment_note=note,

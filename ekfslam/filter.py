@@ -260,8 +260,9 @@ class EKFSLAM:
         -------
         str
             "initialised", "accepted", "rejected" (failed the gate), "reinitialised" (see
-            `FilterConfig.reinit_after`) or "refused" (cannot be linearised: the landmark, or
-            the observation, sits on the robot). Each is counted.
+            `FilterConfig.reinit_after`), "refused" (cannot be linearised: the landmark, or
+            the observation, sits on the robot) or "singular" (the innovation covariance S is
+            singular or not finite: the noise is too small or too large). Each is counted.
         """
         if t is not None:
             self._t = t

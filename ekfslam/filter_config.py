@@ -85,3 +85,4 @@ class FilterCounts:
     rejected: int
     refused: int
     reinitialised: int = 0
+    singular: int = 0  # S singular or not finite (see `ekfslam.history.OUTCOMES`)

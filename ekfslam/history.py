@@ -16,9 +16,12 @@ Array = NDArray[np.float64]
 
 #: Event kinds in `History.event`.
 PREDICT, OBSERVE = 0, 1
-#: Observation outcomes in `History.obs_outcome` (index into this tuple).
-OUTCOMES = ("initialised", "accepted", "rejected", "refused", "reinitialised")
-INITIALISED, ACCEPTED, REJECTED, REFUSED, REINITIALISED = range(5)
+#: Observation outcomes in `History.obs_outcome` (index into this tuple). "refused": the
+#: landmark (or the observation) sits on the robot, so there is no bearing to linearise;
+#: "singular": the innovation covariance S of eq. (15) is singular or not finite (noise so
+#: small that S underflows, or so large that it overflows), so there is no gain.
+OUTCOMES = ("initialised", "accepted", "rejected", "refused", "reinitialised", "singular")
+INITIALISED, ACCEPTED, REJECTED, REFUSED, REINITIALISED, SINGULAR = range(6)
 
 
 @dataclass(frozen=True, eq=False)

@@ -31,10 +31,11 @@ from ekfslam import history, models
 
 # Constants the compiled code bakes in. numba's cache is keyed on this file alone, so they are
 # written here, and checked against the modules that own them when this module is imported.
-ACCEPTED, REJECTED, REFUSED = 1, 2, 3  # the outcome codes `correct` returns
+ACCEPTED, REJECTED, REFUSED, SINGULAR = 1, 2, 3, 5  # the outcome codes `correct` returns
 MIN_RANGE_SQUARED = 1e-12  # m²: closer than this, a landmark cannot be linearised
-if (ACCEPTED, REJECTED, REFUSED, MIN_RANGE_SQUARED) != (
-    history.ACCEPTED, history.REJECTED, history.REFUSED, models.MIN_RANGE_SQUARED
+if (ACCEPTED, REJECTED, REFUSED, SINGULAR, MIN_RANGE_SQUARED) != (
+    history.ACCEPTED, history.REJECTED, history.REFUSED, history.SINGULAR,
+    models.MIN_RANGE_SQUARED,
 ):  # fmt: skip
     raise ImportError("ekfslam.kernels' constants disagree with ekfslam.history or models")
 
@@ -119,9 +120,10 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out):
     jx, jy: the landmark relative to the robot where the Jacobian is evaluated (the current
     estimate, or FEJ's first estimates). gate: reject when the NIS exceeds it (inf: never).
     work: (2, capacity) scratch. out (8,) receives ẑ (2), ν (2), S's (s00, s01, s11) and the NIS,
-    NaN where not reached. Returns ACCEPTED (state updated), REJECTED (NIS above the gate) or
-    REFUSED (no linearisation: the landmark, or the observation, sits on the robot); only
-    ACCEPTED changes mu and S.
+    NaN where not reached. Returns ACCEPTED (state updated), REJECTED (NIS above the gate),
+    REFUSED (no linearisation: the landmark, or the observation, sits on the robot) or
+    SINGULAR (S is not positive definite, or not finite: no gain); only ACCEPTED changes mu
+    and S.
     """
     out[:] = np.nan
     x, y, th = mu[0], mu[1], mu[2]
@@ -156,8 +158,8 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out):
     out[4], out[5], out[6] = s00, s01, s11
     # S = L Lᵀ (Cholesky, 2x2); w = L⁻¹ ν makes the NIS νᵀ S⁻¹ ν = |w|²
     det = s00 * s11 - s01 * s01
-    if not (s00 > 0.0 and det > 0.0):
-        return REFUSED
+    if not (0.0 < s00 < math.inf and 0.0 < det < math.inf):  # also false for NaN
+        return SINGULAR
     l00 = math.sqrt(s00)
     l10 = s01 / l00
     l11 = math.sqrt(det) / l00  # = √(s11 - l10²)

@@ -26,22 +26,19 @@ chose `ekfslam.replay.MRCLAM_NOISE`, one setting for all robots).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import re
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.errors import InputError
 from ekfslam.geometry import wrap_angle
-from ekfslam.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta
-
-if TYPE_CHECKING:
-    pass
+from ekfslam.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta, check_time_spans
 
 Array = NDArray[np.float64]
 
@@ -187,7 +184,7 @@ def load_mrclam(dataset_dir: str | Path, robot: int) -> tuple[RunLog, MrclamLoad
     tag_map = read_landmarks(folder / LANDMARKS)
     odometry, odo_unsorted = _sorted_by_time(_read_table(paths["Odometry"], _ODOMETRY_COLUMNS))
     measurements = _read_table(paths["Measurement"], _MEASUREMENT_COLUMNS)
-    _check_measurements(paths["Measurement"], measurements)
+    _check_measurements(paths["Measurement"], measurements, barcode_to_subject, tag_map)
     measurements, meas_unsorted = _sorted_by_time(measurements)
     groundtruth, gt_unsorted = _sorted_by_time(
         _read_table(paths["Groundtruth"], _GROUNDTRUTH_COLUMNS)
@@ -243,7 +240,11 @@ def load_mrclam(dataset_dir: str | Path, robot: int) -> tuple[RunLog, MrclamLoad
         start_time=start_time,
         start_inside_groundtruth=bool(truth.t[0] <= start_time <= truth.t[-1]),
     )
-    return RunLog(meta=meta, controls=controls, detections=detections, groundtruth=truth), report
+    run = RunLog(meta=meta, controls=controls, detections=detections, groundtruth=truth)
+    # the measurements share the odometry's clock; the Vicon truth's cover is only reported
+    names = tuple(paths[k].name for k in ROBOT_KINDS)
+    check_time_spans(dataclasses.replace(run, groundtruth=None), folder, names, lines=False)
+    return run, report
 
 
 def interpolate_pose(t: ArrayLike, pose: ArrayLike, at: float) -> Array:
@@ -338,12 +339,19 @@ def _sorted_by_time(table: Array) -> tuple[Array, int]:
     return table, out_of_order
 
 
-def _check_measurements(path: Path, table: Array) -> None:
+def _check_measurements(path: Path, table: Array, subjects: dict, tag_map: dict) -> None:
+    """Our own reader's rules (`ekfslam.runlog`): range >= 0, bearing in [-π, π], and every
+    sighted landmark (a subject of Barcodes.dat, not a robot) in Landmark_Groundtruth.dat."""
     _require_integers(path, table, _MEASUREMENT_COLUMNS, (1,))
-    negative = np.flatnonzero(table[:, 2] < 0)
-    if negative.size:
-        row = int(negative[0])
-        _raise_at_row(path, row, f"negative range {table[row, 2]:g} m")
+    for row, (_, barcode, r, b) in enumerate(table.tolist()):
+        s = subjects.get(int(barcode), ROBOTS[0])
+        if r < 0:
+            _raise_at_row(path, row, f"negative range {r:g} m")
+        if abs(b) > math.pi:
+            _raise_at_row(path, row, f"bearing {b!r} rad is outside [-pi, pi] (degrees?)")
+        if s not in ROBOTS and s not in tag_map:
+            where = f"(barcode {int(barcode)} in {BARCODES}) is not in {LANDMARKS}"
+            _raise_at_row(path, row, f"landmark {s} {where}")
 
 
 def _require_integers(
@@ -489,13 +497,17 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_convert_mrclam(args: argparse.Namespace) -> int:
-    from ekfslam.runlog import write_run
+    from ekfslam.runlog import validate_run, write_run
 
     run, report = load_mrclam(args.dataset, args.robot)
     if args.calibrate:
         from ekfslam.mrclam_tuning import MRCLAM_CALIBRATION, calibrate_commands
 
         run = calibrate_commands(run, MRCLAM_CALIBRATION)
+    try:  # load_mrclam checks what it reads; name the dataset, not a file the user never gave
+        validate_run(run)
+    except InputError as err:
+        raise InputError(args.dataset, None, f"robot {args.robot}: {err.problem}") from None
     write_run(run, args.out, overwrite=args.overwrite)
     print(report.summary())
     print(f"wrote {args.out}")

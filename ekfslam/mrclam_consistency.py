@@ -413,7 +413,9 @@ def run_cli(args: argparse.Namespace) -> int:
 
         save_figure(plot_mrclam_nees(study), args.plot)
         out["plot"] = str(args.plot)
-    print(json.dumps(out, indent=2) if args.json else table(study, out.get("plot")))
+    print(
+        json.dumps(out, indent=2, allow_nan=False) if args.json else table(study, out.get("plot"))
+    )
     return 0
 
 

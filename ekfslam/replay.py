@@ -11,16 +11,19 @@ frames all arrive here as a `ekfslam.runlog.RunLog`.
 
 from __future__ import annotations
 
+import math
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ekfslam.errors import ConfigError
+from ekfslam.errors import ConfigError, EkfSlamError
 from ekfslam.filter import EKFSLAM, FilterConfig, FilterCounts
 from ekfslam.history import History
 from ekfslam.models import observation_noise
+from ekfslam.plausibility import MAX_HEADING, MAX_POSITION
 from ekfslam.runlog import RunLog
 
 Array = NDArray[np.float64]
@@ -55,8 +58,15 @@ class NoiseConfig:
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ConfigError(f"NoiseConfig.{name} must be a finite non-negative number")
-        if self.sigma_range == 0 or self.sigma_bearing == 0:
-            raise ConfigError("observation noise must be positive (Q would be singular)")
+            if not math.isfinite(value * value):
+                raise ConfigError(f"NoiseConfig.{name} = {value!r}: its square overflows")
+        for name in ("sigma_range", "sigma_bearing"):
+            # a σ whose square underflows (1e-170² = 0) gives a Q as singular as σ = 0
+            if not getattr(self, name) ** 2 > 0:
+                raise ConfigError(
+                    f"NoiseConfig.{name} = {getattr(self, name)!r}: observation noise must be "
+                    "positive and its square must not underflow (Q would be singular)"
+                )
         if self.R_per_step is not None:
             R = np.asarray(self.R_per_step, dtype=float)
             if R.shape != (3, 3) or not np.allclose(R, R.T) or np.linalg.eigvalsh(R).min() < 0:
@@ -118,6 +128,13 @@ def replay(
     noise = noise or default_noise(run)
     config = config or default_config(run)
     pose0 = run.meta.nominal_start if start_pose is None else start_pose
+    p = np.asarray(pose0, dtype=float)
+    if p.shape != (3,) or not (np.all(np.abs(p[:2]) <= MAX_POSITION) and abs(p[2]) <= MAX_HEADING):
+        # a finite 1e308 start overflows in the alignment: a table of NaN, not an error
+        raise ConfigError(
+            f"start pose {p.tolist()} is not a plausible (x, y, theta): |x|, |y| <= "
+            f"{MAX_POSITION:g} m, |theta| <= 2 pi rad"
+        )
     ekf = EKFSLAM(pose0, start_covariance, config)
     twist = run.control_twist()
     if len(twist) == 0:
@@ -146,15 +163,23 @@ def replay(
     us, dts, ends = (np.ascontiguousarray(a, dtype=float) for a in (us, dts, ends))
     det_id, det_time = det.tag_id.tolist(), det_t.tolist()
     det_z = np.column_stack([det.range, det.bearing]).tolist()
-    done = 0
-    for i, p in enumerate(upto.tolist()):
-        if p > done:
-            ekf.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
-            done = p
-        ekf.update(det_id[i], det_z[i], Q, det_time[i])
-    if done < len(us):
-        ekf.predict_many(us[done:], dts[done:], ends[done:], M, R)
+    steps = (upto.tolist(), us, dts, ends, M, R, det_id, det_time, det_z, Q)
+    with np.errstate(all="ignore"):  # an overflow is caught below, once, and said where
+        _feed(ekf, *steps)
     seconds = time.perf_counter() - started
+    if not (np.isfinite(ekf.mu).all() and np.isfinite(ekf.Sigma).all()):
+        # once per replay, O(n²); only on failure is the run fed again, checking every step
+        with np.errstate(all="ignore"):
+            _feed(EKFSLAM(pose0, start_covariance, config, record=False), *steps, check=True)
+        raise NonFiniteStateError(f"run {run.meta.name!r}: the filter state became non-finite")
+    if ekf.counts.singular:
+        warnings.warn(
+            f"run {run.meta.name!r}: {ekf.counts.singular} updates skipped because the "
+            "innovation covariance S was singular or not finite (is the noise too small or "
+            "too large?)",
+            RuntimeWarning,
+            stacklevel=2,
+        )
 
     ids = ekf.landmark_ids
     return ReplayResult(
@@ -169,6 +194,42 @@ def replay(
         noise=noise,
         config=config,
     )
+
+
+class NonFiniteStateError(EkfSlamError):
+    """The filter's mean or covariance became NaN or infinite; the message says where."""
+
+
+def _feed(ekf, upto, us, dts, ends, M, R, det_id, det_time, det_z, Q, check=False) -> None:
+    """Predict through the pieces before each detection, update, and predict to the end.
+
+    check: after every step, raise `NonFiniteStateError` naming the step if the state is no
+    longer finite (the locating pass; the normal pass checks once, at the end).
+    """
+    done = 0
+    for i, p in enumerate(upto):
+        if p > done:
+            ekf.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
+            done = p
+            if check:
+                _check_finite(ekf, f"t = {ends[p - 1]:.3f} s (prediction)")
+        ekf.update(det_id[i], det_z[i], Q, det_time[i])
+        if check:
+            _check_finite(
+                ekf, f"t = {det_time[i]:.3f} s (update of landmark {det_id[i]}, detection {i + 1})"
+            )
+    if done < len(us):
+        ekf.predict_many(us[done:], dts[done:], ends[done:], M, R)
+        if check:
+            _check_finite(ekf, f"t = {ends[-1]:.3f} s (prediction to the end)")
+
+
+def _check_finite(ekf: EKFSLAM, where: str) -> None:
+    if not (np.isfinite(ekf.mu).all() and np.isfinite(ekf.Sigma).all()):
+        raise NonFiniteStateError(
+            f"the filter state became non-finite at {where}: check the noise settings and the "
+            "log's values near that time"
+        )
 
 
 #: Noise for MRCLAM robots, one setting for all five, tuned on Dataset 7 by

@@ -33,6 +33,8 @@ import argparse
 import math
 import os
 import re
+import re._constants as _re_constants  # the parsed form of a pattern, to check its group 1
+import re._parser as _re_parser
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,6 +45,7 @@ import numpy as np
 from ekfslam.errors import ConfigError, InputError
 from ekfslam.geometry import wrap_angle
 from ekfslam.kinematics import MecanumGeometry
+from ekfslam.plausibility import implausible_pose
 from ekfslam.runlog import Controls, Detections, RunLog, RunMeta
 
 TWIST_TYPES = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped", "nav_msgs/msg/Odometry")
@@ -95,7 +98,76 @@ class RosbagSpec:
             raise ConfigError("wheel_joints must name 4 joints: FL, FR, RL, RR")
         if self.camera_axes not in ("optical", "body"):
             raise ConfigError(f"camera_axes must be 'optical' or 'body', got {self.camera_axes!r}")
-        re.compile(self.tag_frame_pattern)
+        check_tag_frame_pattern(self.tag_frame_pattern)
+        for what, values in (
+            ("nominal_start (--start)", self.nominal_start),
+            ("camera_mounting (--camera-mounting)", self.camera_mounting),
+        ):
+            v = np.asarray(values, dtype=np.float64)
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise ConfigError(f"{what} must be 3 finite numbers (x, y, theta), got {values}")
+            if problem := implausible_pose(v, what):
+                raise ConfigError(problem)
+
+
+def check_tag_frame_pattern(pattern: str) -> None:
+    """Raise ConfigError unless `pattern` compiles and its group 1 can match only digits.
+
+    The tag id is ``int(match.group(1))``: a pattern without a group, or whose group 1 holds
+    letters (``(tag)_\\d+``), would fail on the first transform, deep inside the bag.
+    """
+    try:
+        groups = re.compile(pattern).groups
+    except re.error as err:
+        problem = f"tag frame pattern {pattern!r} is not a regular expression: {err}"
+        raise ConfigError(problem) from None
+    if not (groups and _digits_only(_group_one(_re_parser.parse(pattern)) or [])):
+        raise ConfigError(
+            f"tag frame pattern {pattern!r} needs a group 1 that matches the tag id's digits, "
+            r"e.g. 'tag_(\d+)$'"
+        )
+
+
+_C = _re_constants
+_REPEATS = (_C.MAX_REPEAT, _C.MIN_REPEAT, _C.POSSESSIVE_REPEAT)
+
+
+def _parts(op: Any, av: Any) -> list:
+    """The sub-patterns of one parsed item (a group, a repeat, a branch, a lookaround)."""
+    if op in (_C.SUBPATTERN, _C.ASSERT, _C.ASSERT_NOT, _C.ATOMIC_GROUP):
+        return [av[-1]]
+    return [av[2]] if op in _REPEATS else list(av[1]) if op is _C.BRANCH else []
+
+
+def _group_one(items: Any) -> Any:
+    """The parsed body of capturing group 1 in a `re._parser` tree, or None."""
+    for op, av in items:
+        if op is _C.SUBPATTERN and av[0] == 1:
+            return av[-1]
+        for found in (_group_one(part) for part in _parts(op, av)):
+            if found is not None:
+                return found
+    return None
+
+
+def _digits_only(items: Any) -> bool:
+    """Whether a parsed pattern matches only (at least one) digits."""
+
+    def digit(op: Any, av: Any) -> bool:
+        if op is _C.RANGE:
+            return all(chr(k).isdigit() for k in range(av[0], av[1] + 1))
+        return (op is _C.LITERAL and chr(av).isdigit()) or av is _C.CATEGORY_DIGIT
+
+    def ok(op: Any, av: Any) -> bool:
+        if op is _C.IN:
+            return all(digit(o, a) for o, a in av)
+        if op in _REPEATS:
+            return av[0] >= 1 and _digits_only(av[2])
+        if op in (_C.SUBPATTERN, _C.BRANCH):
+            return all(_digits_only(part) for part in _parts(op, av))
+        return digit(op, av)
+
+    return bool(items) and all(ok(op, av) for op, av in items)
 
 
 @dataclass(frozen=True)
@@ -151,6 +223,11 @@ def read_rosbag(
     for path in paths:
         if not path.exists():
             raise InputError(path, None, "bag not found (a ROS 1 .bag file or a ROS 2 bag folder)")
+        if path.is_dir() and not (path / "metadata.yaml").is_file():
+            raise InputError(
+                path, None, "not a ROS 2 bag: the folder has no metadata.yaml (a ROS 1 bag is a "
+                ".bag file)"
+            )  # fmt: skip
     motion_topic = spec.twist_topic or spec.wheels_topic
     try:
         with AnyReader(paths, default_typestore=get_typestore(Stores.LATEST)) as reader:
@@ -171,7 +248,7 @@ def read_rosbag(
                     motion.add(msg, bag_ns)
                 else:
                     sightings.add(msg, bag_ns)
-    except AnyReaderError as exc:
+    except (AnyReaderError, OSError) as exc:
         raise InputError(first, None, f"cannot read the bag: {exc}") from None
 
     if not motion.t:

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from ekfslam.camera import Camera, TagSpec
 from ekfslam.errors import InputError
 from ekfslam.kinematics import MecanumGeometry
+from ekfslam.plausibility import implausible_pose as _implausible
 
 FORMAT = "ekfslam-run"
 FORMAT_VERSION = 1
@@ -135,6 +136,8 @@ def check_meta(meta: RunMeta, path: Path) -> None:
     ):
         check_shape(path, what, value, (n,))
         require(bool(np.all(np.isfinite(value))), f"{what} must be {n} finite numbers")
+        problem = _implausible(value, what, pose=True)
+        require(problem is None, str(problem))
     for what, rate in (("controls_hz", meta.control_rate_hz), ("camera_hz", meta.camera_rate_hz)):
         require(rate is None or (math.isfinite(rate) and rate > 0), f"{what} must be > 0 or null")
     require(
@@ -145,6 +148,8 @@ def check_meta(meta: RunMeta, path: Path) -> None:
         require(isinstance(tag, int | np.integer), f"tag_map id {tag!r} is not an integer")
         check_shape(path, f"tag_map[{tag}]", xy, (2,))
         require(bool(np.all(np.isfinite(xy))), f"tag_map[{tag}] must be 2 finite numbers")
+        problem = _implausible(xy, f"tag_map[{tag}]", pose=False)
+        require(problem is None, str(problem))
     try:
         _dump_json(meta.simulation, indent=2)
     except (TypeError, ValueError) as err:
@@ -189,6 +194,28 @@ def _no_constants(name: str) -> float:
     raise _JsonProblem(name, f"{name} is not allowed: every number must be finite")
 
 
+#: The most digits an integer in run.json may have (Python refuses to parse more than 4,300;
+#: beyond 309 it is no float either, which the checks of each key report).
+_MAX_DIGITS = 1000
+
+
+def _int_of(text: str) -> int:
+    # json would hand a 5,000-digit integer to int(), which refuses it with a bare ValueError
+    if len(text.lstrip("-")) > _MAX_DIGITS:
+        raise _JsonProblem(text[:40], f"an integer of {len(text)} digits is too large a number")
+    return int(text)
+
+
+def _deepest_line(text: str, limit: int = 100) -> int | None:
+    """1-based line where brackets first nest deeper than `limit` (strings are not skipped)."""
+    depth = 0
+    for i, ch in enumerate(text):
+        depth += (ch in "[{") - (ch in "]}")
+        if depth > limit:
+            return text.count("\n", 0, i) + 1
+    return None
+
+
 def _line_of(text: str, token: str, occurrence: int = 0) -> int | None:
     """1-based line of the `occurrence`-th appearance of `token` (a best effort for messages)."""
     hits = [m.start() for m in re.finditer(re.escape(token), text)]
@@ -200,7 +227,15 @@ def read_meta(path: str | os.PathLike) -> RunMeta:
     path = Path(path)
     text = "\n".join(read_lines(path))
     try:
-        doc = json.loads(text, object_pairs_hook=_no_duplicate_keys, parse_constant=_no_constants)
+        doc = json.loads(
+            text,
+            object_pairs_hook=_no_duplicate_keys,
+            parse_constant=_no_constants,
+            parse_int=_int_of,
+        )
+    except RecursionError:
+        line = _deepest_line(text)
+        raise InputError(path, line, "nested too deeply to be run metadata") from None
     except json.JSONDecodeError as err:
         raise InputError(
             path, err.lineno, f"invalid JSON: {err.msg} (column {err.colno})"
@@ -243,11 +278,15 @@ def read_meta(path: str | os.PathLike) -> RunMeta:
     if doc["source"] not in ("simulated", "recorded"):
         fail("source", f'"source" is {doc["source"]!r}, expected "simulated" or "recorded"')
 
-    def numbers(key: str, value: Any, n: int, what: str) -> Array:
+    def numbers(key: str, value: Any, n: int, what: str, pose: bool = False) -> Array:
         ok = isinstance(value, list) and len(value) == n and all(_is_number(v) for v in value)
         if not ok:
-            fail(key, f"{what} must be {n} finite numbers, got {json.dumps(value)}")
-        return np.array(value, dtype=np.float64)
+            fail(key, f"{what} must be {n} finite numbers, got {_shown(value)}")
+        array = np.array(value, dtype=np.float64)
+        problem = _implausible(array, what, pose)
+        if problem:
+            fail(key, problem)
+        return array
 
     def number(key: str, value: Any, what: str) -> float:
         if not _is_number(value):
@@ -288,6 +327,8 @@ def read_meta(path: str | os.PathLike) -> RunMeta:
         for key, xy in doc["tag_map"].items():
             if not re.fullmatch(r"[+-]?[0-9]+", key):
                 fail(key, f"tag_map id {key!r} is not an integer")
+            if len(key.lstrip("+-").lstrip("0")) > 19 or not -(2**63) <= int(key) < 2**63:
+                fail(key, f"tag_map id {key[:40]} is too large (an id must fit in 64 bits)")
             if int(key) in tag_map:
                 fail(key, f"tag_map id {int(key)} appears twice")
             tag_map[int(key)] = numbers(key, xy, 2, f"tag_map entry {key!r}")
@@ -333,13 +374,17 @@ def read_meta(path: str | os.PathLike) -> RunMeta:
         name=doc["name"],
         source=doc["source"],
         nominal_start=numbers(
-            "nominal_start", doc["nominal_start"], 3, "nominal_start [x, y, theta]"
+            "nominal_start", doc["nominal_start"], 3, "nominal_start [x, y, theta]", pose=True
         ),
         control_rate_hz=positive("controls_hz", rates.get("controls_hz"), "controls_hz", True),
         camera_rate_hz=positive("camera_hz", rates.get("camera_hz"), "camera_hz", True),
         robot=robot,
         camera_mounting=numbers(
-            "camera_mounting", [mount[k] for k in ("x", "y", "yaw")], 3, "camera_mounting x, y, yaw"
+            "camera_mounting",
+            [mount[k] for k in ("x", "y", "yaw")],
+            3,
+            "camera_mounting x, y, yaw",
+            pose=True,
         ),
         tag_map=tag_map,
         simulation=simulation,
@@ -354,7 +399,18 @@ def _is_count(value: Any) -> bool:
 
 
 def _is_number(value: Any) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+    if not isinstance(value, int | float) or isinstance(value, bool):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an integer beyond the largest float
+        return False
+
+
+def _shown(value: Any) -> str:
+    """`value` as JSON for a message, cut to 60 characters (a huge integer stays readable)."""
+    text = json.dumps(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _plain(value: Any) -> Any:

@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 
 from ekfslam.errors import InputError
 from ekfslam.kinematics import MecanumGeometry, wheels_to_twist
+from ekfslam.plausibility import check_clocks
 from ekfslam.runjson import (  # noqa: F401  (FORMAT... re-exported: the public API of runlog)
     FORMAT,
     FORMAT_VERSION,
@@ -137,11 +138,10 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
         problem = "is not a folder" if folder.exists() else "run folder not found"
         raise InputError(folder, None, f"{problem}; a run is a folder holding {_FILES_HINT}")
     for name in (RUN_JSON, CONTROLS_CSV):
-        if not (folder / name).is_file():
-            raise InputError(folder / name, None, f"missing file; a run folder holds {_FILES_HINT}")
+        require_file(folder / name, f"a run folder holds {_FILES_HINT}")
     meta = read_meta(folder / RUN_JSON)
     path = folder / DETECTIONS_CSV
-    if detections is None and not path.is_file():
+    if detections is None:
         hint = f"a run folder holds {_FILES_HINT}"
         if meta.frames is not None:
             hint = (
@@ -150,7 +150,7 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
                 "with "
                 f"`python -m ekfslam run {folder}`"
             )
-        raise InputError(path, None, f"missing file; {hint}")
+        require_file(path, hint)
 
     path = folder / CONTROLS_CSV
     kind, columns = _read_csv(path, CONTROL_COLUMNS)
@@ -165,6 +165,7 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
     _check_controls(controls, path)
 
     path = folder / DETECTIONS_CSV
+    found_in_frames = detections is not None
     if detections is None:
         _, (t, tag_id, rng, bearing) = _read_csv(path, {"detections": DETECTION_COLUMNS})
         detections = Detections(t=t, tag_id=tag_id, range=rng, bearing=bearing)
@@ -176,7 +177,21 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
         _, columns = _read_csv(path, {"groundtruth": GROUNDTRUTH_COLUMNS})
         groundtruth = GroundTruth(t=columns[0], pose=np.column_stack(columns[1:]))
         _check_groundtruth(groundtruth, path)
-    return RunLog(meta=meta, controls=controls, detections=detections, groundtruth=groundtruth)
+    run = RunLog(meta=meta, controls=controls, detections=detections, groundtruth=groundtruth)
+    if found_in_frames:  # the detections' times are the frames': name the file that has them
+        check_time_spans(run, folder, (CONTROLS_CSV, "frames.csv", GROUNDTRUTH_CSV), lines=False)
+    else:
+        check_time_spans(run, folder)
+    return run
+
+
+def require_file(path: Path, hint: str) -> None:
+    """Raise `InputError` unless `path` is a file: missing, a folder, a dead link or a loop."""
+    if not path.is_file():  # is_file() follows links: a loop or a dangling link ends here too
+        problem = "is a folder, not a file" if path.is_dir() else "missing file"
+        if path.is_symlink() and not path.is_dir():
+            problem = "is a symbolic link that leads to no file (dangling, or a loop)"
+        raise InputError(path, None, f"{problem}; {hint}")
 
 
 _FILES_HINT = (
@@ -297,6 +312,20 @@ def validate_run(run: RunLog, folder: str | os.PathLike | None = None) -> None:
     _check_detections(run.detections, base / DETECTIONS_CSV, run.meta.tag_map)
     if run.groundtruth is not None:
         _check_groundtruth(run.groundtruth, base / GROUNDTRUTH_CSV)
+    check_time_spans(run, base)
+
+
+def check_time_spans(run: RunLog, folder: Path, names: tuple = (), lines: bool = True) -> None:
+    """`ekfslam.plausibility.check_clocks` on a run: detections and truth on the controls' clock.
+
+    `names`: the three files' names (controls, detections, ground truth), the run format's by
+    default; `lines` False when rows are not the files' lines (sorted, filtered, from frames).
+    """
+    c_name, d_name, g_name = names or (CONTROLS_CSV, DETECTIONS_CSV, GROUNDTRUTH_CSV)
+    others = [(folder / d_name, run.detections.t, False)]
+    if run.groundtruth is not None:
+        others.append((folder / g_name, run.groundtruth.t, True))
+    check_clocks((c_name, run.controls.t), others, lines)
 
 
 def _check_rows(path: Path, t: Array, columns: dict[str, Array], extra=()) -> None:

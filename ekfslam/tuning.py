@@ -323,6 +323,7 @@ def status_text(summary: RunSummary) -> str:
     counts = (
         f"updates accepted {summary.accepted}, rejected {summary.rejected}, "
         f"initialised {summary.initialised}, refused {summary.refused}"
+        + (f", singular S {summary.singular}" if summary.singular else "")
     )
     return "\n".join((head, row, counts))
 

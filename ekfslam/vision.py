@@ -287,6 +287,26 @@ class TagObserver:
         refused = {r: c[r] for r in REFUSALS}
         return VisionCounts(c["frames"], c["found"], c["accepted"], refused)
 
+    def _checked(self, image: np.ndarray) -> NDArray[np.uint8]:
+        """`image` as the (H, W) uint8 the camera makes, or ValueError naming the mismatch."""
+        image = np.asarray(image)
+        if image.dtype != np.uint8:
+            raise ValueError(
+                f"image has dtype {image.dtype}: give 8-bit gray (uint8, 0-255), e.g. "
+                "(image * 255).astype(np.uint8) for a float image in [0, 1]"
+            )
+        if image.ndim == 3 and image.shape[2] == 3:
+            image = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+        if image.ndim != 2:
+            raise ValueError(f"image has shape {image.shape}: give (H, W) gray or (H, W, 3) BGR")
+        c = self.camera
+        if image.shape != (c.height, c.width):
+            raise ValueError(
+                f"image is {image.shape[1]}x{image.shape[0]} px but the camera is "
+                f"{c.width}x{c.height} px (run.json's camera image_size): ranges would be wrong"
+            )
+        return image
+
     def _inside(self, ideal_corners: Array) -> bool:
         """Whether the printed tag, white border included, lies inside the recorded image.
 
@@ -302,7 +322,13 @@ class TagObserver:
         return bool(np.all((px >= -0.5) & (px <= size)))
 
     def observe(self, gray: NDArray[np.uint8]) -> FrameResult:
-        """Detect, refine, solve and transform every tag of one frame (H, W) uint8."""
+        """Detect, refine, solve and transform every tag of one frame (H, W) uint8.
+
+        A colour frame (H, W, 3) uint8 in OpenCV's BGR order is converted to gray first. Any
+        other image raises ValueError saying what is wrong: the size must be the camera's
+        (``image_size``; a smaller image would give ranges scaled by the ratio), the type uint8.
+        """
+        gray = self._checked(gray)
         quads = self.detector.detect(self._undistorter(gray))
         ids = Counter(q.tag_id for q in quads)
         ideal = [self._undistorter.to_ideal(q.corners) for q in quads]

@@ -24,7 +24,14 @@ pytestmark = pytest.mark.shared_data
 
 
 def truncated(path: Path, lines: int = 1000) -> bytes:
-    return b"\r\n".join(path.read_bytes().split(b"\r\n")[:lines]) + b"\r\n"
+    """The first `lines` lines; a robot's measurements end with its odometry's first lines (the
+    loader refuses measurements beyond the odometry: files on different clocks)."""
+    kept = path.read_bytes().split(b"\r\n")[:lines]
+    if path.name.endswith("_Measurement.dat"):
+        odometry = path.with_name(path.name.replace("Measurement", "Odometry"))
+        end = float(odometry.read_bytes().split(b"\r\n")[lines - 1].split()[0])
+        kept = [ln for ln in kept if ln.startswith(b"#") or float(ln.split()[0]) <= end]
+    return b"\r\n".join(kept) + b"\r\n"
 
 
 def write_zip(path: Path, members: dict[str, bytes]) -> None:

@@ -480,3 +480,14 @@ def test_a_well_confirmed_landmark_needs_as_many_agreeing_rejections_to_move():
     np.testing.assert_allclose(fast.landmark(7)[0], moved, atol=1e-9)
     np.testing.assert_allclose(fast.mu, slow.mu, rtol=0, atol=1e-9)
     np.testing.assert_allclose(fast.Sigma, slow.Sigma, rtol=0, atol=1e-9)
+
+
+def test_a_singular_or_overflowing_innovation_covariance_is_its_own_outcome() -> None:
+    f = EKFSLAM([0.0, 0.0, 0.0])
+    assert f.update(1, (1.0, 0.2), 1e-4 * np.eye(2)) == "initialised"
+    assert f.update(1, (1.0, 0.2), 1e300 * np.eye(2)) == "singular"  # det S overflows
+    assert f.update(1, (1.0, 0.2), 1e-320 * np.eye(2)) == "accepted"  # Σ_l still 1e-4
+    c = f.counts
+    assert (c.singular, c.refused, c.accepted, c.initialised) == (1, 0, 1, 1)
+    outcomes = [OUTCOMES[k] for k in f.history().obs_outcome]
+    assert outcomes == ["initialised", "singular", "accepted"]

@@ -202,11 +202,20 @@ def test_interpolation_unwraps_the_heading() -> None:
 
 @pytest.fixture(scope="module")
 def first_lines(mrclam7: Path) -> dict[str, bytes]:
-    """The first 1,000 lines of each Dataset 7 file, byte for byte (CRLF kept)."""
-    return {
-        src.name: b"\r\n".join(src.read_bytes().split(b"\r\n")[:1000]) + b"\r\n"
-        for src in mrclam7.glob("*.dat")
-    }
+    """The first 1,000 lines of each Dataset 7 file, byte for byte (CRLF kept).
+
+    A robot's measurements are cut where its first 1,000 odometry lines end, so that the
+    files still share one time span (the loader refuses measurements beyond the odometry).
+    """
+    out = {}
+    for src in mrclam7.glob("*.dat"):
+        lines = src.read_bytes().split(b"\r\n")[:1000]
+        out[src.name] = lines
+    for name in [n for n in out if n.endswith("_Odometry.dat")]:
+        end = float(out[name][-1].split()[0])
+        kept = out[name.replace("Odometry", "Measurement")]
+        kept[:] = [ln for ln in kept if ln.startswith(b"#") or float(ln.split()[0]) <= end]
+    return {name: b"\r\n".join(lines) + b"\r\n" for name, lines in out.items()}
 
 
 @pytest.fixture
@@ -265,6 +274,8 @@ MALFORMED = [
     ("Robot1_Measurement.dat", 16, b"1248446190.0 -inf 1.0 0.1", "barcode is -inf"),
     ("Robot1_Measurement.dat", 17, b"1248446190.0 61 -0.5 0.1", "negative range -0.5"),
     ("Robot1_Measurement.dat", 18, b"1248446190.0 61.5 1.0 0.1", "barcode 61.5 is not a whole"),
+    ("Robot1_Measurement.dat", 19, b"1248446190.0 61 1.0 45.0", "45.0 rad is outside [-pi, pi]"),
+    ("Robot1_Measurement.dat", 20, b"1248446190.0 61 1.0 -3.2", "(degrees?)"),
     ("Barcodes.dat", 12, b" 8 \t 63", "barcode 63 is mapped twice"),
     ("Barcodes.dat", 13, b" 1 \t 99", "subject 1 has two barcodes"),
     ("Landmark_Groundtruth.dat", 9, b" 6 1 2 0 0", "landmark 6 is listed twice"),
@@ -331,3 +342,28 @@ def test_start_outside_groundtruth_is_reported(small: Path) -> None:
     assert not report.start_inside_groundtruth
     assert "clamped" in report.summary()
     np.testing.assert_allclose(run.meta.nominal_start, run.groundtruth.pose[-1])
+
+
+def test_a_sighted_landmark_without_a_true_position_is_named_at_its_line(small: Path) -> None:
+    measurements = small / "Robot1_Measurement.dat"
+    barcode = int(data_rows(measurements)[0][1])  # the first sighting's barcode
+    subject = barcode_table(small)[barcode]
+    path = small / "Landmark_Groundtruth.dat"
+    kept = [ln for ln in path.read_bytes().split(b"\r\n") if ln.split()[:1] != [b"%d" % subject]]
+    path.write_bytes(b"\r\n".join(kept))
+    with pytest.raises(InputError) as caught:
+        load_mrclam(small, 1)
+    first = next(i for i, ln in enumerate(measurements.read_text().splitlines(), 1)
+                 if not ln.startswith("#"))  # fmt: skip
+    assert (Path(caught.value.path), caught.value.line) == (measurements, first)
+    assert f"landmark {subject} (barcode {barcode}" in caught.value.problem
+    assert "Landmark_Groundtruth.dat" in caught.value.problem
+
+
+def test_measurements_on_another_clock_are_refused(small: Path) -> None:
+    path = small / "Robot1_Measurement.dat"
+    text = path.read_bytes().replace(b"124844", b"224844")  # 100 million s later
+    path.write_bytes(text)
+    with pytest.raises(InputError, match="different clocks") as caught:
+        load_mrclam(small, 1)
+    assert Path(caught.value.path) == path and "Robot1_Odometry.dat" in caught.value.problem

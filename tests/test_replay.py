@@ -143,3 +143,48 @@ def test_ate_uses_ground_truth_only_where_it_exists():
     # truth runs 1 cm to the left of the estimate, and ends early at t = 1
     gt = GroundTruth(t=np.array([0.0, 1.0]), pose=np.array([[0.0, 0.01, 0.0], [0.1, 0.01, 0.0]]))
     assert ate_rmse(result, gt) == pytest.approx(0.01, rel=1e-9)
+
+
+@pytest.fixture(scope="module")
+def square_run() -> RunLog:
+    from ekfslam.simulation import SimulationConfig, simulate
+
+    return simulate(SimulationConfig(trajectory="square", laps=1, seed=1))
+
+
+def test_pathological_noise_gives_singular_updates_with_a_warning_not_refusals(square_run):
+    from ekfslam.evaluation import summarize
+
+    zero_R = ((0.0, 0.0, 0.0),) * 3
+    cases = [
+        NoiseConfig(R_per_step=zero_R, sigma_range=1e-160, sigma_bearing=1e-160),  # S underflows
+        NoiseConfig(sigma_x=1e150),  # S overflows
+    ]
+    for noise in cases:
+        with pytest.warns(RuntimeWarning, match="singular or not finite"):
+            result = replay(square_run, noise)
+        c = result.counts
+        assert c.refused == 0 and c.singular > 200 and c.initialised == 8
+        summary = summarize(square_run, result)
+        assert summary.singular == c.singular
+        assert summary.as_dict()["updates"]["singular"] == c.singular
+
+
+def test_a_sigma_whose_square_underflows_or_overflows_is_refused() -> None:
+    with pytest.raises(ValueError, match="underflow"):
+        NoiseConfig(sigma_range=1e-170)
+    with pytest.raises(ValueError, match="overflows"):
+        NoiseConfig(sigma_theta=1e160)
+
+
+def test_a_state_that_becomes_non_finite_is_an_error_saying_when(square_run) -> None:
+    from ekfslam.replay import NonFiniteStateError
+
+    with pytest.raises(NonFiniteStateError, match=r"non-finite at t = \d+\.\d+ s \(prediction"):
+        replay(square_run, NoiseConfig(sigma_x=1e154))
+
+
+def test_a_huge_start_pose_through_the_api_is_an_error_not_a_nan_table(square_run) -> None:
+    for pose in [(1e308, 0.0, 0.0), (0.0, 0.0, math.nan), (0.0, 0.0, 90.0)]:
+        with pytest.raises(ValueError, match="not a plausible"):
+            replay(square_run, start_pose=pose)

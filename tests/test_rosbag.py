@@ -322,3 +322,58 @@ def test_command_line_converts_and_the_run_replays(tmp_path: Path) -> None:
     for i, xy in result.landmarks.items():
         assert np.linalg.norm(xy - TAGS[i]) < 0.05
     assert main(argv) == 2  # the folder exists now: refused, one line, exit 2
+
+
+@pytest.mark.parametrize(
+    ("pattern", "problem"),
+    [
+        (r"tag_\d+", "needs a group 1"),
+        (r"(tag)_\d+", "needs a group 1"),
+        (r"tag_(\d*)", "needs a group 1"),  # may match nothing: int("") fails
+        (r"tag_(\d+", "is not a regular expression"),
+    ],
+)
+def test_a_tag_frame_pattern_without_a_numeric_group_1_is_refused_up_front(
+    pattern: str, problem: str
+) -> None:
+    with pytest.raises(ValueError, match=problem):
+        RosbagSpec(detections_topic="/tf", twist_topic="/odom", tag_frame_pattern=pattern)
+
+
+@pytest.mark.parametrize("good", [r"tag_(\d+)$", r"(?:tag|marker)_([0-9]+)", r"t(?:ag)?(\d)"])
+def test_tag_frame_patterns_with_a_numeric_group_1_are_accepted(good: str) -> None:
+    assert RosbagSpec(detections_topic="/tf", twist_topic="/o", tag_frame_pattern=good)
+
+
+@pytest.mark.parametrize(
+    ("extra", "word"),
+    [
+        (["--start", "nan", "0", "0"], "--start"),
+        (["--start", "1e308", "0", "0"], "plausible"),
+        (["--camera-mounting", "0", "inf", "0"], "--camera-mounting"),
+        (["--tag-frame-pattern", r"(tag)_\d+"], "group 1"),
+    ],
+)
+def test_bad_options_name_the_bag_and_the_option_not_run_json(
+    tmp_path: Path, capsys, extra: list[str], word: str
+) -> None:
+    bag = write_ros2(tmp_path / "bag2")
+    argv = ["convert", "rosbag", str(bag), "--out", str(tmp_path / "run"), "--twist-topic"]
+    argv += ["/odom", "--detections-topic", "/tf", *extra]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"error: {bag}: ") and word in err
+    assert "run.json" not in err and not (tmp_path / "run").exists()
+
+
+def test_a_plain_folder_is_not_a_bag(tmp_path: Path) -> None:
+    (tmp_path / "photos").mkdir()
+    with pytest.raises(InputError, match=r"no metadata\.yaml") as caught:
+        read_rosbag(tmp_path / "photos", RosbagSpec(detections_topic="/tf", twist_topic="/x"))
+    assert caught.value.path == str(tmp_path / "photos")
+
+
+def test_a_file_that_is_not_a_bag_is_one_error(tmp_path: Path) -> None:
+    (tmp_path / "notes.bag").write_text("not a bag\n")
+    with pytest.raises(InputError, match="cannot read the bag"):
+        read_rosbag(tmp_path / "notes.bag", RosbagSpec(detections_topic="/tf", twist_topic="/x"))

@@ -214,14 +214,14 @@ def random_run(kind: str, *, with_truth: bool, with_map: bool, seed: int = 7) ->
         t=t, kind=kind, values=awkward_floats(rng, (n, 4 if kind == "wheels" else 3))
     )
     detections = Detections(
-        t=np.sort(rng.uniform(0, 10, size=m)),
+        t=np.sort(rng.uniform(t[0], t[-1], size=m)),  # on the controls' clock
         tag_id=ids.astype(np.int64),
         range=np.abs(awkward_floats(rng, (m,))),
         bearing=np.concatenate([[-math.pi, math.pi, -0.0], rng.uniform(-math.pi, math.pi, m - 3)]),
     )
     truth = None
     if with_truth:
-        truth = GroundTruth(t=np.linspace(0, 10, k), pose=awkward_floats(rng, (k, 3)))
+        truth = GroundTruth(t=np.linspace(t[0], t[-1], k), pose=awkward_floats(rng, (k, 3)))
     return RunLog(meta=meta, controls=controls, detections=detections, groundtruth=truth)
 
 
@@ -597,3 +597,81 @@ def test_the_examples_in_data_readme_are_a_valid_run(tmp_path: Path) -> None:
     write_run(run, tmp_path / "again")
     for name, text in blocks:
         assert (tmp_path / "again" / name).read_text("utf-8") == text
+
+
+# ---------------------------------------------------------------------------------------------
+# run.json that used to end in a traceback, and files on different clocks
+
+
+def test_run_json_numbers_that_break_python_are_one_error_at_their_line(tmp_path: Path) -> None:
+    good = doc_text(tag_map={"1": [0.5, 0.5]})
+    x_start, y_start = "-0.375,\n    -0.375", ",\n    -0.375"
+    cases = {
+        "id beyond int64": (good.replace('"1": [', '"99999999999999999999": ['), "64 bits"),
+        "integer too large for a float": (
+            good.replace("-0.375,\n    -0.375", "1" + "0" * 400 + ",\n    -0.375"),
+            "finite numbers",
+        ),
+        "5,000-digit integer": (good.replace(x_start, "9" * 5000 + y_start), "digits"),
+        "nominal_start 1e308": (good.replace(x_start, "1e308" + y_start), "plausible"),
+        "heading in degrees": (good.replace("-0.375,\n    0.0", "-0.375,\n    90.0"), "degrees"),
+    }  # fmt: skip
+    for name, (text, word) in cases.items():
+        assert text != good, name
+        err = json_error(tmp_path / name.replace(" ", "-"), text)
+        assert err.line is not None, name
+        assert word in err.problem, (name, err.problem)
+        assert len(str(err)) < 300, name  # a 5,000-digit number is not echoed whole
+
+
+def test_deeply_nested_run_json_is_one_error(tmp_path: Path) -> None:
+    text = doc_text().replace('"simulation": null', '"simulation": ' + "[" * 100_000)
+    err = json_error(tmp_path, text)
+    assert "nested too deeply" in err.problem and err.line == line_with(text, '"simulation"')
+
+
+def test_a_folder_or_a_symlink_loop_named_run_json_is_not_called_missing(tmp_path: Path) -> None:
+    folder = make_run(tmp_path / "dir")
+    (folder / "run.json").unlink()
+    (folder / "run.json").mkdir()
+    assert "is a folder, not a file" in error_of(folder).problem
+    loop = make_run(tmp_path / "loop")
+    (loop / "run.json").unlink()
+    (loop / "run.json").symlink_to(loop / "run.json")
+    err = error_of(loop)
+    assert err.path == str(loop / "run.json") and "symbolic link" in err.problem
+
+
+def test_validate_run_refuses_an_implausible_start_pose() -> None:
+    run = random_run("twist", with_truth=False, with_map=False)
+    meta = RunMeta(name="x", source="recorded", nominal_start=np.array([1e308, 0.0, 0.0]))
+    with pytest.raises(InputError, match="plausible"):
+        validate_run(RunLog(meta, run.controls, run.detections))
+
+
+@pytest.mark.parametrize(
+    ("detections", "groundtruth", "bad", "line"),
+    [
+        # detections in ns beside controls in s (0 to 1 s)
+        ("t,tag_id,range,bearing\n100000000,1,1.2,0.3\n", None, "detections.csv", 2),
+        ("t,tag_id,range,bearing\n0.1,1,1.2,0.3\n3.5,1,1.2,0.3\n", None, "detections.csv", 3),
+        # ground truth on another clock: ATE used to be NaN
+        (DETECTIONS, "t,x,y,theta\n1e9,0,0,0\n1.000000001e9,0,0,0\n", "groundtruth.csv", 2),
+        # inside the margin, but covering a sliver of the run
+        (DETECTIONS, "t,x,y,theta\n0.0,0,0,0\n0.2,0,0,0\n", "groundtruth.csv", None),
+    ],
+)
+def test_files_on_another_clock_are_refused_naming_both_files(
+    tmp_path: Path, detections: str, groundtruth: str | None, bad: str, line: int | None
+) -> None:
+    err = error_of(make_run(tmp_path, detections=detections, groundtruth=groundtruth))
+    assert (err.path, err.line) == (str(tmp_path / bad), line)
+    assert "controls.csv" in err.problem and "0.000 to 1.000 s" in err.problem
+    assert "different clocks" in err.problem
+
+
+def test_a_sensor_that_starts_a_little_early_is_accepted(tmp_path: Path) -> None:
+    # MRCLAM's Vicon starts 6-9 s before the odometry of a 900 s run; here 0.5 s before 1 s
+    truth = "t,x,y,theta\n-0.5,0,0,0\n1.2,0,0,0\n"
+    run = read_run(make_run(tmp_path, groundtruth=truth))
+    assert run.groundtruth is not None and len(run.groundtruth.t) == 2

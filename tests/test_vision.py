@@ -246,3 +246,23 @@ def test_optical_axes_is_a_rotation_for_any_yaw_and_pitch():
             R = optical_axes(yaw, pitch)
             np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
             assert np.linalg.det(R) == pytest.approx(1.0)
+
+
+def test_observe_checks_the_image_against_the_camera(renderer) -> None:
+    import cv2
+
+    observer = TagObserver(CAMERA, TAGS, (0, 0, 0), SEED_ARENA.tag_ids.tolist())
+    frame = renderer.render((-0.375, -0.375, 0.3))
+    small = cv2.resize(frame, (CAMERA.width // 2, CAMERA.height // 2))
+    with pytest.raises(ValueError, match=r"is 320x240 px but the camera is 640x480 px"):
+        observer.observe(small)  # used to return ranges about twice the truth
+    with pytest.raises(ValueError, match="dtype float64"):
+        observer.observe(frame / 255.0)
+    with pytest.raises(ValueError, match=r"shape \(480, 640, 4\)"):
+        observer.observe(cv2.cvtColor(frame, cv2.COLOR_GRAY2BGRA))
+    gray = observer.observe(frame)
+    colour = observer.observe(cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR))  # converted to gray
+    assert len(gray.observations) >= 1
+    assert [(o.tag_id, o.range, o.bearing) for o in colour.observations] == [
+        (o.tag_id, o.range, o.bearing) for o in gray.observations
+    ]
