@@ -217,7 +217,7 @@ def _table(summary, out: dict) -> str:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    from ekfslam.runlog import write_run
+    from ekfslam.runlog import SIMULATED_DECIMALS, write_run
     from ekfslam.simulation import SimulationConfig, simulate
 
     kwargs = {"trajectory": args.trajectory, "laps": args.laps, "seed": args.seed}
@@ -228,7 +228,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if args.wheel_scale_sigma is not None:
         kwargs["wheel_scale_sigma"] = args.wheel_scale_sigma
     run = simulate(SimulationConfig(**kwargs))
-    write_run(run, args.out, overwrite=args.overwrite)
+    write_run(run, args.out, overwrite=args.overwrite, decimals=SIMULATED_DECIMALS)
     print(
         f"wrote {args.out}: {len(run.controls.t)} controls, {len(run.detections.t)} detections, "
         f"{run.controls.t[-1] - run.controls.t[0]:.1f} s"
