@@ -205,8 +205,7 @@ def test_data_runs_regenerate(tmp_path: Path, simd: str):
     script = tmp_path / "data" / "runs" / "generate.sh"
     script.parent.mkdir(parents=True)
     script.write_bytes((RUNS / "generate.sh").read_bytes())
-    bindir = Path(sys.executable).parent
-    env = {**os.environ, "PATH": f"{bindir}{os.pathsep}{os.environ['PATH']}", "MPLBACKEND": "Agg"}
+    env = {**os.environ, "PYTHON": sys.executable, "MPLBACKEND": "Agg"}  # not python on PATH
     env.pop("NPY_DISABLE_CPU_FEATURES", None)
     env |= NO_AVX512 if simd == "no-avx512" else {}
     out = subprocess.run(
