@@ -30,6 +30,7 @@ def cli(*args: str, cwd: Path = REPO) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["square-2laps", "octagon-2laps"])
 def test_run_json_recovers_the_true_start(name: str, tmp_path: Path):
     plot = tmp_path / f"{name}.png"
@@ -70,6 +71,7 @@ def test_run_prints_the_table_row_next_to_the_seeds():
     assert any("updates accepted" in line for line in lines)
 
 
+@pytest.mark.slow
 def test_noise_and_init_options_change_the_result():
     base = json.loads(cli("run", str(RUNS / "octagon-2laps"), "--json").stdout)
     seed = json.loads(cli("run", str(RUNS / "octagon-2laps"), "--json", "--init", "seed").stdout)
@@ -280,6 +282,7 @@ def test_simulate_refuses_to_overwrite(tmp_path: Path):
     assert again.returncode == 2 and "Traceback" not in again.stderr
 
 
+@pytest.mark.slow
 def test_a_map_too_small_to_align_says_why(tmp_path: Path):
     """Regression: a run with a tag map but one landmark seen claimed it had no tag map."""
     from ekfslam.runlog import Detections, RunLog, write_run
