@@ -2,7 +2,8 @@
 
 Real recorded data (UTIAS MRCLAM) is read from one configurable folder, never copied into the
 repo: `ekfslam.mrclam.shared_data_dir()`, i.e. ``EKFSLAM_SHARED_DATA`` if set, else
-``../shared/data`` beside the checkout (the package's `find_dataset` looks in the same place).
+``../shared/data`` beside the checkout. MRCLAM Dataset 7 is found as the package finds it
+(`ekfslam.mrclam.find_dataset`): there, else in the cache of ``python -m ekfslam fetch mrclam 7``.
 Where it is absent the tests that need it skip with a reason; in CI (``CI=true``) its absence is
 a failure. Every test that uses the ``shared_data`` or ``mrclam7`` fixture is marked
 ``shared_data`` automatically, so ``-m "not shared_data"`` deselects it.
@@ -18,7 +19,8 @@ from typing import NoReturn
 import matplotlib
 import pytest
 
-from ekfslam.mrclam import shared_data_dir
+from ekfslam.errors import InputError
+from ekfslam.mrclam import find_dataset, shared_data_dir
 
 matplotlib.use("Agg")  # tests never open windows, whatever the user's backend
 
@@ -60,9 +62,13 @@ def shared_data() -> Path:
 
 
 @pytest.fixture(scope="session")
-def mrclam7(shared_data: Path) -> Path:
-    """The MRCLAM Dataset 7 folder inside the shared data."""
-    path = shared_data / "mrclam" / "MRCLAM_Dataset7"
-    if not path.is_dir():
-        skip_or_fail_in_ci(f"MRCLAM Dataset 7 not found at {path}")
-    return path
+def mrclam7() -> Path:
+    """MRCLAM Dataset 7, where the package finds it: the shared data, else the download cache
+    of ``python -m ekfslam fetch mrclam 7`` (`ekfslam.mrclam.find_dataset`)."""
+    try:
+        return find_dataset(7)
+    except InputError as missing:
+        skip_or_fail_in_ci(
+            f"MRCLAM Dataset 7 is in neither {shared_data_dir()}/mrclam nor {missing.path}: run "
+            "`python -m ekfslam fetch mrclam 7`, or set EKFSLAM_SHARED_DATA"
+        )
