@@ -415,7 +415,7 @@ SHARED_DATA_ENV = "EKFSLAM_SHARED_DATA"
 def shared_data_dir() -> Path | None:
     """The shared data folder (it may not exist): ``$EKFSLAM_SHARED_DATA`` if set, else
     ``shared/data`` beside a source checkout, else None (an installed package has no checkout).
-    `find_dataset` and the tests' ``shared_data`` fixture both look only here."""
+    `find_dataset` looks here before the download cache, and so do the tests' fixtures."""
     import os
 
     if os.environ.get(SHARED_DATA_ENV):

@@ -479,7 +479,7 @@ def _csv_text(
 
 
 def _rounded(x: float | int, decimals: int) -> float | int:
-    """`x` rounded to `decimals` (floats only); -0.0 becomes 0.0, whose sign no CPU agrees on."""
+    """`x` rounded to `decimals` (floats only), and -0.0 as 0.0: a last bit can flip that sign."""
     if isinstance(x, float):
         # Python's round() is correctly rounded (decimal, half to even): the same on every CPU
         return round(x, decimals) + 0.0
