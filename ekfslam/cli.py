@@ -360,7 +360,7 @@ def _table(summary, out: dict, report=None) -> str:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    from ekfslam.runlog import write_run
+    from ekfslam.runlog import SIMULATED_DECIMALS, write_run
     from ekfslam.simulation import SimulationConfig, simulate
 
     kwargs = {"trajectory": args.trajectory, "laps": args.laps, "seed": args.seed}
@@ -371,7 +371,10 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if args.wheel_scale_sigma is not None:
         kwargs["wheel_scale_sigma"] = args.wheel_scale_sigma
     run = simulate(SimulationConfig(**kwargs))
-    write_run(run, args.out, overwrite=args.overwrite, overwrite_hint="--overwrite")
+    write_run(
+        run, args.out, overwrite=args.overwrite, overwrite_hint="--overwrite",
+        decimals=SIMULATED_DECIMALS,
+    )  # fmt: skip
     print(
         f"wrote {args.out} ({run.meta.name}): {len(run.controls.t)} controls, "
         f"{len(run.detections.t)} detections, "

@@ -426,32 +426,41 @@ def _raise_at_row(path: Path, row: int, problem: str) -> None:
     raise InputError(path, _data_lines(path)[row][0], problem)
 
 
+SHARED_DATA_ENV = "EKFSLAM_SHARED_DATA"
+
+
+def shared_data_dir() -> Path | None:
+    """The shared data folder (it may not exist): ``$EKFSLAM_SHARED_DATA`` if set, else
+    ``shared/data`` beside a source checkout, else None (an installed package has no checkout).
+    `find_dataset` looks here before the download cache, and so do the tests' fixtures."""
+    import os
+
+    if os.environ.get(SHARED_DATA_ENV):
+        return Path(os.environ[SHARED_DATA_ENV]).expanduser()
+    checkout = Path(__file__).resolve().parents[1]
+    return checkout.parent / "shared" / "data" if (checkout / "pyproject.toml").is_file() else None
+
+
 def find_dataset(n: int = 7) -> Path:
     """Where MRCLAM dataset n is on this machine, for notebooks and scripts.
 
-    Looks in ``$EKFSLAM_SHARED_DATA/mrclam/``, then in ``shared/data/mrclam/`` beside the
-    checkout, then in the download cache of ``python -m ekfslam fetch mrclam N``.
+    Looks in ``mrclam/`` of `shared_data_dir()`, then in the download cache of
+    ``python -m ekfslam fetch mrclam N``.
 
     Raises
     ------
     InputError
         Not found anywhere; the message says how to fetch it.
     """
-    import os
-
     from ekfslam.fetch import mrclam_path
 
-    name = f"MRCLAM_Dataset{n}"
-    places = []
-    if os.environ.get("EKFSLAM_SHARED_DATA"):
-        places.append(Path(os.environ["EKFSLAM_SHARED_DATA"]) / "mrclam" / name)
-    places.append(Path(__file__).resolve().parents[2] / "shared" / "data" / "mrclam" / name)
-    places.append(mrclam_path(n))
-    for place in places:
+    shared = shared_data_dir()
+    places = [shared / "mrclam" / f"MRCLAM_Dataset{n}"] if shared is not None else []
+    for place in [*places, mrclam_path(n)]:
         if (place / BARCODES).is_file():
             return place
     raise InputError(
-        places[-1], None, f"dataset {n} not found; run `python -m ekfslam fetch mrclam {n}`"
+        mrclam_path(n), None, f"dataset {n} not found; run `python -m ekfslam fetch mrclam {n}`"
     )
 
 

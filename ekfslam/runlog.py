@@ -13,7 +13,10 @@ The format is specified, with units and an example, in ``data/README.md``. The r
 strictly and raises `ekfslam.errors.InputError` naming the file, the line and the problem.
 run.json has its own module, `ekfslam.runjson`; its names (`RunMeta`, ...) are re-exported here.
 The writer prints every float with ``repr`` (shortest round-trip), so ``read_run`` gives back
-the very same bits that ``write_run`` was given.
+the very same bits that ``write_run`` was given. Asked for ``decimals`` (simulated runs use
+`SIMULATED_DECIMALS`), it first rounds every float to that many decimals: the last bits of a
+simulated value depend on the CPU's vector unit (numpy's SIMD paths), the rounded text does not,
+and what was written still reads back exactly.
 """
 
 from __future__ import annotations
@@ -49,6 +52,9 @@ RUN_JSON, CONTROLS_CSV = "run.json", "controls.csv"
 DETECTIONS_CSV, GROUNDTRUTH_CSV = "detections.csv", "groundtruth.csv"
 CONTROL_COLUMNS = {"wheels": ("t", "w1", "w2", "w3", "w4"), "twist": ("t", "vx", "vy", "wz")}
 DETECTION_COLUMNS = ("t", "tag_id", "range", "bearing")
+# Decimals of every float in a simulated run's CSVs: 1 ns, 1 nm, 1 nrad. Far below any noise we
+# simulate (mm, mrad), far above the 1e-16 that numpy's SIMD code paths change between CPUs.
+SIMULATED_DECIMALS = 9
 _INTEGER_COLUMNS = ("tag_id", "frame")  # parsed as int64; every other column is a float
 GROUNDTRUTH_COLUMNS = ("t", "x", "y", "theta")
 
@@ -424,6 +430,7 @@ def write_run(
     overwrite: bool = False,
     with_detections: bool = True,
     overwrite_hint: str = "overwrite=True",
+    decimals: int | None = None,
 ) -> Path:
     """Write `run` as a run folder that `read_run` reads back bit for bit; returns the folder.
 
@@ -435,6 +442,11 @@ def write_run(
     detections ``python -m ekfslam detect`` makes; it needs ``run.meta.frames``.
     `overwrite_hint` is how the refusal tells the caller to overwrite (a command line passes
     its flag, "--overwrite").
+
+    `decimals` rounds every float of the CSVs to that many decimals before writing (run.json is
+    written as given). `read_run` then gives back the rounded values bit for bit, and writing
+    those again gives the same bytes. Simulators pass `SIMULATED_DECIMALS`, so that their files
+    do not depend on the CPU's vector unit; None writes every float exactly.
     """
     folder = Path(folder)
     validate_run(run)
@@ -443,12 +455,15 @@ def write_run(
     c, d, g = run.controls, run.detections, run.groundtruth
     texts = {
         RUN_JSON: meta_json(run.meta),
-        CONTROLS_CSV: _csv_text(CONTROL_COLUMNS[c.kind], [c.t, *np.asarray(c.values).T]),
+        CONTROLS_CSV: _csv_text(CONTROL_COLUMNS[c.kind], [c.t, *np.asarray(c.values).T], decimals),
     }
     if with_detections:
-        texts[DETECTIONS_CSV] = _csv_text(DETECTION_COLUMNS, [d.t, d.tag_id, d.range, d.bearing])
+        detections = [d.t, d.tag_id, d.range, d.bearing]
+        texts[DETECTIONS_CSV] = _csv_text(DETECTION_COLUMNS, detections, decimals)
     if g is not None:
-        texts[GROUNDTRUTH_CSV] = _csv_text(GROUNDTRUTH_COLUMNS, [g.t, *np.asarray(g.pose).T])
+        texts[GROUNDTRUTH_CSV] = _csv_text(
+            GROUNDTRUTH_COLUMNS, [g.t, *np.asarray(g.pose).T], decimals
+        )
     if folder.exists() and not folder.is_dir():
         raise InputError(folder, None, "exists and is not a folder; choose another output path")
     if folder.is_dir() and any(folder.iterdir()) and not overwrite:
@@ -485,8 +500,20 @@ def write_detections(
     return path
 
 
-def _csv_text(columns: tuple[str, ...], arrays: list[np.ndarray]) -> str:
+def _csv_text(
+    columns: tuple[str, ...], arrays: list[np.ndarray], decimals: int | None = None
+) -> str:
     # tolist() gives Python floats/ints, whose repr is the shortest text that reads back exactly
     cells = [np.asarray(a).tolist() for a in arrays]
+    if decimals is not None:
+        cells = [[_rounded(x, decimals) for x in column] for column in cells]
     rows = [",".join(map(repr, row)) for row in zip(*cells, strict=True)]
     return "\n".join([",".join(columns), *rows]) + "\n"
+
+
+def _rounded(x: float | int, decimals: int) -> float | int:
+    """`x` rounded to `decimals` (floats only), and -0.0 as 0.0: a last bit can flip that sign."""
+    if isinstance(x, float):
+        # Python's round() is correctly rounded (decimal, half to even): the same on every CPU
+        return round(x, decimals) + 0.0
+    return x

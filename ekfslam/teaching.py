@@ -11,7 +11,8 @@ filter lives here, so that nothing in a notebook is a copy of the package:
   (`update_steps`);
 - the seed's "driving multiple times" and "trade-off of the trajectory" as numbers
   (`lap_statistics`, `revisits`, `size_sweep`), Table 1 beside the seed's (`table1_markdown`);
-- `check_answer` for the exercises.
+- `check_answer` for the exercises; `mrclam_dataset`, which stops a notebook in one line when
+  the data is not there (`NotebookStop`).
 """
 
 from __future__ import annotations
@@ -19,18 +20,20 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.alignment import align
 from ekfslam.derivations import landmark_lift_matrix_numeric
-from ekfslam.errors import AlignmentError, EkfSlamError
+from ekfslam.errors import AlignmentError, EkfSlamError, InputError
 from ekfslam.evaluation import RunSummary, interpolate_poses
 from ekfslam.filter import FilterConfig
 from ekfslam.geometry import compose, invert, transform_points, wrap_angle
 from ekfslam.history import History
 from ekfslam.models import observation, observation_jacobians
+from ekfslam.mrclam import find_dataset
 from ekfslam.replay import NoiseConfig, ReplayResult, replay
 from ekfslam.runlog import Controls, Detections, GroundTruth, RunLog
 from ekfslam.simulation import SimulationConfig, simulate
@@ -414,3 +417,29 @@ def check_answer(answer: object, expected: ArrayLike, atol: float = 1e-6) -> boo
         return False
     print("Right!" if ok else f"Not yet: off by up to {np.max(np.abs(got - want)):.3g}.")
     return ok
+
+
+class NotebookStop(EkfSlamError):
+    """Stops a notebook at this cell. Jupyter shows the message as one line, with no traceback,
+    and *Run All* runs no further cell (they need what this one could not give)."""
+
+    def _render_traceback_(self) -> list[str]:  # IPython shows these lines, not a traceback
+        return [str(self)]
+
+
+def mrclam_dataset(n: int = 7) -> Path:
+    """The folder of MRCLAM dataset n (`ekfslam.mrclam.find_dataset`) for a notebook.
+
+    Raises
+    ------
+    NotebookStop
+        It is not on this machine; the one line says how to fetch it.
+    """
+    try:
+        return find_dataset(n)
+    except InputError:
+        raise NotebookStop(
+            f"MRCLAM Dataset {n} is not on this machine, and the rest of this notebook needs it. "
+            f"Fetch it with `python -m ekfslam fetch mrclam {n}` (from its publisher) "
+            "and run the notebook again."
+        ) from None

@@ -111,6 +111,7 @@ def test_table1_convention_world_is_rotated_estimate_plus_translation():
 # --- optimality -------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_mean_distance_beats_least_squares_on_its_objective_and_vice_versa():
     rng = np.random.default_rng(17)
     for trial in range(200):
@@ -168,6 +169,7 @@ def test_agrees_with_scipy_brute_force(case):
     assert angle_diff(md.theta0, ref.x[2]) < 1e-6
 
 
+@pytest.mark.slow
 def test_no_nearby_transform_is_better():
     # Local optimality without trusting any optimiser: probe eq. (17) around the answer along
     # random directions, and along the directions that keep the best-fitting landmark fitted

@@ -173,6 +173,7 @@ def test_the_matrix_is_big_enough():
     assert len(BROKEN) >= 15
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(BROKEN))
 def test_broken_log_ends_in_one_line_naming_file_and_line(outcomes, name):
     out, folder = outcomes[name]
@@ -187,6 +188,7 @@ def test_broken_log_ends_in_one_line_naming_file_and_line(outcomes, name):
     assert word.lower() in lines[0].lower(), lines[0]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", [n for n in ACCEPTED if n != "clean"])
 def test_bom_and_crlf_replay_exactly_like_the_clean_log(outcomes, name):
     clean, quirky = outcomes["clean"][0], outcomes[name][0]

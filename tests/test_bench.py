@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from ekfslam import cli
 from ekfslam.bench import add_cli, literal_twin, map_of
@@ -26,6 +27,7 @@ def positive(x) -> bool:
     return isinstance(x, int | float) and math.isfinite(x) and x > 0
 
 
+@pytest.mark.slow
 def test_smoke_run_prints_the_issue_keys_and_writes_its_files(tmp_path: Path, capsys):
     out = tmp_path / "bench"
     assert "ekfslam.bench" in cli._COMMAND_MODULES  # so `python -m ekfslam bench` exists

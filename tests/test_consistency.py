@@ -167,6 +167,7 @@ def test_runs_must_be_positive():
 
 
 # ------------------------------------------------------------------------------ command line
+@pytest.mark.slow
 def test_cli_prints_the_issues_keys_and_draws_the_plot(tmp_path):
     plot = tmp_path / "c.png"
     out = cli("consistency", "--runs", "2", "--trajectory", "square", "--linearization", "fej",
@@ -187,6 +188,7 @@ def test_cli_refuses_zero_runs():
 
 
 # ------------------------------------------------------------------------------------ outliers
+@pytest.mark.slow
 def test_run_command_reports_the_rejected_outliers(tmp_path):
     sim, arena = scenario("square", seed=2, laps=1, outlier_range_rate=0.2)
     run = simulate(sim, arena)
@@ -217,6 +219,7 @@ def test_outlier_study_counts_and_pairs_its_cases():
     assert study.case("range", gated=False).accepted > gross.accepted
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["square", "octagon"])
 def test_five_percent_outliers_cost_the_gated_map_at_most_a_fifth(name):
     """Issue 7's target: with the gate, 5% outliers keep the map within 1.2x of the clean run's.

@@ -133,6 +133,7 @@ def test_storage_is_not_copied_per_new_landmark():
     assert f.capacity == 32 and f.n_landmarks == 20
 
 
+@pytest.mark.slow
 def test_sigma_symmetric_and_psd_over_ten_thousand_steps():
     rng = np.random.default_rng(7)
     f = EKFSLAM([0.0, 0.0, 0.0], record=False)

@@ -102,6 +102,7 @@ MEASURED = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("key", list(MEASURED), ids=lambda k: "-".join(k))
 def test_per_robot_pose_nees_as_measured(studies: dict, key: tuple) -> None:
     study = studies[key[0]]
@@ -112,6 +113,7 @@ def test_per_robot_pose_nees_as_measured(studies: dict, key: tuple) -> None:
         assert r.mean == pytest.approx(expected, rel=0.15), (robot, r.mean)
 
 
+@pytest.mark.slow
 def test_map_tuned_noise_is_overconfident_on_every_robot(studies: dict) -> None:
     study = studies["map"]
     for robot in study.robots:
@@ -126,6 +128,7 @@ def test_map_tuned_noise_is_overconfident_on_every_robot(studies: dict) -> None:
     assert lost.aligned_error > 0.5 and np.abs(lost.error[-1, 2]) > 1.0
 
 
+@pytest.mark.slow
 def test_consistent_noise_brings_the_average_near_3(studies: dict) -> None:
     study = studies["consistent"]
     std, fej = study.average("standard"), study.average("fej")
@@ -140,6 +143,7 @@ def test_consistent_noise_brings_the_average_near_3(studies: dict) -> None:
     assert std["aligned_error"] == pytest.approx(0.0695, abs=0.003)
 
 
+@pytest.mark.slow
 def test_aligned_error_is_score_robots_figure(studies: dict, mrclam7: Path) -> None:
     scores = score_robots(mrclam7, robots=(2, 4))
     for s in scores:
@@ -148,6 +152,7 @@ def test_aligned_error_is_score_robots_figure(studies: dict, mrclam7: Path) -> N
         )
 
 
+@pytest.mark.slow
 def test_table_and_plot(studies: dict) -> None:
     study = studies["consistent"]
     text = table(study)
@@ -163,6 +168,7 @@ def test_table_and_plot(studies: dict) -> None:
         assert ax.get_ylim()[0] == pytest.approx(0.01)
 
 
+@pytest.mark.slow
 def test_tuning_ranks_by_distance_after_the_map_targets(studies: dict, mrclam7: Path) -> None:
     rows = tune_for_consistency(mrclam7, {"sigma_x": (0.01, 0.05)}, MRCLAM_CONSISTENT_NOISE, (2, 3))
     assert len(rows) == 2
@@ -175,6 +181,7 @@ def test_tuning_ranks_by_distance_after_the_map_targets(studies: dict, mrclam7: 
 
 
 # -------------------------------------------------------------------------------- command line
+@pytest.mark.slow
 def test_cli_json_keys_values_and_plot(studies: dict, mrclam7: Path, tmp_path: Path) -> None:
     plot = tmp_path / "nees.png"
     done = cli("--mrclam", str(mrclam7), "--robots", "2", "--json", "--plot", str(plot))
@@ -195,6 +202,7 @@ def test_cli_json_keys_values_and_plot(studies: dict, mrclam7: Path, tmp_path: P
     assert plot.stat().st_size > 10_000 and plot.read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.slow
 def test_cli_finds_dataset_7_and_prints_the_table(studies: dict, mrclam7: Path) -> None:
     env = {"EKFSLAM_SHARED_DATA": str(mrclam7.parents[1])}
     done = cli("--mrclam", "--noise", "consistent", "--robots", "5", "--linearization", "fej",

@@ -133,6 +133,7 @@ def test_tuning_sorts_by_the_average_and_scores_each_robot_alike(mrclam7: Path) 
         assert row.errors[0] == score_robots(mrclam7, noise, robots=(4,))[0].aligned_error
 
 
+@pytest.mark.slow
 def test_convert_writes_a_run_that_reads_back_the_same(mrclam7: Path, tmp_path: Path) -> None:
     out = tmp_path / "robot4"
     assert main(["convert", "mrclam", str(mrclam7), "--robot", "4", "--out", str(out)]) == 0

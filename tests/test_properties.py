@@ -50,6 +50,7 @@ def assert_covariance(ekf: EKFSLAM, step: int) -> None:
     assert -math.pi <= mu[2] < math.pi
 
 
+@pytest.mark.slow
 @slow
 @given(
     config=configs,
@@ -96,6 +97,7 @@ def test_sigma_stays_a_covariance_over_10k_steps_of_a_consistent_world(
     assert ekf.n_landmarks >= 1 and c.accepted + c.rejected >= 10  # the run did observe
 
 
+@pytest.mark.slow
 @slow
 @given(config=configs, seed=st.integers(0, 2**32 - 1), n_landmarks=st.integers(1, 6))
 def test_sigma_survives_observations_that_fit_no_world(config, seed, n_landmarks):

@@ -2,8 +2,10 @@
 # Regenerates the seed's two experiments, byte for byte (fixed seeds; see data/README.md).
 # The placement errors are of the size the seed's Table 1 reports (a few cm, about 0.14 rad).
 # Run from the repository root:  bash data/runs/generate.sh
+# $PYTHON is the interpreter (default: python on PATH); the tests pass their own.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
+python() { "${PYTHON:-python}" "$@"; }
 python -m ekfslam simulate --trajectory square --laps 2 --seed 1 \
     --start-error -0.02 0.05 0.14 --out data/runs/square-2laps --overwrite
 python -m ekfslam simulate --trajectory octagon --laps 2 --seed 2 \
