@@ -349,7 +349,7 @@ def test_tag_frame_patterns_with_a_numeric_group_1_are_accepted(good: str) -> No
     ("extra", "word"),
     [
         (["--start", "nan", "0", "0"], "--start"),
-        (["--start", "1e308", "0", "0"], "plausible"),
+        (["--start", "1e308", "0", "0"], "--start"),
         (["--camera-mounting", "0", "inf", "0"], "--camera-mounting"),
         (["--tag-frame-pattern", r"(tag)_\d+"], "group 1"),
     ],
@@ -362,7 +362,11 @@ def test_bad_options_name_the_bag_and_the_option_not_run_json(
     argv += ["/odom", "--detections-topic", "/tf", *extra]
     assert main(argv) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith(f"error: {bag}: ") and word in err
+    # a value that is wrong on its own is refused by the parser, naming the option; one that
+    # only the bag's spec can judge is refused naming the bag
+    parser_says = err.startswith("python -m ekfslam convert rosbag: error: argument ")
+    assert err.count("\n") == 1 and (parser_says or err.startswith(f"error: {bag}: "))
+    assert word in err
     assert "run.json" not in err and not (tmp_path / "run").exists()
 
 
