@@ -11,7 +11,9 @@ import argparse
 import importlib
 import json
 import math
+import os
 import sys
+import warnings
 from pathlib import Path
 
 from ekfslam import cli_args as ca
@@ -383,6 +385,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning on the command line is one line that says what happened, not where in our code."""
+    print(f"warning: {' '.join(str(message).split())}", file=sys.stderr if file is None else file)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run one command; returns its exit status (2: a bad option, path or input, one line)."""
     parser = build_parser()
@@ -391,7 +398,13 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as exc:  # --help (0) or a refused option (2): a status, as for the rest
         return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning
+            return args.func(args)
+    except BrokenPipeError:  # `... | head` closed our stdout: not an error of ours
+        # Python would complain again when it flushes stdout at exit
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except (InputError, ConfigError) as exc:
         print(f"error: {' '.join(str(exc).split())}", file=sys.stderr)
         return EXIT_BAD_INPUT

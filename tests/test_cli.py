@@ -351,3 +351,31 @@ def test_score_mrclam_prints_the_readmes_table(mrclam7: Path, monkeypatch):
     assert lines[0].startswith("| robot | landmarks | mean error aligned (m) |")
     robots = [line.split("|")[1].strip() for line in lines[2:]]
     assert robots == ["1", "2", "3", "4", "5", "average"]
+
+
+def test_a_closed_pipe_ends_quietly():
+    """``python -m ekfslam run RUN | head -1``: the reader leaves early; no traceback, exit 0."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "ekfslam", "run", str(REPO / "data/runs/octagon-2laps"), "--json"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=REPO,
+    )  # fmt: skip
+    proc.stdout.close()  # before the replay has printed anything
+    stderr = proc.communicate(timeout=120)[1].decode()
+    assert proc.returncode == 0, stderr
+    assert stderr == ""
+
+
+def test_a_warning_on_the_command_line_is_one_line(monkeypatch, capsys):
+    import warnings
+
+    from ekfslam import cli
+
+    def warns(args):
+        warnings.warn(
+            "S was singular for 3 updates;\n  they were skipped", RuntimeWarning, stacklevel=1
+        )
+        return 0
+
+    monkeypatch.setattr(cli, "cmd_run", warns)
+    assert cli.main(["run", str(REPO / "data/runs/octagon-2laps")]) == 0
+    assert capsys.readouterr().err == "warning: S was singular for 3 updates; they were skipped\n"
