@@ -35,8 +35,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ekfslam.cli_args import atomic_write_text, save_figure
 from ekfslam.errors import ConfigError
+from ekfslam.files import atomic_write_text, save_figure
 from ekfslam.filter import EKFSLAM, FilterConfig
 from ekfslam.models import observation_noise
 

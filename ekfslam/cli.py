@@ -19,6 +19,7 @@ from pathlib import Path
 from ekfslam import cli_args as ca
 from ekfslam.errors import ConfigError, EkfSlamError, InputError
 from ekfslam.evaluation import SEED_TABLE1
+from ekfslam.files import save_figure
 
 EXIT_BAD_INPUT = 2
 
@@ -265,7 +266,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         fig = figure2(
             run, result, arena_half_size=_arena_half_size(run), alignment=summary.alignment
         )
-        out["plot"] = str(ca.save_figure(fig, args.plot))
+        out["plot"] = str(save_figure(fig, args.plot))
     if args.json:
         print(json.dumps(out, indent=2, allow_nan=False))
     else:

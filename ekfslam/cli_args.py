@@ -1,4 +1,4 @@
-"""What the command line accepts: the parser, option types with their ranges, and safe writes.
+"""What the command line accepts: the parser, and option types with their ranges.
 
 Every bad option value is refused while the command line is parsed, before any work, with ONE
 line on stderr and exit status 2::
@@ -9,7 +9,7 @@ Output paths (``--plot``, ``--out``) are checked the same way: the format is kno
 not a folder, it does not lie under a regular file, and its nearest existing folder is writable.
 Missing parent folders are created when the file is written, and every file is written to a
 temporary file beside it and renamed into place (`atomic_write`), so a failed or interrupted
-write never leaves half a file and keeps the old one.
+write never leaves half a file and keeps the old one (`ekfslam.files`).
 """
 
 from __future__ import annotations
@@ -18,7 +18,6 @@ import argparse
 import math
 import os
 import re
-import tempfile
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any, NoReturn
@@ -271,46 +270,3 @@ def new_run_folder(option: str = "--out") -> Check:
         return None
 
     return check
-
-
-# ---------------------------------------------------------------------------- atomic writes
-def atomic_write(path: str | os.PathLike, write: Callable[[Path], object]) -> Path:
-    """Have ``write(tmp)`` write a temporary file beside `path`, then rename it onto `path`.
-
-    The rename is atomic on one file system, so `path` is either the old file or the complete
-    new one: a failure inside `write` (or an interrupt) removes the temporary file and leaves an
-    existing `path` untouched. Missing parent folders are created. The temporary file keeps
-    `path`'s suffix, so writers that pick a format from the name (matplotlib) still can.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".partial{path.suffix}",
-                                dir=path.parent)  # fmt: skip
-    os.close(fd)
-    tmp = Path(name)
-    try:
-        write(tmp)
-        # mkstemp's file is private (0600); give it the mode the file has or a new one would get
-        os.chmod(tmp, path.stat().st_mode & 0o777 if path.exists() else 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return path
-
-
-def _umask() -> int:
-    mask = os.umask(0o022)  # the only portable way to read it is to set it
-    os.umask(mask)
-    return mask
-
-
-def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
-    """Write `text` (UTF-8, ``\\n`` line ends) to `path` atomically (see `atomic_write`)."""
-    return atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8", newline="\n"))
-
-
-def save_figure(fig: Any, path: str | os.PathLike, dpi: int = 120) -> Path:
-    """``fig.savefig`` to `path` atomically, in the format its suffix names."""
-    fmt = Path(path).suffix.lstrip(".").lower() or None
-    return atomic_write(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=dpi))

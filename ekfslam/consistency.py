@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from ekfslam.cli_args import save_figure
+from ekfslam.files import save_figure
 from ekfslam.filter import CHI2_2DOF_99, FilterConfig, FilterCounts
 from ekfslam.geometry import wrap_angle
 from ekfslam.history import OUTCOMES

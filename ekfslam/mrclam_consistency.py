@@ -409,7 +409,7 @@ def run_cli(args: argparse.Namespace) -> int:
     study = mrclam_consistency(folder, args.noise, tuple(args.robots), lins, config)
     out = study.as_dict()
     if args.plot is not None:
-        from ekfslam.cli_args import save_figure
+        from ekfslam.files import save_figure
 
         save_figure(plot_mrclam_nees(study), args.plot)
         out["plot"] = str(args.plot)

@@ -101,7 +101,7 @@ def write_tum(path: str | os.PathLike, rows: ArrayLike) -> Path:
     if not np.isfinite(rows).all():
         raise ValueError(f"{path}: non-finite values cannot be written in the TUM format")
     lines = [" ".join(repr(v) for v in row) for row in rows.tolist()]
-    from ekfslam.cli_args import atomic_write_text
+    from ekfslam.files import atomic_write_text
 
     return atomic_write_text(path, "".join(line + "\n" for line in lines))
 

@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from ekfslam import cli_args as ca
+from ekfslam import files
 from ekfslam.bench import BenchConfig
 from ekfslam.cli import main
 from ekfslam.errors import ConfigError, EkfSlamError
@@ -118,12 +119,12 @@ def test_parser_checks_run_after_parsing(capsys):
 
 def test_atomic_write_replaces_and_keeps_the_mode_of_a_plain_file(tmp_path):
     path = tmp_path / "sub" / "out.txt"
-    ca.atomic_write_text(path, "one\n")
+    files.atomic_write_text(path, "one\n")
     assert path.read_text() == "one\n"
     plain = tmp_path / "plain.txt"
     plain.write_text("")
     assert stat.S_IMODE(path.stat().st_mode) == stat.S_IMODE(plain.stat().st_mode)
-    ca.atomic_write_text(path, "two\n")
+    files.atomic_write_text(path, "two\n")
     assert path.read_text() == "two\n"
     assert sorted(p.name for p in path.parent.iterdir()) == ["out.txt"]
 
@@ -136,7 +137,7 @@ def test_a_failed_write_leaves_no_file_and_keeps_the_old_one(tmp_path):
         raise OSError("disk full")
 
     with pytest.raises(OSError, match="disk full"):
-        ca.atomic_write(path, half_then_fail)
+        files.atomic_write(path, half_then_fail)
     assert list(tmp_path.iterdir()) == []  # no file, no temporary
     path.write_text("old\n")
 
@@ -145,7 +146,7 @@ def test_a_failed_write_leaves_no_file_and_keeps_the_old_one(tmp_path):
         raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        ca.atomic_write(path, interrupted)
+        files.atomic_write(path, interrupted)
     assert path.read_text() == "old\n"
     assert [p.name for p in tmp_path.iterdir()] == ["out.txt"]
 
@@ -159,9 +160,9 @@ def test_save_figure_writes_the_format_its_suffix_names(tmp_path):
     fig, ax = plt.subplots()
     ax.plot([0, 1], [0, 1])
     try:
-        assert ca.save_figure(fig, tmp_path / "f.png").read_bytes()[:4] == b"\x89PNG"
-        assert ca.save_figure(fig, tmp_path / "f.pdf").read_bytes()[:4] == b"%PDF"
-        assert b"<svg" in ca.save_figure(fig, tmp_path / "f.svg").read_bytes()[:400]
+        assert files.save_figure(fig, tmp_path / "f.png").read_bytes()[:4] == b"\x89PNG"
+        assert files.save_figure(fig, tmp_path / "f.pdf").read_bytes()[:4] == b"%PDF"
+        assert b"<svg" in files.save_figure(fig, tmp_path / "f.svg").read_bytes()[:400]
     finally:
         plt.close(fig)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f.pdf", "f.png", "f.svg"]
