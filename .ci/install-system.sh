@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# System packages the tests need, from Debian's archive: Chromium for tests/test_browser.py
+# System packages the tests need, from Debian's archive: Chromium for tests/integration/test_browser.py
 # (driven by Playwright for Python, which must never download a browser of its own).
 # Idempotent, no prompts; run as root (or with passwordless sudo) on Debian.
 set -euo pipefail

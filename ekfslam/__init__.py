@@ -1,40 +1,91 @@
 """ekfslam: landmark EKF SLAM for teaching, after the UCSD CSE276A HW3 report (the "seed").
 
-The concepts, one module each:
+The package is a house with floors (ARCHITECTURE.md); each subpackage is one:
 
-- `ekfslam.kinematics`   mecanum wheels <-> body twist (eq. 4)
-- `ekfslam.models`       motion (eqs. 5-7), observation (eqs. 13-14), inverse observation (eq. 12)
-- `ekfslam.derivations`  the same models derived with sympy, the lifts F_x (eq. 8) and F_x,j
-- `ekfslam.filter`       the EKF-SLAM filter with block updates (eqs. 1-16)
-- `ekfslam.reference`    the seed's equations written literally with F_x: the test oracle
-- `ekfslam.alignment`    eq. (17): aligning the estimated map to the true tags
-- `ekfslam.arena`, `ekfslam.simulation`  the seed's arena and a simulator of its robot
-- `ekfslam.runlog`, `ekfslam.mrclam`, `ekfslam.fetch`  logs: our format, UTIAS MRCLAM
-- `ekfslam.replay`, `ekfslam.evaluation`, `ekfslam.plotting`  replay, scores, figures
+- `ekfslam.errors`, `ekfslam.geometry`  the leaves everything may use
+- `ekfslam.core`       robot, camera and arena models; `ekfslam.core.filter`, the EKF (eqs. 1-16)
+- `ekfslam.teaching`   sympy derivations, the literal F_x reference, the notebooks' helpers
+- `ekfslam.logs`, `ekfslam.sim`, `ekfslam.vision`  data sources: logs, the simulator, cameras
+- `ekfslam.pipeline`   a log source joined to the filter (`replay`)
+- `ekfslam.analysis`   alignment (eq. 17), scores, consistency, robustness, benchmarks
+- `ekfslam.viz`, `ekfslam.ui`, `ekfslam.cli`  figures, the live tuner, the command line
 
-The names below are the public API the notebooks use.
+The names below are the public API the notebooks use. They are loaded on first use (PEP 562), so
+``import ekfslam`` alone imports neither the filter nor numba.
 """
 
-import os
+from __future__ import annotations
 
-# OpenCV, its FFmpeg and its codecs print their own warnings on stderr (a damaged mp4 printed
-# 5,174 FFmpeg lines before our one-line error). They read these variables once, when cv2 is
-# first imported, and every cv2 import in ekfslam comes after this package's __init__.
-os.environ.setdefault("OPENCV_LOG_LEVEL", "OFF")
-os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
+import importlib
+from typing import TYPE_CHECKING, Any
 
-from ekfslam.alignment import Alignment, align, align_least_squares, align_mean_distance
-from ekfslam.arena import SEED_ARENA, Arena, Tag
-from ekfslam.errors import AlignmentError, EkfSlamError, InputError
-from ekfslam.evaluation import RunSummary, ate_rmse, summarize
-from ekfslam.filter import EKFSLAM, FilterConfig, FilterCounts
-from ekfslam.history import History
-from ekfslam.kinematics import MecanumGeometry, twist_to_wheels, wheels_to_twist
-from ekfslam.replay import NoiseConfig, ReplayResult, default_noise, replay
-from ekfslam.runlog import RunLog, read_run, write_run
-from ekfslam.simulation import SimulationConfig, simulate
+if TYPE_CHECKING:
+    from ekfslam.analysis.alignment import (
+        Alignment,
+        align,
+        align_least_squares,
+        align_mean_distance,
+    )
+    from ekfslam.analysis.evaluation import RunSummary, ate_rmse, summarize
+    from ekfslam.core.arena import SEED_ARENA, Arena, Tag
+    from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig, FilterCounts
+    from ekfslam.core.filter.history import History
+    from ekfslam.core.kinematics import MecanumGeometry, twist_to_wheels, wheels_to_twist
+    from ekfslam.errors import AlignmentError, EkfSlamError, InputError
+    from ekfslam.logs.runlog import RunLog, read_run, write_run
+    from ekfslam.pipeline import NoiseConfig, ReplayResult, default_noise, replay
+    from ekfslam.sim.simulation import SimulationConfig, simulate
 
 __version__ = "0.1.0"
+
+# each public name -> the module that defines it
+_EXPORTS: dict[str, str] = {
+    "Alignment": "ekfslam.analysis.alignment",
+    "AlignmentError": "ekfslam.errors",
+    "Arena": "ekfslam.core.arena",
+    "EKFSLAM": "ekfslam.core.filter.ekf",
+    "EkfSlamError": "ekfslam.errors",
+    "FilterConfig": "ekfslam.core.filter.ekf",
+    "FilterCounts": "ekfslam.core.filter.ekf",
+    "History": "ekfslam.core.filter.history",
+    "InputError": "ekfslam.errors",
+    "MecanumGeometry": "ekfslam.core.kinematics",
+    "NoiseConfig": "ekfslam.pipeline",
+    "ReplayResult": "ekfslam.pipeline",
+    "RunLog": "ekfslam.logs.runlog",
+    "RunSummary": "ekfslam.analysis.evaluation",
+    "SEED_ARENA": "ekfslam.core.arena",
+    "SimulationConfig": "ekfslam.sim.simulation",
+    "Tag": "ekfslam.core.arena",
+    "align": "ekfslam.analysis.alignment",
+    "align_least_squares": "ekfslam.analysis.alignment",
+    "align_mean_distance": "ekfslam.analysis.alignment",
+    "ate_rmse": "ekfslam.analysis.evaluation",
+    "default_noise": "ekfslam.pipeline",
+    "read_run": "ekfslam.logs.runlog",
+    "replay": "ekfslam.pipeline",
+    "simulate": "ekfslam.sim.simulation",
+    "summarize": "ekfslam.analysis.evaluation",
+    "twist_to_wheels": "ekfslam.core.kinematics",
+    "wheels_to_twist": "ekfslam.core.kinematics",
+    "write_run": "ekfslam.logs.runlog",
+}
+_SUBMODULES = frozenset(
+    {
+        "analysis",
+        "cli",
+        "core",
+        "errors",
+        "geometry",
+        "logs",
+        "pipeline",
+        "sim",
+        "teaching",
+        "ui",
+        "viz",
+        "vision",
+    }
+)
 
 __all__ = [
     "EKFSLAM",
@@ -67,3 +118,18 @@ __all__ = [
     "wheels_to_twist",
     "write_run",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is not None:
+        value = getattr(importlib.import_module(module), name)
+        globals()[name] = value  # later look-ups skip this function
+        return value
+    if name in _SUBMODULES:
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS, *_SUBMODULES})

@@ -1,7 +1,7 @@
-"""``python -m ekfslam``: see `ekfslam.cli`."""
+"""``python -m ekfslam``: see `ekfslam.cli.main`."""
 
 import sys
 
-from ekfslam.cli import main
+from ekfslam.cli.main import main
 
 sys.exit(main())

@@ -1,10 +1,10 @@
 """Finite numbers that still cannot be right: a pose of 1e308 m, files on two clocks.
 
-The readers (`ekfslam.runjson`, `ekfslam.runlog`, `ekfslam.mrclam`, `ekfslam.rosbag`) and
-`ekfslam.replay` share these rules, which ``data/README.md`` states ("What the reader rejects").
-A value that passes every per-cell check (finite, the right type) can still make a replay
-silently wrong: a start of 1e308 m overflows to NaN, detections stamped in nanoseconds beside
-controls in seconds never meet the robot's motion.
+The readers (`ekfslam.logs.runjson`, `ekfslam.logs.runlog`, `ekfslam.logs.mrclam.load`,
+`ekfslam.logs.rosbag`) and `ekfslam.pipeline` share these rules, which ``data/README.md`` states
+("What the reader rejects"). A value that passes every per-cell check (finite, the right type) can
+still make a replay silently wrong: a start of 1e308 m overflows to NaN, detections stamped in
+nanoseconds beside controls in seconds never meet the robot's motion.
 """
 
 from __future__ import annotations

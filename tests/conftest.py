@@ -1,11 +1,11 @@
 """Shared test fixtures.
 
 Real recorded data (UTIAS MRCLAM) is read from one configurable folder, never copied into the
-repo: `ekfslam.mrclam.shared_data_dir()`, i.e. ``EKFSLAM_SHARED_DATA`` if set, else
+repo: `ekfslam.logs.mrclam.load.shared_data_dir()`, i.e. ``EKFSLAM_SHARED_DATA`` if set, else
 ``../shared/data`` beside the checkout. MRCLAM Dataset 7 is found as the package finds it
-(`ekfslam.mrclam.find_dataset`): there, else in the cache of ``python -m ekfslam fetch mrclam 7``.
-Where it is absent the tests that need it skip with a reason; in CI (``CI=true``) its absence is
-a failure. Every test that uses the ``shared_data`` or ``mrclam7`` fixture is marked
+(`ekfslam.logs.mrclam.load.find_dataset`): there, else in the cache of ``python -m ekfslam fetch
+mrclam 7``. Where it is absent the tests that need it skip with a reason; in CI (``CI=true``) its
+absence is a failure. Every test that uses the ``shared_data`` or ``mrclam7`` fixture is marked
 ``shared_data`` automatically, so ``-m "not shared_data"`` deselects it.
 """
 
@@ -20,7 +20,7 @@ import matplotlib
 import pytest
 
 from ekfslam.errors import InputError
-from ekfslam.mrclam import find_dataset, shared_data_dir
+from ekfslam.logs.mrclam.load import find_dataset, shared_data_dir
 
 matplotlib.use("Agg")  # tests never open windows, whatever the user's backend
 
@@ -64,7 +64,7 @@ def shared_data() -> Path:
 @pytest.fixture(scope="session")
 def mrclam7() -> Path:
     """MRCLAM Dataset 7, where the package finds it: the shared data, else the download cache
-    of ``python -m ekfslam fetch mrclam 7`` (`ekfslam.mrclam.find_dataset`)."""
+    of ``python -m ekfslam fetch mrclam 7`` (`ekfslam.logs.mrclam.load.find_dataset`)."""
     try:
         return find_dataset(7)
     except InputError as missing:

@@ -1,0 +1,493 @@
+"""Benchmarks: a replay at classroom scale, and the cost of one step against the map size n.
+
+``python -m ekfslam bench [--quick] [--json] [--out DIR]`` measures, in one run:
+
+- full replays of ``data/runs/octagon-2laps`` and ``square-2laps`` (ms, filter events per second),
+  the octagon also with ``FilterConfig(linearization="fej")`` (its cost relative to standard);
+- one `EKFSLAM.predict` and one `EKFSLAM.update` against n in `SIZES`, for the efficient filter
+  and the literal F_x reference (`ekfslam.teaching.reference`, O(n^3): skipped, reported as null,
+  where one step would take more than `LITERAL_MAX_STEP_S`), their ratio, the log-log slope of the
+  efficient update between n = 100 and 1000, and the update at n = 1000 against the memory-bound
+  floor: one in-place ``Sigma -= A @ B`` of the same rank (2) on an array of the same size;
+- the peak memory of the n = 1000 run (tracemalloc: numpy buffers and Python objects);
+- a full replay of one MRCLAM Dataset 7 robot, when the shared data folder has it.
+
+Every figure is a median over repeats; replays are interleaved so that a busy machine slows all
+of them alike. Machines are shared and noisy: compare figures from one run. The results go to
+``DIR/bench.md`` (the table), ``DIR/bench.json`` and ``DIR/cost_vs_n.png`` (log-log plot).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import math
+import os
+import platform
+import statistics
+import time
+import tracemalloc
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
+from ekfslam.core.models import observation_noise
+from ekfslam.errors import ConfigError
+from ekfslam.files import atomic_write_text, save_figure
+
+if TYPE_CHECKING:  # the literal filter pulls in sympy: import it only when benchmarking
+    from ekfslam.teaching.reference import LiteralEKFSLAM
+
+SIZES = (10, 50, 100, 200, 400, 800, 1000)
+#: Largest map size: Σ of a 2000-landmark map is 4003² float64, 128 MB, and one literal step
+#: would take minutes; beyond that a benchmark measures the swap file.
+MAX_SIZE = 2000
+#: The literal reference is skipped at sizes where one step is predicted to take longer (s).
+LITERAL_MAX_STEP_S = 2.0
+REPO = Path(__file__).resolve().parents[2]
+RUNS = {"octagon": "octagon-2laps", "square": "square-2laps"}
+MRCLAM_ROBOT = 1
+
+
+@dataclass(frozen=True)
+class BenchConfig:
+    """What to measure and how often (`quick` is the ``--quick`` preset)."""
+
+    sizes: tuple[int, ...] = SIZES
+    replay_repeats: int = 21
+    step_repeats: int = 41
+    literal_repeats: int = 3
+    mrclam_repeats: int = 3
+    runs_dir: Path | None = REPO / "data" / "runs"
+    mrclam_dir: Path | None = None
+    #: why there is no `mrclam_dir`, printed in the MRCLAM row (default `MRCLAM_MISSING`)
+    mrclam_note: str | None = None
+
+    def __post_init__(self) -> None:
+        sizes = self.sizes
+        if not sizes or not all(isinstance(n, int) and not isinstance(n, bool) for n in sizes):
+            raise ConfigError(f"BenchConfig.sizes must be whole numbers, got {sizes!r}")
+        if not all(1 <= n <= MAX_SIZE for n in sizes):
+            raise ConfigError(f"BenchConfig.sizes must be in 1..{MAX_SIZE}, got {sizes!r}")
+        for name in ("replay_repeats", "step_repeats", "literal_repeats", "mrclam_repeats"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ConfigError(f"BenchConfig.{name} must be a whole number >= 1, got {value!r}")
+
+    @classmethod
+    def quick(cls, **kwargs) -> BenchConfig:
+        base = dict(replay_repeats=7, step_repeats=15, literal_repeats=1, mrclam_repeats=1)
+        return cls(**{**base, **kwargs})
+
+
+#: Why the MRCLAM row is empty when no dataset folder was given or found, and how to fill it.
+MRCLAM_MISSING = (
+    "not run: MRCLAM Dataset 7 not found in the shared data or the fetch cache; "
+    "`python -m ekfslam fetch mrclam 7` downloads it"
+)
+MRCLAM_SKIPPED = "not run: --no-mrclam"
+
+
+def default_mrclam_dir() -> Path | None:
+    """MRCLAM Dataset 7 in ``$EKFSLAM_SHARED_DATA`` (else ``../shared/data``), else where
+    ``python -m ekfslam fetch mrclam 7`` puts it, or None."""
+    from ekfslam.logs.mrclam.fetch import mrclam_path
+
+    shared = Path(os.environ.get("EKFSLAM_SHARED_DATA", REPO.parent / "shared" / "data"))
+    for path in (shared / "mrclam" / "MRCLAM_Dataset7", mrclam_path(7)):
+        if path.is_dir():
+            return path
+    return None
+
+
+def _median_time(fn: Callable[[], object], repeats: int) -> float:
+    """Median wall time of `fn()` over `repeats` calls, s."""
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+# ------------------------------------------------------------------------------------ replays
+def bench_replays(config: BenchConfig) -> dict:
+    """Median replay times of the seed's runs (ms), events/s, and FEJ's cost on the octagon."""
+    from ekfslam.logs.runlog import read_run
+    from ekfslam.pipeline import replay
+
+    out: dict = {"replay_ms": {}, "replay_events_per_s": {}, "fej_vs_standard": {}}
+    folder = config.runs_dir
+    if folder is None or not all((folder / name).is_dir() for name in RUNS.values()):
+        for key in RUNS:
+            out["replay_ms"][key] = out["replay_events_per_s"][key] = None
+        out["fej_vs_standard"]["replay_octagon"] = None
+        return out
+    runs = {key: read_run(folder / name) for key, name in RUNS.items()}
+    fej = FilterConfig(linearization="fej")
+    cases = {**{key: (run, None) for key, run in runs.items()}, "fej": (runs["octagon"], fej)}
+    events = {key: len(replay(run, config=c).history.t) for key, (run, c) in cases.items()}
+    times: dict[str, list[float]] = {key: [] for key in cases}
+    for _ in range(config.replay_repeats):  # interleaved: a busy spell hits every case alike
+        for key, (run, filter_config) in cases.items():
+            t0 = time.perf_counter()
+            replay(run, config=filter_config)
+            times[key].append(time.perf_counter() - t0)
+    for key in runs:
+        s = statistics.median(times[key])
+        out["replay_ms"][key] = 1e3 * s
+        out["replay_events_per_s"][key] = events[key] / s
+    out["replay_events"] = {key: events[key] for key in runs}
+    out["fej_vs_standard"]["replay_octagon"] = statistics.median(times["fej"]) / statistics.median(
+        times["octagon"]
+    )
+    return out
+
+
+def bench_mrclam(config: BenchConfig) -> dict:
+    """Median replay time (s) of one MRCLAM Dataset 7 robot, or None without the data."""
+    folder = config.mrclam_dir
+    if folder is None:
+        note = config.mrclam_note or MRCLAM_MISSING
+        return {
+            "mrclam_replay_s": None, "mrclam_events_per_s": None, "mrclam_events": None,
+            "mrclam_note": note,
+        }  # fmt: skip
+    from ekfslam.logs.mrclam.load import load_mrclam
+    from ekfslam.pipeline import default_noise, replay
+
+    run, _ = load_mrclam(folder, MRCLAM_ROBOT)
+    noise = default_noise(run)
+    events = len(replay(run, noise).history.t)
+    s = _median_time(lambda: replay(run, noise), config.mrclam_repeats)
+    return {
+        "mrclam_replay_s": s, "mrclam_events_per_s": events / s, "mrclam_events": events,
+        "mrclam_note": None,
+    }  # fmt: skip
+
+
+# --------------------------------------------------------------------------- cost against n
+_Q = observation_noise(0.05, 0.03)
+_R = np.diag([1e-4, 1e-4, 1e-5])
+_U = (0.02, 0.005, 0.01)
+
+
+def map_of(n: int, config: FilterConfig | None = None, record: bool = False, seed: int = 0):
+    """An `EKFSLAM` that has met n landmarks (on a ring 1-5 m around it), and its observations.
+
+    Returns the filter and a list of (id, z) to update with: each landmark as seen from the
+    filter's pose, so every update is accepted and leaves the geometry alone.
+    """
+    rng = np.random.default_rng(seed)
+    config = config or FilterConfig(gate=None)
+    f = EKFSLAM([0.0, 0.0, 0.0], np.diag([1e-4, 1e-4, 1e-5]), config, record=record)
+    zs = [(j, (rng.uniform(1.0, 5.0), rng.uniform(-math.pi, math.pi))) for j in range(n)]
+    for j, z in zs:
+        f.update(j, z, _Q)
+    f.predict(_U, _R)  # correlate the pose with the map, as any real run has
+    return f, zs
+
+
+def literal_twin(f: EKFSLAM) -> LiteralEKFSLAM:
+    """The literal reference in the same state as `f`.
+
+    Set directly: growing it one landmark at a time is itself O(n^3). Its per-landmark
+    bookkeeping (sightings, first estimates) has no public setter, so it is filled here.
+    """
+    from ekfslam.teaching.reference import LiteralEKFSLAM
+
+    lit = LiteralEKFSLAM(f.pose, f.pose_covariance, f.config)
+    lit.mu, lit.Sigma, lit.slot = f.mu.copy(), f.Sigma.copy(), dict(f.slot)
+    lit._sightings = [2] * f.n_landmarks
+    lit._first = [f.mu[3 + 2 * j : 5 + 2 * j].copy() for j in range(f.n_landmarks)]
+    lit._rejected = [[] for _ in range(f.n_landmarks)]
+    return lit
+
+
+def _step_costs(filters: list, zs, repeats: int) -> list[tuple[float, float]]:
+    """Median seconds of one predict and one update of each filter, timed in turn.
+
+    Updates cycle through the landmarks. Interleaving puts a busy spell of a shared machine on
+    every filter alike, so their ratio stays fair.
+    """
+    times = [([], []) for _ in filters]
+    for k in range(repeats):
+        j, z = zs[k % len(zs)]
+        for f, (predict, update) in zip(filters, times, strict=True):
+            t0 = time.perf_counter()
+            f.predict(_U, _R)
+            t1 = time.perf_counter()
+            f.update(j, z, _Q)
+            update.append(time.perf_counter() - t1)
+            predict.append(t1 - t0)
+    return [(statistics.median(p), statistics.median(u)) for p, u in times]
+
+
+def bench_sizes(config: BenchConfig) -> dict:
+    """Per-step costs against n for both implementations, the slope, the floor, FEJ's cost."""
+    eff: dict = {"predict": {}, "update": {}}
+    lit: dict = {"predict": {}, "update": {}}
+    last = None  # (d, seconds) of the latest literal step, to predict the next one's cost
+    fej = {}
+    # (100, 1000) when measured, else the smallest and largest size (a tiny smoke run)
+    lo = 100 if 100 in config.sizes else min(config.sizes)
+    hi = 1000 if 1000 in config.sizes else max(config.sizes)
+    for n in config.sizes:
+        f, zs = map_of(n)
+        if n == lo:
+            g, _ = map_of(n, FilterConfig(gate=None, linearization="fej"))
+            (p, u), (pg, ug) = _step_costs([f, g], zs, config.step_repeats)
+            fej = {"update_n": n, "predict": pg / p, "update": ug / u}
+        else:
+            [(p, u)] = _step_costs([f], zs, config.step_repeats)
+        eff["predict"][n], eff["update"][n] = p, u
+        d = 3 + 2 * n
+        if last is not None and _literal_too_slow(*last, d):
+            lit["predict"][n] = lit["update"][n] = None
+            continue
+        repeats = config.literal_repeats if n > 100 else config.step_repeats
+        [(p, u)] = _step_costs([literal_twin(f)], zs, repeats)
+        lit["predict"][n], lit["update"][n] = p, u
+        last = (d, max(p, u))
+    slope = math.log(eff["update"][hi] / eff["update"][lo]) / math.log(hi / lo) if hi > lo else None
+    floor, one_pass = floor_times(hi, config.step_repeats)
+    return {
+        "sizes": list(config.sizes),
+        "cost_s": {"efficient": eff, "literal": lit},
+        "update_ratio_vs_literal": {
+            n: None if lit["update"][n] is None else lit["update"][n] / eff["update"][n]
+            for n in config.sizes
+        },
+        "update_slope_100_1000": slope,
+        "update_slope_between": [lo, hi],
+        "update_vs_floor_1000": eff["update"][hi] / floor,
+        "floor_n": hi,
+        "floor_s": floor,
+        "inplace_pass_s": one_pass,
+        "fej_step": fej,
+    }
+
+
+def _literal_too_slow(d_measured: int, seconds: float, d: int) -> bool:
+    """Would one literal step at dimension d exceed `LITERAL_MAX_STEP_S`?
+
+    Extrapolated as d^3 from the last measured step once that took 50 ms (below, fixed costs
+    hide the cubic term and the extrapolation would be far too pessimistic).
+    """
+    if seconds > LITERAL_MAX_STEP_S:
+        return True
+    return seconds >= 0.05 and seconds * (d / d_measured) ** 3 > LITERAL_MAX_STEP_S
+
+
+def floor_times(n: int, repeats: int) -> tuple[float, float]:
+    """Median seconds of one ``Sigma -= A @ B`` (rank 2; the issue's floor) and of one in-place
+    pass ``Sigma *= 1.0`` (reads and writes Σ once, no temporary), Sigma (3 + 2n) square."""
+    d = 3 + 2 * n
+    rng = np.random.default_rng(1)
+    Sigma = rng.standard_normal((d, d))
+    A, B = rng.standard_normal((d, 2)), rng.standard_normal((2, d))
+
+    def floor():
+        nonlocal Sigma
+        Sigma -= A @ B
+
+    def one_pass():
+        nonlocal Sigma
+        Sigma *= 1.0
+
+    return _median_time(floor, repeats), _median_time(one_pass, repeats)
+
+
+def peak_memory_mb(n: int, steps: int = 50) -> float:
+    """Peak traced memory (MB, 10^6 bytes) of building an n-landmark map and stepping it.
+
+    tracemalloc sees numpy's buffers and Python's objects; the filter records its history.
+    """
+    tracemalloc.start()
+    try:
+        f, zs = map_of(n, record=True)
+        for k in range(steps):
+            f.predict(_U, _R)
+            f.update(*zs[k % len(zs)], _Q)
+        f.history()
+        return tracemalloc.get_traced_memory()[1] / 1e6
+    finally:
+        tracemalloc.stop()
+
+
+# ------------------------------------------------------------------------------- the report
+def run_benchmarks(config: BenchConfig, command: str = "python -m ekfslam bench") -> dict:
+    """Everything above, with the date, the machine and the command: a JSON-ready dict."""
+    result = {
+        "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
+        "command": command,
+        "machine": {
+            "cores": os.cpu_count(),
+            "load_average_1min": os.getloadavg()[0] if hasattr(os, "getloadavg") else None,
+            "python": platform.python_version(),
+            "numpy": np.__version__,
+            "platform": platform.platform(),
+        },
+    }
+    result.update(bench_replays(config))
+    result.update(bench_mrclam(config))
+    result.update(bench_sizes(config))
+    result["peak_mb_1000"] = peak_memory_mb(result["floor_n"])
+    result["peak_memory_method"] = "tracemalloc"
+    return result
+
+
+def _fmt(value: float | None, scale: float = 1.0, digits: int = 1) -> str:
+    return "–" if value is None else f"{value * scale:,.{digits}f}"
+
+
+def markdown_table(r: dict) -> str:
+    """The results as markdown: replays, then per-step costs against n, then the summary."""
+    m = r["machine"]
+    lines = [
+        f"ekfslam benchmark, {r['date']}, {m['cores']} cores (load {_fmt(m['load_average_1min'])}),"
+        f" Python {m['python']}, numpy {m['numpy']}. Command: `{r['command']}`. Medians.",
+        "",
+        "| replay | median | events | events/s |",
+        "|---|---:|---:|---:|",
+    ]
+    for key, name in RUNS.items():
+        ms, eps = r["replay_ms"][key], r["replay_events_per_s"][key]
+        events = r.get("replay_events", {}).get(key)
+        lines.append(
+            f"| {name} | {_fmt(ms)} ms | {_fmt(events, digits=0)} | {_fmt(eps, digits=0)} |"
+        )
+    note = r.get("mrclam_note")
+    lines.append(
+        f"| MRCLAM Dataset 7, robot {MRCLAM_ROBOT}{f' ({note})' if note else ''} | "
+        f"{_fmt(r['mrclam_replay_s'], digits=3)} s | "
+        f"{_fmt(r['mrclam_events'], digits=0)} | {_fmt(r['mrclam_events_per_s'], digits=0)} |"
+    )
+    lines += [
+        "",
+        "| n | predict (µs) | update (µs) | literal predict (ms) | literal update (ms) "
+        "| update ratio |",
+        "|---:|---:|---:|---:|---:|---:|",
+    ]
+    eff, lit = r["cost_s"]["efficient"], r["cost_s"]["literal"]
+    for n in r["sizes"]:
+        ratio = r["update_ratio_vs_literal"][n]
+        lines.append(
+            f"| {n} | {_fmt(eff['predict'][n], 1e6)} | {_fmt(eff['update'][n], 1e6)} | "
+            f"{_fmt(lit['predict'][n], 1e3, 2)} | {_fmt(lit['update'][n], 1e3, 2)} | "
+            f"{'–' if ratio is None else f'{ratio:,.0f}x'} |"
+        )
+    lo, hi = r["update_slope_between"]
+    fej = r["fej_step"]
+    lines += [
+        "",
+        f"- efficient update, log-log slope n = {lo} to {hi}: "
+        f"{_fmt(r['update_slope_100_1000'], digits=2)}",
+        f"- update at n = {hi} / floor (one in-place `Sigma -= A @ B`, rank 2, same size, "
+        f"{_fmt(r['floor_s'], 1e3, 2)} ms): {_fmt(r['update_vs_floor_1000'], digits=2)}x; "
+        f"one pass `Sigma *= 1.0` takes {_fmt(r['inplace_pass_s'], 1e3, 2)} ms",
+        f"- peak memory of the n = {hi} run ({r['peak_memory_method']}): "
+        f"{_fmt(r['peak_mb_1000'])} MB",
+        f"- FEJ / standard: octagon replay "
+        f"{_fmt(r['fej_vs_standard']['replay_octagon'], digits=2)}x, "
+        f"predict {_fmt(fej.get('predict'), digits=2)}x and update "
+        f"{_fmt(fej.get('update'), digits=2)}x at n = {fej.get('update_n')}",
+    ]
+    return "\n".join(lines)
+
+
+def plot_costs(r: dict, path: Path) -> None:
+    """Log-log plot of the per-step cost against n, both implementations, with the floor."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(9, 6))
+    for impl, style in (("efficient", "-"), ("literal", "--")):
+        for step, marker in (("predict", "o"), ("update", "s")):
+            costs = r["cost_s"][impl][step]
+            ns = [n for n in r["sizes"] if costs[n] is not None]
+            ax.loglog(ns, [costs[n] for n in ns], style, marker=marker, label=f"{impl} {step}")
+    hi = r["floor_n"]
+    ax.loglog([hi], [r["floor_s"]], "kx", ms=10, label="floor: Sigma -= A @ B (rank 2)")
+    ax.loglog([hi], [r["inplace_pass_s"]], "k+", ms=12, label="one pass over Sigma (*= 1.0)")
+    lo = r["update_slope_between"][0]
+    ns = np.array([n for n in r["sizes"] if n >= lo], dtype=float)
+    ref = r["cost_s"]["efficient"]["update"][hi]
+    ax.loglog(ns, ref * (ns / hi) ** 2, ":", color="grey", label="∝ n² (through the update)")
+    ax.set_xlabel("landmarks in the map, n")
+    ax.set_ylabel("time per step, s (median)")
+    ax.set_title("EKF-SLAM: cost of one step against the map size")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    save_figure(fig, path)
+    plt.close(fig)
+
+
+def write_outputs(r: dict, out: Path) -> None:
+    # each file is renamed into place when complete: a failed run keeps the previous outputs
+    atomic_write_text(out / "bench.md", markdown_table(r) + "\n")
+    atomic_write_text(out / "bench.json", json.dumps(r, indent=2, allow_nan=False) + "\n")
+    plot_costs(r, out / "cost_vs_n.png")
+
+
+def add_cli(subparsers) -> None:
+    """``python -m ekfslam bench [--quick] [--json] [--out DIR]``."""
+    from ekfslam.cli import args as ca
+
+    p = subparsers.add_parser("bench", help="time replays and per-step costs against map size")
+    p.add_argument("--quick", action="store_true", help="fewer repeats (about a minute)")
+    p.add_argument("--json", action="store_true", help="print the results as JSON")
+    p.add_argument("--out", type=ca.output_folder, default=Path("out/bench"),
+                   help="where to write the table, the JSON and the plot (default: %(default)s; "
+                   "created if missing)")  # fmt: skip
+    p.add_argument("--sizes", type=ca.whole(1, MAX_SIZE, why="Σ would not fit in memory"),
+                   nargs="+", help=f"map sizes n, 1 to {MAX_SIZE} (default: {SIZES})")  # fmt: skip
+    p.add_argument("--repeats", type=ca.whole(1, 1000),
+                   help="repeats of every measurement, >= 1 (a smoke run: 1; default: the "
+                   "config's, fewer with --quick)")  # fmt: skip
+    p.add_argument("--mrclam", type=ca.input_path,
+                   help="MRCLAM Dataset 7 folder (default: shared data)")  # fmt: skip
+    p.add_argument("--no-mrclam", action="store_true", help="skip the MRCLAM replay")
+    p.set_defaults(func=_cmd_bench)
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    kwargs: dict = {"mrclam_dir": None if args.no_mrclam else args.mrclam or default_mrclam_dir()}
+    if args.no_mrclam:
+        kwargs["mrclam_note"] = MRCLAM_SKIPPED
+    if args.sizes:
+        kwargs["sizes"] = tuple(sorted(set(args.sizes)))
+    if args.repeats is not None:
+        kwargs.update(dict.fromkeys(
+            ("replay_repeats", "step_repeats", "literal_repeats", "mrclam_repeats"), args.repeats
+        ))  # fmt: skip
+    config = BenchConfig.quick(**kwargs) if args.quick else BenchConfig(**kwargs)
+    r = run_benchmarks(config, command=_command(args))
+    write_outputs(r, args.out)
+    if args.json:
+        print(json.dumps(r, indent=2, allow_nan=False))
+    else:
+        print(markdown_table(r))
+        print(f"\nwritten: {args.out / 'bench.md'}, bench.json, cost_vs_n.png")
+    return 0
+
+
+def _command(args: argparse.Namespace) -> str:
+    """The command line that reproduces this run."""
+    flags = [("--quick", args.quick), ("--json", args.json), ("--no-mrclam", args.no_mrclam)]
+    options = [
+        ("--out", None if args.out == Path("out/bench") else args.out),
+        ("--sizes", " ".join(map(str, args.sizes)) if args.sizes else None),
+        ("--repeats", args.repeats),
+        ("--mrclam", None if args.no_mrclam else args.mrclam),
+    ]
+    parts = [flag for flag, on in flags if on] + [f"{o} {v}" for o, v in options if v is not None]
+    return " ".join(["python -m ekfslam bench", *parts])

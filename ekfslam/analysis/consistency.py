@@ -1,0 +1,491 @@
+"""Can we trust the ellipses? NEES and NIS over Monte Carlo runs, against chi-square bands.
+
+A filter is *consistent* when its errors are as large as its covariance says (Bar-Shalom, Li &
+Kirubarajan, 2001, sec. 5.4). With e = estimate - truth (heading wrapped) and P the filter's
+covariance, the normalised estimation error squared NEES = eᵀ P⁻¹ e is chi-square with dim(e)
+degrees of freedom; the normalised innovation squared NIS = νᵀ S⁻¹ ν of eqs. (13)-(15) is
+chi-square with 2. N times the average of N independent runs is chi-square with N · dof, which
+gives the two-sided 95% band of `chi2_band`. EKF-SLAM is known to leave that band from above: the
+standard linearisation gains information about the global heading that it cannot have (Bailey et
+al., IROS 2006; Huang, Mourikis & Roumeliotis, IJRR 2010); the FEJ-EKF
+(`FilterConfig.linearization="fej"`) is the cheap fix.
+
+Monte Carlo runs are simulated with *correctly specified noise*: `noise_for_simulation` gives the
+filter the simulator's own R (eq. 9) and Q (eq. 11). The filter starts at the robot's TRUE start
+with zero covariance, and the scenarios set the placement error to zero too, so estimate and truth
+share one frame and no alignment (eq. 17) hides anything. The scenarios are in
+`ekfslam.sim.scenarios`; the outlier study and the long run (`ekfslam.analysis.robustness`) and the
+pose NEES against MRCLAM's Vicon (`ekfslam.analysis.mrclam_consistency`, ``--mrclam``) share this
+module's command.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ekfslam.core.filter.ekf import CHI2_2DOF_99, FilterConfig, FilterCounts
+from ekfslam.core.filter.history import OUTCOMES
+from ekfslam.files import save_figure
+from ekfslam.geometry import wrap_angle
+from ekfslam.logs.runlog import RunLog
+from ekfslam.pipeline import NoiseConfig, ReplayResult, replay
+from ekfslam.sim.scenarios import SCENARIOS, noise_for_simulation, scenario
+from ekfslam.sim.simulation import simulate
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+Array = NDArray[np.float64]
+
+CONFIDENCE = 0.95
+
+
+def chi2_band(dof: float | Array, runs: float | Array = 1, confidence: float = CONFIDENCE):
+    """Two-sided band for the average of `runs` independent chi-square(dof) values.
+
+    Returns (lower, upper) = chi2.ppf((1 ∓ confidence)/2, runs · dof) / runs; arrays broadcast.
+    """
+    from scipy.special import gammaincinv  # here: the command line imports this module eagerly
+
+    tail = (1.0 - confidence) / 2.0
+    n = np.asarray(runs, dtype=float)
+    k = n * np.asarray(dof, dtype=float) / 2.0  # chi2.ppf(q, 2k) = 2 gammaincinv(k, q)
+    return 2.0 * gammaincinv(k, tail) / n, 2.0 * gammaincinv(k, 1.0 - tail) / n
+
+
+# ---------------------------------------------------------------------------- one run's errors
+@dataclass(frozen=True, eq=False)
+class RunErrors:
+    """One run's normalised errors at the K ground-truth times t (K,) s.
+
+    nees_pose (K,) 3 dof and nees_heading (K,) 1 dof of the posterior at each time (NaN while the
+    covariance is singular, e.g. at the start). landmark_sum/landmark_count (K,): NEES (2 dof)
+    of every landmark sighted at that time, its estimate right after the sighting. nis_sum /
+    nis_count (K,): NIS of every innovation the filter computed there, accepted or gated.
+    map_nees : the whole final map's NEES, map_dof = 2n its dof.
+    """
+
+    t: Array
+    nees_pose: Array
+    nees_heading: Array
+    landmark_sum: Array
+    landmark_count: Array
+    nis_sum: Array
+    nis_count: Array
+    map_nees: float
+    map_dof: int
+
+
+def nees(e: Array, P: Array) -> Array:
+    """NEES eᵀ P⁻¹ e for stacks e (K, d), P (K, d, d); NaN where P is not positive definite."""
+    out = np.full(len(e), np.nan)
+    ok = np.isfinite(e).all(axis=1)
+    ok[ok] = np.linalg.eigvalsh(P[ok])[:, 0] > 1e-15
+    if ok.any():
+        out[ok] = np.einsum("ki,ki->k", e[ok], np.linalg.solve(P[ok], e[ok][..., None])[..., 0])
+    return out
+
+
+def pose_errors(run: RunLog, result: ReplayResult) -> tuple[Array, Array, Array]:
+    """The posterior pose error and covariance at each ground-truth time.
+
+    Returns t (K,) s, e (K, 3) = estimate - truth (heading wrapped; NaN before the first
+    event) and P (K, 3, 3), the filter's pose covariance then (eqs. 9 and 16).
+    """
+    h, gt = result.history, run.groundtruth
+    if gt is None:
+        raise ValueError(f"run {run.meta.name!r} has no ground truth to measure errors against")
+    idx = np.searchsorted(h.t, gt.t, side="right") - 1  # the last event at or before each time
+    e = h.pose[np.maximum(idx, 0)] - gt.pose
+    e[:, 2] = wrap_angle(e[:, 2])
+    e[idx < 0] = np.nan
+    return np.asarray(gt.t, dtype=float), e, h.pose_cov[np.maximum(idx, 0)]
+
+
+def run_errors(run: RunLog, result: ReplayResult) -> RunErrors:
+    """Score a replay of a simulated run against its ground truth (see `RunErrors`)."""
+    t, e, P = pose_errors(run, result)
+    h, gt, tags = result.history, run.groundtruth, run.meta.tag_map or {}
+    k = len(t)
+    nees_pose, nees_heading = nees(e, P), nees(e[:, 2:], P[:, 2:, 2:])
+    step = np.minimum(np.searchsorted(gt.t, h.obs_t, side="left"), k - 1)
+    seen = np.isfinite(h.obs_landmark[:, 0]) & np.isin(h.obs_id, list(tags))
+    truth = np.array([tags[i] for i in h.obs_id[seen].tolist()]).reshape(-1, 2)
+    lm = nees(h.obs_landmark[seen] - truth, h.obs_landmark_cov[seen])
+    computed = np.isin(h.obs_outcome, [OUTCOMES.index("accepted"), OUTCOMES.index("rejected")])
+    ids = list(result.landmarks)  # slot order: slot j is state rows 3 + 2j, 4 + 2j
+    js = [j for j, i in enumerate(ids) if i in tags]
+    rows = np.array([[3 + 2 * j, 4 + 2 * j] for j in js], dtype=np.int64).ravel()
+    err = np.array([result.landmarks[ids[j]] - tags[ids[j]] for j in js]).ravel()
+    S = result.Sigma[np.ix_(rows, rows)]
+    return RunErrors(
+        t=t,
+        nees_pose=nees_pose,
+        nees_heading=nees_heading,
+        landmark_sum=np.bincount(step[seen][np.isfinite(lm)], lm[np.isfinite(lm)], k),
+        landmark_count=np.bincount(step[seen][np.isfinite(lm)], minlength=k).astype(float),
+        nis_sum=np.bincount(step[computed], h.obs_nis[computed], k),
+        nis_count=np.bincount(step[computed], minlength=k).astype(float),
+        map_nees=float(err @ np.linalg.solve(S, err)) if js else math.nan,
+        map_dof=2 * len(js),
+    )
+
+
+# ------------------------------------------------------------------------------ Monte Carlo
+@dataclass(frozen=True, eq=False)
+class Consistency:
+    """The average of `runs` runs at each of K steps, with its 95% bands.
+
+    t (K,) s. nees_pose (K,), nees_heading (K,): averages over runs; band_pose, band_heading
+    (2,) their bands. nees_landmark (K,): per run the mean NEES of the landmarks sighted at that
+    step, averaged over the runs that sighted one; band_landmark (2, K) for that many runs of
+    2 dof (conservative: it treats one run's sightings as one draw). nis (K,): the mean NIS of
+    every innovation computed at that step in any run; band_nis (2, K) for that many 2-dof
+    draws (sequential innovations are uncorrelated). map_nees (runs,): final map NEES, 2n dof.
+    counts : the filters' counts summed over the runs.
+    """
+
+    scenario: str
+    linearization: str
+    runs: int
+    t: Array
+    nees_pose: Array
+    nees_heading: Array
+    nees_landmark: Array
+    nis: Array
+    band_pose: Array
+    band_heading: Array
+    band_landmark: Array
+    band_nis: Array
+    map_nees: Array
+    map_dof: int
+    counts: FilterCounts
+    noise: NoiseConfig
+    gate: float | None
+    seconds: float
+
+    def fraction_in_band(self, name: str) -> float:
+        """Share of the steps with a value (not NaN) whose average lies inside its band."""
+        value = getattr(self, name)
+        lo, hi = getattr(self, "band_" + name.removeprefix("nees_"))
+        ok = np.isfinite(value)
+        inside = (value >= lo) & (value <= hi)
+        return float(inside[ok].mean()) if ok.any() else math.nan
+
+    def as_dict(self) -> dict:
+        """JSON-ready summary: per quantity its time-average, fraction in band, max and band."""
+
+        def stats(name: str) -> dict:
+            v = getattr(self, name)
+            band = getattr(self, "band_" + name.removeprefix("nees_"))
+            lo, hi = band if band.ndim == 1 else band[:, np.isfinite(v)]
+            return {
+                "mean": float(np.nanmean(v)),
+                "fraction_in_band": self.fraction_in_band(name),
+                "max": float(np.nanmax(v)),
+                "band": [float(np.nanmedian(lo)), float(np.nanmedian(hi))],
+            }
+
+        map_band = chi2_band(self.map_dof, self.runs)
+        return {
+            "scenario": self.scenario,
+            "linearization": self.linearization,
+            "runs": self.runs,
+            "steps": len(self.t),
+            "confidence": CONFIDENCE,
+            "band": [float(b) for b in self.band_pose],
+            "nees_pose": stats("nees_pose"),
+            "nees_heading": stats("nees_heading"),
+            "nees_landmark": stats("nees_landmark"),
+            "nis": stats("nis") | {"innovations": self.counts.accepted + self.counts.rejected},
+            "map_nees_final": {
+                "mean": float(np.mean(self.map_nees)),
+                "dof": self.map_dof,
+                "band": [float(b) for b in map_band],
+            },
+            "updates": dataclasses.asdict(self.counts),
+            "gate": self.gate,
+            "noise": dataclasses.asdict(self.noise),
+            "seconds": self.seconds,
+        }
+
+
+def monte_carlo(
+    name: str = "octagon",
+    runs: int = 50,
+    linearization: str = "standard",
+    *,
+    gate: float | None = CHI2_2DOF_99,
+    first_seed: int = 0,
+    wheel_noise_sigma: float | None = None,
+) -> Consistency:
+    """Simulate `runs` runs of a scenario (seeds first_seed, first_seed + 1, ...) and average.
+
+    Each run is replayed with `noise_for_simulation` and FilterConfig(linearization, gate),
+    starting at the true start with zero covariance. See `Consistency` for what comes back.
+    """
+    return compare(name, runs, (linearization,), gate=gate, first_seed=first_seed,
+                   wheel_noise_sigma=wheel_noise_sigma)[0]  # fmt: skip
+
+
+def compare(
+    name: str = "octagon",
+    runs: int = 50,
+    linearizations: tuple[str, ...] = ("standard", "fej"),
+    *,
+    gate: float | None = CHI2_2DOF_99,
+    first_seed: int = 0,
+    wheel_noise_sigma: float | None = None,
+) -> tuple[Consistency, ...]:
+    """`monte_carlo` for several linearizations on the very same simulated runs."""
+    if runs < 1:
+        raise ValueError(f"runs must be at least 1, got {runs}")
+    configs = [FilterConfig(linearization=lin, gate=gate) for lin in linearizations]
+    errors = [[] for _ in configs]
+    counts = [dict.fromkeys(FilterCounts.__dataclass_fields__, 0) for _ in configs]
+    seconds = [0.0] * len(configs)
+    for i in range(runs):
+        sim, arena = scenario(name, first_seed + i, wheel_noise_sigma)
+        run, noise = simulate(sim, arena), noise_for_simulation(sim)
+        for c, config in enumerate(configs):
+            started = time.perf_counter()
+            result = replay(run, noise, config, start_pose=run.groundtruth.pose[0])
+            errors[c].append(run_errors(run, result))
+            seconds[c] += time.perf_counter() - started
+            for key in counts[c]:
+                counts[c][key] += getattr(result.counts, key)
+    return tuple(
+        _average(name, errors[c], config, counts[c], noise, seconds[c])
+        for c, config in enumerate(configs)
+    )
+
+
+def _average(name, errors, config, counts, noise, seconds) -> Consistency:
+    runs = len(errors)
+    if len({len(e.t) for e in errors}) != 1:
+        raise RuntimeError("runs of one scenario must share their time steps")
+    stack = {f: np.array([getattr(e, f) for e in errors]) for f in RunErrors.__dataclass_fields__}
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lm_runs = stack["landmark_sum"] / stack["landmark_count"]  # NaN where none was sighted
+        lm_n = np.isfinite(lm_runs).sum(axis=0)
+        nis_n = stack["nis_count"].sum(axis=0)
+        nis = stack["nis_sum"].sum(axis=0) / nis_n
+        nees_landmark = np.nansum(lm_runs, axis=0) / lm_n
+
+    def mean_over_runs(a: Array) -> Array:
+        # a step counts only once every run has a covariance there (none has at the start)
+        return np.where(np.isfinite(a).all(axis=0), a.mean(axis=0), np.nan)
+
+    return Consistency(
+        scenario=name,
+        linearization=config.linearization,
+        runs=runs,
+        t=errors[0].t,
+        nees_pose=mean_over_runs(stack["nees_pose"]),
+        nees_heading=mean_over_runs(stack["nees_heading"]),
+        nees_landmark=nees_landmark,
+        nis=nis,
+        band_pose=np.array(chi2_band(3, runs)),
+        band_heading=np.array(chi2_band(1, runs)),
+        band_landmark=np.array(chi2_band(2, np.maximum(lm_n, 1))),
+        band_nis=np.array(chi2_band(2, np.maximum(nis_n, 1))),
+        map_nees=stack["map_nees"],
+        map_dof=int(errors[0].map_dof),
+        counts=FilterCounts(**counts),
+        noise=noise,
+        gate=config.gate,
+        seconds=seconds,
+    )
+
+
+def plot_consistency(results, title: str | None = None, figsize=(9.0, 9.0)) -> Figure:
+    """Average pose NEES, heading NEES and NIS against their 95% bands, one line per result.
+
+    results : a `Consistency` or a sequence of them (e.g. standard and FEJ on one scenario).
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import ScalarFormatter
+
+    results = [results] if isinstance(results, Consistency) else list(results)
+    fig = Figure(figsize=figsize, layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
+    panels = (
+        ("nees_pose", "pose NEES (3 dof)"),
+        ("nees_heading", "heading NEES (1 dof)"),
+        ("nis", "NIS (2 dof)"),
+    )
+    colors = {"standard": "tab:red", "fej": "tab:blue"}
+    for ax, (name, label) in zip(axes, panels, strict=True):
+        r0 = results[0]
+        band = getattr(r0, "band_" + name.removeprefix("nees_"))
+        band = np.broadcast_to(band[:, None] if band.ndim == 1 else band, (2, len(r0.t)))
+        ok = np.isfinite(getattr(r0, name))  # NIS exists only at camera frames
+        ax.fill_between(
+            r0.t[ok], band[0, ok], band[1, ok], color="0.85",
+            label=f"{CONFIDENCE:.0%} band for {r0.runs} runs",
+        )  # fmt: skip
+        for r in results:
+            ax.plot(
+                r.t[ok], getattr(r, name)[ok], lw=1.0, color=colors.get(r.linearization),
+                label=f"{r.linearization}: {r.fraction_in_band(name):.0%} of steps in band",
+            )  # fmt: skip
+        ax.set_ylabel(f"average {label}")
+        ax.set_yscale("log")
+        ax.yaxis.set_major_formatter(ScalarFormatter())  # 3, not 3 x 10^0
+        ax.yaxis.set_minor_formatter(ScalarFormatter())
+        ax.grid(True, alpha=0.3, which="both")
+        ax.legend(loc="upper left", fontsize=9)
+    axes[-1].set_xlabel("time (s)")
+    fig.suptitle(title or f"Consistency on the {results[0].scenario} scenario")
+    return fig
+
+
+# ---------------------------------------------------------------------------------- command line
+def add_cli(subparsers) -> None:
+    """``python -m ekfslam consistency``: NEES/NIS over runs; --outliers, --long-run, --mrclam."""
+    from ekfslam.cli import args as ca
+    from ekfslam.cli.main import add_plot_argument
+
+    p = subparsers.add_parser(
+        "consistency", help="NEES/NIS over Monte Carlo runs; outlier gating; a long Σ run"
+    )
+    p.add_argument("--runs", type=ca.whole(1, 10_000), default=50,
+                   help="Monte Carlo runs, 1 to 10000 (default 50)")  # fmt: skip
+    p.add_argument("--trajectory", choices=SCENARIOS, default="octagon", help="the scenario")
+    p.add_argument(
+        "--linearization", choices=["standard", "fej", "both"],
+        help="default: standard for simulated runs, both with --mrclam",
+    )  # fmt: skip
+    p.add_argument("--seed", type=ca.seed(), default=0,
+                   help="seed of the first run (then +1, +2...)")  # fmt: skip
+    p.add_argument(
+        "--gate", type=ca.non_negative(1e6), default=CHI2_2DOF_99,
+        help="NIS gate; 0 turns it off (%(default).2f)",
+    )  # fmt: skip
+    p.add_argument("--wheel-noise", type=ca.non_negative(10.0, why="rad/s"),
+                   help="override the scenario's wheel noise, rad/s")  # fmt: skip
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    add_plot_argument(p, "draw the averages and their bands to FILE")
+    mode = p.add_mutually_exclusive_group()
+    mode.add_argument(
+        "--outliers",
+        type=ca.probability(),
+        metavar="RATE",
+        help="outlier study at this rate, in [0, 1] (e.g. 0.05)",
+    )
+    mode.add_argument(
+        "--long-run", type=ca.whole(1, 10**7), nargs="?", const=100_000, metavar="STEPS",
+        help="drive STEPS steps (default 10^5) and check Σ's smallest eigenvalue",
+    )  # fmt: skip
+    p.add_argument(
+        "--gate-after", type=ca.whole(1, 10**6), default=FilterConfig.gate_after,
+        help="outlier study: gate_after (default: the filter's, %(default)s)",
+    )  # fmt: skip
+    from ekfslam.analysis import mrclam_consistency  # here: that module imports this one
+
+    mrclam_consistency.add_arguments(p)
+    p.set_defaults(func=_cmd_consistency)
+
+
+def _cmd_consistency(args: argparse.Namespace) -> int:
+    from ekfslam.analysis import mrclam_consistency, robustness
+
+    if args.mrclam is not None:
+        return mrclam_consistency.run_cli(args)
+    lin = args.linearization or "standard"
+    lins = ("standard", "fej") if lin == "both" else (lin,)
+    if args.long_run is not None:
+        found = [robustness.long_run(args.long_run, lin, seed=args.seed) for lin in lins]
+        out = {r.linearization: dataclasses.asdict(r) | {"passed": r.passed} for r in found}
+        for r in found:
+            out[r.linearization]["counts"] = dataclasses.asdict(r.counts)
+        text = "\n".join(
+            f"{r.linearization}: {r.steps} steps, {r.landmarks} landmarks: smallest eigenvalue / "
+            f"trace >= {r.min_eigenvalue_ratio:.3e} (step {r.worst_step}), asymmetry "
+            f"{r.max_asymmetry:.1e}, finite {r.finite}: {'PASS' if r.passed else 'FAIL'} "
+            f"({r.seconds:.1f} s)"
+            for r in found
+        )
+        _emit(args, out if len(found) > 1 else out[lins[0]], text)
+        return 0 if all(r.passed for r in found) else 1
+    gate = None if args.gate == 0 else args.gate
+    if args.outliers is not None:
+        study = robustness.outlier_study(
+            args.trajectory, args.runs, args.outliers, gate=gate or CHI2_2DOF_99,
+            gate_after=args.gate_after, first_seed=args.seed,
+        )  # fmt: skip
+        lines = [
+            f"outliers at {study.rate:.0%} on {study.scenario}, {study.runs} runs: aligned map "
+            "error (eq. 17), mean over runs",
+            f"{'case':<10}{'gate':>6}{'error (m)':>11}{'median':>9}{'x clean':>9}"
+            f"{'injected':>10}{'rejected':>10}{'accepted':>10}",
+        ]
+        for c in study.cases:
+            lines.append(
+                f"{c.label:<10}{'on' if c.gate else 'off':>6}{c.map_error:>11.4f}"
+                f"{c.map_error_median:>9.4f}{c.ratio:>9.2f}{c.injected:>10}{c.rejected:>10}"
+                f"{c.accepted:>10}"
+            )
+        _emit(args, study.as_dict(), "\n".join(lines))
+        return 0
+    results = compare(
+        args.trajectory, args.runs, lins, gate=gate, first_seed=args.seed,
+        wheel_noise_sigma=args.wheel_noise,
+    )  # fmt: skip
+    out = {r.linearization: r.as_dict() for r in results}
+    if args.plot is not None:
+        save_figure(plot_consistency(results), args.plot)
+        for d in out.values():
+            d["plot"] = str(args.plot)
+    _emit(args, out if len(out) > 1 else out[lins[0]], "\n\n".join(map(_table, results)))
+    return 0
+
+
+def _emit(args: argparse.Namespace, data: dict, text: str) -> None:
+    print(json.dumps(data, indent=2, allow_nan=False) if args.json else text)
+
+
+def counts_line(counts: FilterCounts) -> str:
+    """The filters' counts over all runs, each number after its own label."""
+    c = counts
+    return (
+        f"over all runs: {c.predictions} predictions; updates {c.accepted} accepted, "
+        f"{c.rejected} rejected, {c.refused} refused; landmarks {c.initialised} initialised, "
+        f"{c.reinitialised} re-initialised"
+    )
+
+
+def _table(r: Consistency) -> str:
+    d = r.as_dict()
+    lines = [
+        f"{r.scenario}, {r.runs} runs, {r.linearization} linearization, "
+        f"gate {'off' if r.gate is None else f'{r.gate:.2f}'}: "
+        f"averages over the runs and the {CONFIDENCE:.0%} chi-square band",
+        f"{'':<16}{'mean':>8}{'max':>8}   {'band (median)':<16}{'steps in band':>14}",
+    ]
+    for key, label in (("nees_pose", "pose NEES"), ("nees_heading", "heading NEES"),
+                       ("nees_landmark", "landmark NEES"), ("nis", "NIS")):  # fmt: skip
+        q = d[key]
+        band = f"[{q['band'][0]:.2f}, {q['band'][1]:.2f}]"
+        lines.append(
+            f"{label:<16}{q['mean']:>8.2f}{q['max']:>8.2f}   {band:<16}"
+            f"{q['fraction_in_band']:>13.1%}"
+        )
+    m = d["map_nees_final"]
+    lines.append(
+        f"final map NEES {m['mean']:.1f} ({m['dof']} dof, band [{m['band'][0]:.1f}, "
+        f"{m['band'][1]:.1f}])"
+    )
+    lines.append(counts_line(r.counts))
+    if "plot" in d:
+        lines.append(f"figure written to {d['plot']}")
+    return "\n".join(lines)

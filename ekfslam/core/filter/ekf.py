@@ -1,0 +1,426 @@
+"""The EKF-SLAM filter: the seed's algorithm (eqs. 1-16), touching only the blocks it needs.
+
+State (eq. 1): mu = (x, y, θ, m1x, m1y, ..., mnx, mny), shape (3 + 2n,), and its covariance
+Sigma, shape (3 + 2n, 3 + 2n). Landmarks get a slot the first time their id is seen; slot j
+occupies indices 3 + 2j and 4 + 2j.
+
+Index ranges, after Solà's toolbox: ``r`` = the pose (0:3), ``l`` = one landmark (3+2j : 5+2j),
+``m`` = everything in use (0 : 3+2n). The seed writes the same steps with the lift matrices F_x
+(eq. 8) and F_x,j (eq. 14); `ekfslam.teaching.reference` is that literal form, kept as the test
+oracle.
+
+Cost per step with n landmarks: prediction O(n) (only the pose rows and columns change), update
+O(n^2) (one symmetric rank-2 correction of the used block), landmark initialisation O(n).
+
+Storage is pre-allocated and grows geometrically, so adding a landmark never copies the matrix
+(except on the rare doubling of the capacity). The storage beyond the state is kept at zero.
+Σ is symmetric, so the steps keep only its lower triangle current (half the memory traffic of
+the O(n²) update); `Sigma` fills in the upper one when it is read.
+
+Speed: the arithmetic of a step lives in `ekfslam.core.filter.kernels`, compiled with numba: as
+numpy calls on the seed's small map, per-call overhead cost ten times the arithmetic. This module
+keeps the decisions (slots, gating, re-initialisation, counting). `python -m ekfslam bench` measures
+it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ekfslam.core.filter import kernels
+from ekfslam.core.filter.config import CHI2_2DOF_99 as CHI2_2DOF_99
+from ekfslam.core.filter.config import FilterConfig, FilterCounts
+from ekfslam.core.filter.history import (
+    ACCEPTED,
+    INITIALISED,
+    OBSERVE,
+    OUTCOMES,
+    PREDICT,
+    REFUSED,
+    REINITIALISED,
+    REJECTED,
+    History,
+    Recorder,
+)
+from ekfslam.core.models import (
+    MIN_RANGE_SQUARED,
+    inverse_observation,
+    inverse_observation_jacobians,
+)
+
+Array = NDArray[np.float64]
+
+
+def _rows(values: ArrayLike, width: int | None = None) -> Array:
+    """Values as a C-ordered float array, (K,) or (K, width): the kernels' one signature."""
+    a = np.ascontiguousarray(values, dtype=float)
+    return a if width is None else a.reshape(-1, width)
+
+
+def _matrix(values: ArrayLike) -> Array:
+    a = np.ascontiguousarray(values, dtype=float)
+    if a.shape != (3, 3):
+        raise ValueError(f"motion noise must be 3x3, got shape {a.shape}")
+    return a
+
+
+_wrap = kernels.wrap
+
+
+class EKFSLAM:
+    """Landmark EKF SLAM with a growing state.
+
+    Parameters
+    ----------
+    pose : array (3,)
+        Initial pose (x, y, θ) in m, m, rad: μ0 of eq. (1).
+    pose_covariance : array (3, 3), optional
+        Σ0 of eq. (2); zero (a known start, as in the seed) by default.
+    config : FilterConfig
+    record : bool
+        Keep a `History` (default). Turn off for benchmarks of the bare filter.
+    """
+
+    def __init__(
+        self,
+        pose: ArrayLike,
+        pose_covariance: ArrayLike | None = None,
+        config: FilterConfig | None = None,
+        record: bool = True,
+    ) -> None:
+        self.config = config or FilterConfig()
+        cap = 3 + 2 * self.config.initial_capacity
+        self._mu = np.zeros(cap)
+        self._Sigma = np.zeros((cap, cap))
+        self._dim = 3
+        self._mu[:3] = np.asarray(pose, dtype=float)
+        self._mu[2] = _wrap(float(self._mu[2]))
+        if pose_covariance is not None:
+            P0 = np.asarray(pose_covariance, dtype=float)
+            self._Sigma[:3, :3] = 0.5 * (P0 + P0.T)
+        self._ids: list[int] = []
+        self.slot: dict[int, int] = {}
+        self._sightings: list[int] = []
+        self._counts = dict.fromkeys(FilterCounts.__dataclass_fields__, 0)
+        self._recorder = Recorder() if record else None
+        self._t = 0.0
+        self._fej = self.config.linearization == "fej"
+        # FEJ: the robot's predicted position at the current step, and first landmark estimates
+        self._prior_xy = (float(self._mu[0]), float(self._mu[1]))
+        self._first: list[tuple[float, float]] = []
+        self._rejected: list[list[Array]] = []  # per slot: where the rejected sightings put it
+        # scratch for the kernels (filled in place: no per-step allocation)
+        self._work = np.zeros((2, cap))  # H Σ, then W = L⁻¹ H Σ
+        self._out = np.full(8, math.nan)  # ẑ, ν, S, NIS of the last observation
+        self._no_rows = np.zeros((1, 10))  # where nothing is recorded
+
+    # ------------------------------------------------------------------ views
+    @property
+    def mu(self) -> Array:
+        """The state mean (3 + 2n,), eq. (1). A view: do not resize."""
+        return self._mu[: self._dim]
+
+    @property
+    def Sigma(self) -> Array:
+        """The state covariance (3 + 2n, 3 + 2n), a view into the pre-allocated storage.
+
+        The steps keep only its lower triangle current (`ekfslam.core.filter.kernels`); reading it
+        fills in the upper one, O(n²). Read it again after a step rather than keeping the view.
+        """
+        kernels.mirror(self._Sigma, self._dim)
+        return self._Sigma[: self._dim, : self._dim]
+
+    @property
+    def pose(self) -> Array:
+        """(x, y, θ), a copy."""
+        return self._mu[:3].copy()
+
+    @property
+    def pose_covariance(self) -> Array:
+        """The 3x3 pose block of Sigma, a copy."""
+        return self._Sigma[:3, :3].copy()
+
+    @property
+    def n_landmarks(self) -> int:
+        return len(self._ids)
+
+    @property
+    def landmark_ids(self) -> list[int]:
+        """Landmark ids in slot order."""
+        return list(self._ids)
+
+    @property
+    def capacity(self) -> int:
+        """How many landmarks fit before the storage doubles."""
+        return (self._mu.shape[0] - 3) // 2
+
+    @property
+    def counts(self) -> FilterCounts:
+        return FilterCounts(**self._counts)
+
+    def landmark(self, landmark_id: int) -> tuple[Array, Array]:
+        """Mean (2,) and covariance (2, 2) of one landmark, by id (copies)."""
+        l = 3 + 2 * self.slot[landmark_id]
+        (a, _), (b, c) = self._Sigma[l : l + 2, l : l + 2].tolist()  # its lower triangle
+        return self._mu[l : l + 2].copy(), np.array([[a, b], [b, c]])
+
+    def landmark_map(self) -> dict[int, Array]:
+        """{landmark id: mean (2,)}, the estimated map."""
+        return {i: self._mu[3 + 2 * j : 5 + 2 * j].copy() for j, i in enumerate(self._ids)}
+
+    def history(self) -> History:
+        """Everything recorded so far (raises if the filter was built with record=False)."""
+        if self._recorder is None:
+            raise RuntimeError("this filter was built with record=False")
+        return self._recorder.finish()
+
+    # ------------------------------------------------------------- prediction
+    def predict(self, u: ArrayLike, R: ArrayLike, t: float | None = None) -> None:
+        """Move the pose by the body-frame increment u, eqs. (6), (7) and (9).
+
+        Parameters
+        ----------
+        u : array (3,)
+            (Δux, Δuy, Δθ) in m, m, rad, eq. (4).
+        R : array (3, 3)
+            Motion noise covariance in the state (x, y, θ) for this step; see
+            `ekfslam.core.models.motion_noise` to build it from a control-noise covariance.
+        t : float, optional
+            Time after the step, s, for the history.
+
+        Only the pose block and the pose-landmark cross blocks change:
+        Σ_rr <- G Σ_rr Gᵀ + R and Σ_rm <- G Σ_rm, which is eq. (9) with its lifts done right.
+        """
+        self._propagate(
+            _rows(u, 3), None, _matrix(R), np.array([self._t if t is None else float(t)])
+        )
+
+    def predict_many(
+        self,
+        us: ArrayLike,
+        dts: ArrayLike,
+        ts: ArrayLike,
+        M: ArrayLike | None = None,
+        R: ArrayLike | None = None,
+    ) -> None:
+        """Several predictions in a row, exactly as many calls to `predict`, at O(n) once.
+
+        Every motion Jacobian of eq. (7) is I + g e₃ᵀ with g = (g0, g1, 0), so their product is
+        I + (Σ g) e₃ᵀ: the pose-landmark cross-covariance needs one update for the whole batch,
+        while the 3x3 pose block is stepped in plain floats.
+
+        Parameters
+        ----------
+        us : (K, 3) increments (Δux, Δuy, Δθ).
+        dts : (K,) s, the duration of each step (scales M).
+        ts : (K,) s, the time after each step, for the history.
+        M : (3, 3), control-increment covariance per second of driving: step k gets
+            R_k = V(θ_k) (M dt_k) V(θ_k)ᵀ (`ekfslam.core.models.motion_noise`), θ_k its start
+            heading.
+        R : (3, 3), or a fixed state-space R for every step (the seed's way). Give M or R.
+        """
+        if (M is None) == (R is None):
+            raise ValueError("give exactly one of M (per second) or R (per step)")
+        us = _rows(us, 3)
+        dts = _rows(dts) if M is not None else None
+        ts = _rows(ts)
+        if not len(us) == len(ts) == (len(us) if dts is None else len(dts)):
+            raise ValueError(f"{len(us)} increments need as many times (and durations)")
+        self._propagate(us, dts, _matrix(M if M is not None else R), ts)
+
+    def _propagate(self, us: Array, dts: Array | None, N: Array, ts: Array) -> None:
+        """`ekfslam.core.filter.kernels.propagate`: N is M (per second) when dts is given, else
+        R."""
+        rec = self._recorder
+        if rec is None:
+            rows, r0 = self._no_rows, 0
+        else:
+            r0 = rec.reserve(PREDICT, len(us))
+            rows = rec.rows
+        use_dts = dts is not None  # without, ts stands in for dts: the kernel's types are fixed
+        self._prior_xy = kernels.propagate(
+            self._mu, self._Sigma, self._dim, us, dts if use_dts else ts, use_dts, N,
+            self._fej, *self._prior_xy, ts, rows, r0, rec is not None,
+        )  # fmt: skip
+        self._counts["predictions"] += len(us)
+        if len(ts):
+            self._t = float(ts[-1])
+
+    # -------------------------------------------------------------- correction
+    def update(self, landmark_id: int, z: ArrayLike, Q: ArrayLike, t: float | None = None) -> str:
+        """Use one range-bearing observation z = (r, φ) of a landmark, eqs. (10)-(16).
+
+        A landmark seen for the first time is added to the state (eq. 12, see `FilterConfig.init`).
+        Otherwise the innovation ν = z - ẑ (eq. 13, bearing wrapped) is gated on its NIS, and
+        accepted ones update the state with the gain of eq. (15).
+
+        Parameters
+        ----------
+        landmark_id : int
+        z : array (2,)  range (m) and bearing (rad).
+        Q : array (2, 2)  observation noise covariance, eq. (11).
+        t : float, optional  time of the observation, s.
+
+        Returns
+        -------
+        str
+            "initialised", "accepted", "rejected" (failed the gate), "reinitialised" (see
+            `FilterConfig.reinit_after`), "refused" (cannot be linearised: the landmark, or
+            the observation, sits on the robot) or "singular" (the innovation covariance S is
+            singular or not finite: the noise is too small or too large). Each is counted.
+        """
+        if t is not None:
+            self._t = t
+        z0, z1 = float(z[0]), float(z[1])
+        (q00, q01), (q10, q11) = Qf = np.asarray(Q, dtype=float).tolist()
+        if not all(map(math.isfinite, (z0, z1, q00, q01, q10, q11))):
+            raise ValueError(f"non-finite observation {z} or noise {Qf} for landmark {landmark_id}")
+        z = (z0, z1)
+        j = self.slot.get(landmark_id)
+        if j is None:
+            if z0 * z0 <= MIN_RANGE_SQUARED:
+                return self._finish(landmark_id, z, REFUSED, -1, computed=False)
+            j = self._add_landmark(landmark_id, np.array(z), np.asarray(Q, dtype=float))
+            if self.config.init == "inverse":
+                return self._finish(landmark_id, z, INITIALISED, 3 + 2 * j, computed=False)
+            return self._correct(landmark_id, j, z, Qf, False, True, accepted_as=INITIALISED)
+        gated = self.config.gate is not None and self._sightings[j] >= self.config.gate_after
+        return self._correct(landmark_id, j, z, Qf, gated=gated, fresh=False)
+
+    def _correct(
+        self,
+        landmark_id: int,
+        j: int,
+        z: tuple[float, float],
+        Q: list,
+        gated: bool,
+        fresh: bool,
+        accepted_as: int = ACCEPTED,
+    ) -> str:
+        """`ekfslam.core.filter.kernels.correct`, then the bookkeeping of its outcome."""
+        mu, l = self._mu, 3 + 2 * j
+        if self._fej:  # Jacobian at p̂(k|k-1) and the landmark's first estimate
+            (fx, fy), (px, py) = self._first[j], self._prior_xy
+            jx, jy = fx - px, fy - py
+        else:
+            jx, jy = mu.item(l) - mu.item(0), mu.item(l + 1) - mu.item(1)
+        outcome = kernels.correct(
+            mu, self._Sigma, self._dim, l, z[0], z[1], Q[0][0], Q[0][1], Q[1][1], jx, jy,
+            self.config.gate if gated else math.inf, self._work, self._out,
+        )  # fmt: skip
+        if outcome == REJECTED and self._should_reinitialise(j, z):
+            return self._reinitialise(landmark_id, j, z, Q)
+        if outcome == ACCEPTED:
+            outcome = accepted_as
+            if not fresh:
+                self._sightings[j] += 1
+            self._rejected[j].clear()
+        return self._finish(landmark_id, z, outcome, l)
+
+    def _add_landmark(self, landmark_id: int, z: Array, Q: Array) -> int:
+        """Append a landmark slot, eq. (12) for the mean; covariance by `config.init`."""
+        j = len(self._ids)
+        if self._dim + 2 > self._mu.shape[0]:
+            self._grow()
+        self._dim += 2
+        self._place(j, z, Q)
+        self._ids.append(landmark_id)
+        self.slot[landmark_id] = j
+        self._sightings.append(1)
+        self._first.append((float(self._mu[3 + 2 * j]), float(self._mu[4 + 2 * j])))
+        self._rejected.append([])
+        return j
+
+    def _place(self, j: int, z: Array, Q: Array) -> None:
+        """Set slot j from one sighting as if first seen now, dropping what it held."""
+        mu, S, d = self._mu, self._Sigma, self._dim
+        l = 3 + 2 * j
+        pose = mu[:3]
+        mu[l : l + 2] = inverse_observation(pose, z)
+        if self.config.init == "inverse":
+            G_p, G_z = inverse_observation_jacobians(pose, z)
+            cross = G_p @ S[:d, :3].T  # cov(m_new, everything) = G_p Σ_r,m (lower triangle)
+            S[l : l + 2, :d] = cross
+            S[:d, l : l + 2] = cross.T
+            Sll = cross[:, :3] @ G_p.T + G_z @ Q @ G_z.T
+            S[l : l + 2, l : l + 2] = 0.5 * (Sll + Sll.T)
+        else:  # eq. (3): nothing known, no correlation
+            S[l : l + 2, :d] = 0.0
+            S[:d, l : l + 2] = 0.0
+            S[l : l + 2, l : l + 2] = self.config.seed_init_variance * np.eye(2)
+
+    def _should_reinitialise(self, j: int, z: tuple[float, float]) -> bool:
+        """Have the landmark's last sightings, all rejected, agreed on a new place?
+
+        How many: `reinit_after`, or as many as the sightings it has accepted, if more. A
+        landmark placed by one bad sighting is re-placed quickly; one that many sightings
+        confirmed is not re-placed by a short run of rejections, which on a long loop means
+        the estimate has drifted (re-placing it would throw the loop closure away).
+        """
+        k = self.config.reinit_after
+        if k is None:
+            return False
+        k = max(k, self._sightings[j])
+        seen = self._rejected[j]
+        seen.append(inverse_observation(self._mu[:3], z))
+        if len(seen) < k:
+            return False
+        del seen[:-k]
+        return _new_place(
+            seen, self._mu[3 : self._dim].reshape(-1, 2), j, self.config.reinit_radius
+        )
+
+    def _reinitialise(self, landmark_id: int, j: int, z: tuple[float, float], Q: Array) -> str:
+        self._place(j, np.array(z), np.asarray(Q, dtype=float))
+        l = 3 + 2 * j
+        self._first[j] = (float(self._mu[l]), float(self._mu[l + 1]))
+        self._sightings[j] = 1
+        self._rejected[j].clear()
+        if self.config.init == "seed":  # eq. (3), then the update with this sighting
+            return self._correct(landmark_id, j, z, Q, False, True, accepted_as=REINITIALISED)
+        return self._finish(landmark_id, z, REINITIALISED, l, computed=False)
+
+    def _grow(self) -> None:
+        d = self._dim
+        cap = 3 + 2 * (2 * self.capacity)
+        mu = np.zeros(cap)
+        S = np.zeros((cap, cap))
+        mu[:d] = self._mu[:d]
+        S[:d, :d] = self._Sigma[:d, :d]
+        self._mu, self._Sigma = mu, S
+        self._work = np.zeros((2, cap))
+
+    def _finish(
+        self, landmark_id: int, z: tuple[float, float], outcome: int, l: int, computed=True
+    ) -> str:
+        """Count the outcome and record the state after it (l < 0: the landmark has no slot).
+
+        computed: whether `kernels.correct` produced this outcome's ẑ, ν, S and NIS (in
+        `_out`); otherwise they are recorded as NaN.
+        """
+        if not computed:
+            self._out[:] = math.nan
+        name = OUTCOMES[outcome]
+        self._counts[name] += 1
+        rec = self._recorder
+        if rec is not None:
+            n = rec.reserve(OBSERVE, 1)
+            m = rec.reserve_observation()
+            kernels.record(
+                self._mu, self._Sigma, l, self._t, landmark_id, z[0], z[1], self._out, outcome,
+                rec.rows, n, rec.obs, m,
+            )  # fmt: skip
+        return name
+
+
+def _new_place(seen: list, landmarks: Array, j: int, radius: float) -> bool:
+    """Do the rejected sightings `seen` (k, 2) agree on one place that no other landmark holds?"""
+    seen = np.asarray(seen)
+    centre = seen.mean(axis=0)
+    if np.max(np.hypot(*(seen - centre).T)) > radius:
+        return False
+    others = np.delete(landmarks, j, axis=0)
+    return not np.any(np.hypot(*(others - centre).T) <= radius)

@@ -1,0 +1,229 @@
+"""The filter's inner loops, compiled: one prediction batch and one correction, in place.
+
+`ekfslam.core.filter.ekf` decides what happens (landmark slots, gating, re-initialisation,
+counting); these functions do the arithmetic on its pre-allocated storage. They are numba-compiled
+because a step of the seed's small map is a few hundred flops: as numpy calls, Python's and numpy's
+per-call overhead cost ten times the arithmetic (see `python -m ekfslam bench`). Compiled loops
+also let the O(n²) update of eq. (16) run in one pass over Σ with no temporary.
+
+Each function is plain Python over floats and arrays; with the environment variable
+``NUMBA_DISABLE_JIT=1`` they run as such, which is how to step through them in a debugger.
+The compiled code is cached beside this file (``cache=True``), so only the first import on a
+machine pays the compilation (a few seconds). The cache is keyed on this file's source only:
+module-level constants the kernels use are therefore written here, not imported.
+
+Conventions: S is the (capacity, capacity) covariance storage and mu the (capacity,) mean, both
+zero beyond the state's size d; l is a landmark's first index (3 + 2j). Σ is symmetric, so the
+kernels keep only its lower triangle (S[i, k], k <= i) current, plus the whole 3x3 pose block:
+the O(n²) update then touches half the memory. `mirror` fills the upper triangle when the
+filter hands Σ out. The history's rows
+are laid out as `ekfslam.core.filter.history.ROW` and `ekfslam.core.filter.history.OBS_ROW`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ekfslam.core import models
+from ekfslam.core.filter import history
+
+# Constants the compiled code bakes in. numba's cache is keyed on this file alone, so they are
+# written here, and checked against the modules that own them when this module is imported.
+ACCEPTED, REJECTED, REFUSED, SINGULAR = 1, 2, 3, 5  # the outcome codes `correct` returns
+MIN_RANGE_SQUARED = 1e-12  # m²: closer than this, a landmark cannot be linearised
+if (ACCEPTED, REJECTED, REFUSED, SINGULAR, MIN_RANGE_SQUARED) != (
+    history.ACCEPTED, history.REJECTED, history.REFUSED, history.SINGULAR,
+    models.MIN_RANGE_SQUARED,
+):  # fmt: skip
+    raise ImportError(
+        "ekfslam.core.filter.kernels' constants disagree with ekfslam.core.filter.history or models"
+    )
+
+
+@njit(cache=True)
+def wrap(a: float) -> float:
+    """An angle in [-π, π)."""
+    a = (a + math.pi) % (2.0 * math.pi) - math.pi
+    return -math.pi if a >= math.pi else a
+
+
+@njit(cache=True)
+def propagate(mu, S, d, us, dts, use_dts, N, fej, px, py, ts, rows, r0, record):
+    """K predictions in a row, eqs. (6), (7) and (9); returns FEJ's (px, py) after them.
+
+    us (K, 3) body-frame increments; dts (K,) their durations when use_dts (then N is the
+    control covariance per second M, and step k gets R_k = V(θ_k) (M dt_k) V(θ_k)ᵀ), else N is
+    a fixed state-space R. px, py: FEJ's first estimate of the position at this step, p̂(k|k-1).
+    When record, the pose and its covariance after each step go to rows[r0 + k] (`ROW`).
+
+    Every motion Jacobian of eq. (7) is G = I + g e₃ᵀ with g = (g0, g1, 0) = (-Δy, Δx), so the
+    product over the batch is I + (Σ g) e₃ᵀ: the pose-landmark cross-covariance Σ_rm <- G Σ_rm
+    takes one O(n) pass for the whole batch, while the 3x3 pose block is stepped in floats.
+    """
+    x, y, th = mu[0], mu[1], mu[2]
+    s00, s01, s02, s11, s12, s22 = S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]
+    n00, n01, n02, n11, n12, n22 = N[0, 0], N[0, 1], N[0, 2], N[1, 1], N[1, 2], N[2, 2]
+    r00, r01, r02, r11, r12, r22 = n00, n01, n02, n11, n12, n22
+    A = 0.0  # Σ g0 and Σ g1 over the batch
+    B = 0.0
+    for k in range(us.shape[0]):
+        c, s = math.cos(th), math.sin(th)
+        dx = us[k, 0] * c - us[k, 1] * s  # eq. (6): the step in the world frame
+        dy = us[k, 0] * s + us[k, 1] * c
+        if fej:  # Δ between the predicted positions, not from the updated one
+            g0, g1 = -(y + dy - py), x + dx - px
+        else:
+            g0, g1 = -dy, dx
+        if use_dts:  # R = V (M dt) Vᵀ with V the rotation of eq. (5)
+            dt = dts[k]
+            cc, ss, cs = c * c, s * s, c * s
+            r00 = (cc * n00 - 2.0 * cs * n01 + ss * n11) * dt
+            r01 = (cs * (n00 - n11) + (cc - ss) * n01) * dt
+            r11 = (ss * n00 + 2.0 * cs * n01 + cc * n11) * dt
+            r02 = (c * n02 - s * n12) * dt
+            r12 = (s * n02 + c * n12) * dt
+            r22 = n22 * dt
+        # eq. (9) on the pose block: G Σ Gᵀ + R, written out for G = I + g e₃ᵀ
+        s00, s01, s02, s11, s12, s22 = (
+            s00 + 2.0 * g0 * s02 + g0 * g0 * s22 + r00,
+            s01 + g0 * s12 + g1 * s02 + g0 * g1 * s22 + r01,
+            s02 + g0 * s22 + r02,
+            s11 + 2.0 * g1 * s12 + g1 * g1 * s22 + r11,
+            s12 + g1 * s22 + r12,
+            s22 + r22,
+        )
+        x += dx
+        y += dy
+        th += us[k, 2]
+        if not -math.pi <= th < math.pi:
+            th = wrap(th)
+        A += g0
+        B += g1
+        if record:
+            row = rows[r0 + k]
+            row[0], row[1], row[2], row[3] = ts[k], x, y, th
+            row[4], row[5], row[6], row[7], row[8], row[9] = s00, s01, s02, s11, s12, s22
+        px, py = x, y
+    mu[0], mu[1], mu[2] = x, y, th
+    for i in range(3, d):  # Σ_rm <- (Π G) Σ_rm: only x and y change (columns, in the lower half)
+        S[i, 0] += A * S[i, 2]
+        S[i, 1] += B * S[i, 2]
+    S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2] = s00, s01, s02, s11, s12, s22
+    S[1, 0], S[2, 0], S[2, 1] = s01, s02, s12
+    return px, py
+
+
+@njit(cache=True)
+def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out):
+    """One range-bearing observation of the landmark at l, eqs. (13)-(16); returns an outcome.
+
+    jx, jy: the landmark relative to the robot where the Jacobian is evaluated (the current
+    estimate, or FEJ's first estimates). gate: reject when the NIS exceeds it (inf: never).
+    work: (2, capacity) scratch. out (8,) receives ẑ (2), ν (2), S's (s00, s01, s11) and the NIS,
+    NaN where not reached. Returns ACCEPTED (state updated), REJECTED (NIS above the gate),
+    REFUSED (no linearisation: the landmark, or the observation, sits on the robot) or
+    SINGULAR (S is not positive definite, or not finite: no gain); only ACCEPTED changes mu
+    and S.
+    """
+    out[:] = np.nan
+    x, y, th = mu[0], mu[1], mu[2]
+    dx, dy = mu[l] - x, mu[l + 1] - y
+    q = dx * dx + dy * dy
+    jq = jx * jx + jy * jy
+    if not (q > MIN_RANGE_SQUARED and jq > MIN_RANGE_SQUARED):
+        return REFUSED
+    zh0, zh1 = math.sqrt(q), wrap(math.atan2(dy, dx) - th)
+    nu0, nu1 = z0 - zh0, wrap(z1 - zh1)
+    out[0], out[1], out[2], out[3] = zh0, zh1, nu0, nu1
+    # eq. (14) on the rows (x, y, θ, mx, my) is H = [-H_l | -e₂ | H_l] with
+    # H_l = [[a, b], [-e, f]]: the observation sees only the landmark relative to the robot,
+    # so H Σ = H_l (Σ_l - Σ_xy) - e₂ Σ_θ comes from five rows of Σ: O(n), no lift.
+    jr = math.sqrt(jq)
+    a, b, e, f = jx / jr, jy / jr, jy / jq, jx / jq
+    h0, h1 = work[0], work[1]
+    for k in range(d):  # Σ's rows 0, 1, 2, l, l+1, read from the lower triangle
+        if k < 3:
+            p0, p1, p2 = S[0, k], S[1, k], S[2, k]
+        else:
+            p0, p1, p2 = S[k, 0], S[k, 1], S[k, 2]
+        m0 = S[l, k] if k <= l else S[k, l]
+        m1 = S[l + 1, k] if k <= l + 1 else S[k, l + 1]
+        u, v = m0 - p0, m1 - p1
+        h0[k] = a * u + b * v
+        h1[k] = -e * u + f * v - p2
+    # S = H Σ Hᵀ + Q (eq. 15's innovation covariance), from H Σ's columns the same way
+    s00 = a * (h0[l] - h0[0]) + b * (h0[l + 1] - h0[1]) + q00
+    s01 = -e * (h0[l] - h0[0]) + f * (h0[l + 1] - h0[1]) - h0[2] + q01
+    s11 = -e * (h1[l] - h1[0]) + f * (h1[l + 1] - h1[1]) - h1[2] + q11
+    out[4], out[5], out[6] = s00, s01, s11
+    # S = L Lᵀ (Cholesky, 2x2); w = L⁻¹ ν makes the NIS νᵀ S⁻¹ ν = |w|²
+    det = s00 * s11 - s01 * s01
+    if not (0.0 < s00 < math.inf and 0.0 < det < math.inf):  # also false for NaN
+        return SINGULAR
+    l00 = math.sqrt(s00)
+    l10 = s01 / l00
+    l11 = math.sqrt(det) / l00  # = √(s11 - l10²)
+    w0 = nu0 / l00
+    w1 = (nu1 - l10 * w0) / l11
+    nis = w0 * w0 + w1 * w1
+    out[7] = nis
+    if nis > gate:
+        return REJECTED
+    # eqs. (15)-(16) with W = L⁻¹ H Σ: K = Σ Hᵀ S⁻¹ = Wᵀ L⁻¹, so K S Kᵀ = Wᵀ W and Σ -= Wᵀ W,
+    # which for the optimal gain equals Joseph's form (I-KH)Σ(I-KH)ᵀ + KQKᵀ, and keeps Σ
+    # symmetric; the mean moves by K ν = (H Σ)ᵀ S⁻¹ ν = (H Σ)ᵀ L⁻ᵀ w.
+    f00, f10, f11 = 1.0 / l00, -l10 / (l00 * l11), 1.0 / l11
+    k1 = w1 / l11
+    k0 = (w0 - l10 * k1) / l00
+    W0, W1 = h0, h1  # in place: column k of H Σ is read before it is overwritten
+    for k in range(d):
+        p0, p1 = h0[k], h1[k]
+        mu[k] += k0 * p0 + k1 * p1
+        W0[k] = f00 * p0
+        W1[k] = f10 * p0 + f11 * p1
+    if not -math.pi <= mu[2] < math.pi:
+        mu[2] = wrap(mu[2])
+    for i in range(d):  # Σ -= Wᵀ W: the only O(n²) step, one pass over the lower triangle
+        a0, a1 = W0[i], W1[i]
+        row = S[i]
+        for k in range(i + 1):
+            row[k] -= a0 * W0[k] + a1 * W1[k]
+    S[0, 1], S[0, 2], S[1, 2] = S[1, 0], S[2, 0], S[2, 1]  # the pose block stays whole
+    return ACCEPTED
+
+
+@njit(cache=True)
+def record(mu, S, l, t, landmark_id, z0, z1, out, outcome, rows, n, obs, m):
+    """Write the state after an observation to rows[n] (`ROW`) and the observation to obs[m].
+
+    l < 0: no landmark slot (a refused first sighting); its estimate is then NaN. out: what
+    `correct` wrote (ẑ, ν, S, NIS), NaN where there was none.
+    """
+    row = rows[n]
+    row[0], row[1], row[2], row[3] = t, mu[0], mu[1], mu[2]
+    row[4], row[5], row[6], row[7], row[8], row[9] = (
+        S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]
+    )  # fmt: skip
+    o = obs[m]
+    o[0], o[1], o[2], o[3], o[4] = t, n, landmark_id, z0, z1
+    o[5], o[6], o[7], o[8] = out[0], out[1], out[2], out[3]
+    o[9], o[10], o[11], o[12], o[13] = out[4], out[5], out[5], out[6], out[7]
+    o[14] = outcome
+    if l < 0:
+        o[15:21] = np.nan
+    else:
+        o[15], o[16] = mu[l], mu[l + 1]
+        o[17], o[18], o[19], o[20] = S[l, l], S[l + 1, l], S[l + 1, l], S[l + 1, l + 1]
+
+
+@njit(cache=True)
+def mirror(S, d):
+    """Copy Σ's lower triangle onto its upper one (the used d x d block), in 32 x 32 tiles."""
+    for ib in range(0, d, 32):
+        for kb in range(0, ib + 1, 32):  # the tiles on and below the diagonal
+            for i in range(ib, min(ib + 32, d)):
+                for k in range(kb, min(kb + 32, i)):
+                    S[k, i] = S[i, k]

@@ -1,0 +1,1 @@
+"""UTIAS MRCLAM: `load` (the parser and its dataset knowledge), `fetch` (the download)."""

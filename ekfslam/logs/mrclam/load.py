@@ -1,0 +1,523 @@
+"""Read one robot of the UTIAS MRCLAM dataset (Leung et al., IJRR 2011) into a `RunLog`.
+
+An MRCLAM dataset folder (``MRCLAM_Dataset7/``) holds, as whitespace-separated text with ``#``
+header lines and CRLF line endings:
+
+    Barcodes.dat              subject #, barcode #
+    Landmark_Groundtruth.dat  subject #, x [m], y [m], x std-dev [m], y std-dev [m]
+    RobotN_Odometry.dat       time [s], forward velocity v [m/s], angular velocity ω [rad/s]
+    RobotN_Measurement.dat    time [s], barcode #, range [m], bearing [rad]
+    RobotN_Groundtruth.dat    time [s], x [m], y [m], θ [rad]
+
+Subjects 1-5 are the robots, 6-20 the landmarks. The camera sits at the robot's centre, looking
+along its heading, so a measurement is already the (r, φ) of eq. (10).
+
+Nothing is dropped silently: every sighting that does not become a detection is counted in the
+`MrclamLoadReport` returned beside the run. Times stay on the dataset's own clock (Unix seconds).
+
+Beyond loading, in `ekfslam.analysis.mrclam_tuning`: `calibrate_commands` (an optional correction of
+the logged commands, `MRCLAM_CALIBRATION`, off by default); `score_robots`, `scores_table` and
+``python -m ekfslam score-mrclam N`` (the per-robot table); `tune_noise` (the grid search that
+chose `ekfslam.pipeline.MRCLAM_NOISE`, one setting for all robots).
+
+``python -m ekfslam convert mrclam DATASET --robot N --out DIR`` writes a robot as a run folder.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import re
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ekfslam.errors import InputError
+from ekfslam.geometry import wrap_angle
+from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta, check_time_spans
+
+Array = NDArray[np.float64]
+
+#: The robots' subject numbers; every other subject in Barcodes.dat is a landmark.
+ROBOTS = (1, 2, 3, 4, 5)
+
+BARCODES = "Barcodes.dat"
+LANDMARKS = "Landmark_Groundtruth.dat"
+ROBOT_KINDS = ("Odometry", "Measurement", "Groundtruth")  # RobotN_<kind>.dat
+
+_BARCODE_COLUMNS = ("subject", "barcode")
+_LANDMARK_COLUMNS = ("subject", "x", "y", "x std-dev", "y std-dev")
+_ODOMETRY_COLUMNS = ("time", "v", "w")
+_MEASUREMENT_COLUMNS = ("time", "barcode", "range", "bearing")
+_GROUNDTRUTH_COLUMNS = ("time", "x", "y", "theta")
+
+# What np.loadtxt accepts as a number; the slow line-by-line check must agree with it.
+_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+_NON_FINITE = re.compile(r"[+-]?(nan|inf|infinity)", re.IGNORECASE)
+_NEWLINE = re.compile(r"\r\n|\r|\n")  # the universal newlines np.loadtxt reads
+
+
+def robot_file(dataset_dir: str | Path, robot: int, kind: str) -> Path:
+    """Path of robot N's file of `kind` ("Odometry", "Measurement" or "Groundtruth")."""
+    return Path(dataset_dir) / f"Robot{robot}_{kind}.dat"
+
+
+@dataclass(frozen=True)
+class MrclamLoadReport:
+    """What `load_mrclam` read, kept and dropped; times in s on the dataset's clock.
+
+    measurement_rows == measurements_kept + robot_sightings_dropped + unknown_barcodes_dropped.
+    The ``*_out_of_order`` counts are rows whose time is earlier than the row before (they were
+    stably sorted). ``start_inside_groundtruth`` is False when the first odometry time lies
+    outside [groundtruth_first_time, groundtruth_last_time] and the start pose was clamped to the
+    nearest ground-truth pose.
+    """
+
+    dataset: str
+    robot: int
+    odometry_rows: int
+    odometry_duplicate_times: int
+    odometry_max_gap_s: float
+    odometry_out_of_order: int
+    measurement_rows: int
+    measurements_kept: int
+    robot_sightings_dropped: int
+    unknown_barcodes_dropped: int
+    unknown_barcodes: frozenset[int]
+    measurement_out_of_order: int
+    groundtruth_rows: int
+    groundtruth_first_time: float
+    groundtruth_last_time: float
+    groundtruth_out_of_order: int
+    start_time: float
+    start_inside_groundtruth: bool
+
+    def as_dict(self) -> dict:
+        """JSON-ready ``loaded`` (rows out of order were sorted, not dropped) and ``dropped``
+        (count and reason); times in s, rounded to the ms."""
+        first, last = round(self.groundtruth_first_time, 3), round(self.groundtruth_last_time, 3)
+        loaded = {k: getattr(self, k) for k in _LOADED} | {
+            "odometry_max_gap_s": round(self.odometry_max_gap_s, 3),
+            "groundtruth_span_s": [first, last],
+            "start_time_s": round(self.start_time, 3),
+        }
+        robots = {"count": self.robot_sightings_dropped, "reason": _ROBOTS_WHY}
+        unknown = {"count": self.unknown_barcodes_dropped, "reason": _UNKNOWN_WHY,
+                   "barcodes": sorted(self.unknown_barcodes)}  # fmt: skip
+        dropped = {"robot_sightings": robots, "unknown_barcodes": unknown}
+        return {"dataset": self.dataset, "robot": self.robot, "loaded": loaded, "dropped": dropped}
+
+    def lines(self) -> tuple[str, str]:
+        """ "loaded: ..." (what was read, with units) and "dropped: ..." (what and why)."""
+        unsorted = sum(getattr(self, k) for k in _LOADED if k.endswith("out_of_order"))
+        span = self.groundtruth_last_time - self.groundtruth_first_time
+        unknown = "".join(f" {b}," for b in sorted(self.unknown_barcodes)).rstrip(",")
+        return (
+            f"loaded: {self.odometry_rows} odometry rows (largest gap "
+            f"{self.odometry_max_gap_s:.3f} s, {self.odometry_duplicate_times} duplicate times), "
+            f"{self.measurements_kept} of {self.measurement_rows} measurements, "
+            f"{self.groundtruth_rows} ground-truth rows over {span:.1f} s"
+            + ("" if self.start_inside_groundtruth else " (the start clamped to it)")
+            + (f"; {unsorted} rows out of time order, sorted" if unsorted else ""),
+            f"dropped: {self.robot_sightings_dropped} robot sightings ({_ROBOTS_WHY}), "
+            f"{self.unknown_barcodes_dropped} sightings of unknown barcodes{unknown} "
+            f"({_UNKNOWN_WHY})",
+        )
+
+    def summary(self) -> str:
+        """A few lines for a terminal: the dataset, what was loaded, what was dropped and why."""
+        return "\n  ".join([f"MRCLAM dataset {self.dataset}, robot {self.robot}", *self.lines()])
+
+
+_LOADED = ("odometry_rows", "odometry_duplicate_times", "odometry_out_of_order", "measurement_rows",
+           "measurements_kept", "measurement_out_of_order", "groundtruth_rows",
+           "groundtruth_out_of_order", "start_inside_groundtruth")  # fmt: skip
+_ROBOTS_WHY, _UNKNOWN_WHY = "other robots, not landmarks", f"not in {BARCODES}"
+
+
+def load_mrclam(dataset_dir: str | Path, robot: int) -> tuple[RunLog, MrclamLoadReport]:
+    """Load robot `robot` (1-5) of an MRCLAM dataset folder as a recorded run.
+
+    Controls: each odometry row (t, v, ω) becomes a body twist (vx, vy, wz) = (v, 0, ω) held
+    until the next row (a differential drive cannot move sideways). Detections: each sighting of a
+    landmark (subject 6-20, found through Barcodes.dat) becomes (t, tag id = subject number, r, φ)
+    with φ wrapped to [-π, π); sightings of robots and of barcodes missing from Barcodes.dat are
+    dropped and counted in the report. Rows out of time order are sorted stably; rows sharing a
+    timestamp are all kept, in file order.
+
+    Start pose convention: ``meta.nominal_start`` is the ground-truth pose linearly interpolated
+    at the first odometry time, with θ interpolated on the unwrapped heading (so a crossing of ±π
+    between two samples does not sweep through 0). If the first odometry time is outside the
+    ground truth, the nearest ground-truth pose is used and the report says so.
+
+    Parameters
+    ----------
+    dataset_dir : folder holding Barcodes.dat, Landmark_Groundtruth.dat and RobotN_*.dat.
+    robot : 1 to 5.
+
+    Returns
+    -------
+    (RunLog, MrclamLoadReport)
+        The run (meta.name ``mrclam<dataset>-robot<N>``, meta.tag_map {subject: (x, y)} in m from
+        Landmark_Groundtruth.dat, ground truth attached) and what was kept and dropped.
+
+    Raises
+    ------
+    InputError
+        A missing folder or file, a robot outside 1-5, or a malformed file (the message names
+        the file, the 1-based line and the problem).
+    """
+    folder = Path(dataset_dir)
+    if not isinstance(robot, int | np.integer) or isinstance(robot, bool) or robot not in ROBOTS:
+        raise InputError(folder, None, f"robot must be 1 to 5 (MRCLAM has 5 robots), got {robot!r}")
+    robot = int(robot)
+    if not folder.is_dir():
+        raise InputError(folder, None, "not a folder; expected an MRCLAM_Dataset<N> folder")
+    paths = {kind: robot_file(folder, robot, kind) for kind in ROBOT_KINDS}
+    _require_files(folder, robot, [folder / BARCODES, folder / LANDMARKS, *paths.values()])
+
+    barcode_to_subject = read_barcodes(folder / BARCODES)
+    tag_map = read_landmarks(folder / LANDMARKS)
+    odometry, odo_unsorted = _sorted_by_time(_read_table(paths["Odometry"], _ODOMETRY_COLUMNS))
+    measurements = _read_table(paths["Measurement"], _MEASUREMENT_COLUMNS)
+    _check_measurements(paths["Measurement"], measurements, barcode_to_subject, tag_map)
+    measurements, meas_unsorted = _sorted_by_time(measurements)
+    groundtruth, gt_unsorted = _sorted_by_time(
+        _read_table(paths["Groundtruth"], _GROUNDTRUTH_COLUMNS)
+    )
+
+    controls = Controls(
+        t=odometry[:, 0].copy(),
+        kind="twist",
+        values=np.column_stack([odometry[:, 1], np.zeros(len(odometry)), odometry[:, 2]]),
+    )
+    barcodes = measurements[:, 1].astype(np.int64)
+    subjects = np.array([barcode_to_subject.get(b, 0) for b in barcodes.tolist()], dtype=np.int64)
+    unknown = subjects == 0
+    robot_sighting = np.isin(subjects, ROBOTS)
+    keep = ~unknown & ~robot_sighting
+    detections = Detections(
+        t=measurements[keep, 0].copy(),
+        tag_id=subjects[keep],
+        range=measurements[keep, 2].copy(),
+        bearing=_wrapped(measurements[keep, 3]),
+    )
+    gt_pose = groundtruth[:, 1:4].copy()
+    gt_pose[:, 2] = _wrapped(gt_pose[:, 2])
+    truth = GroundTruth(t=groundtruth[:, 0].copy(), pose=gt_pose)
+
+    start_time = float(controls.t[0])
+    nominal_start = interpolate_pose(truth.t, truth.pose, start_time)
+    dataset = _dataset_number(folder)
+    meta = RunMeta(
+        name=f"mrclam{dataset}-robot{robot}",
+        source="recorded",
+        nominal_start=nominal_start,
+        tag_map=tag_map,
+    )
+    gaps = np.diff(controls.t)
+    report = MrclamLoadReport(
+        dataset=dataset,
+        robot=robot,
+        odometry_rows=len(odometry),
+        odometry_duplicate_times=int(np.count_nonzero(gaps == 0.0)),
+        odometry_max_gap_s=float(gaps.max()) if gaps.size else 0.0,
+        odometry_out_of_order=odo_unsorted,
+        measurement_rows=len(measurements),
+        measurements_kept=int(np.count_nonzero(keep)),
+        robot_sightings_dropped=int(np.count_nonzero(robot_sighting)),
+        unknown_barcodes_dropped=int(np.count_nonzero(unknown)),
+        unknown_barcodes=frozenset(int(b) for b in np.unique(barcodes[unknown])),
+        measurement_out_of_order=meas_unsorted,
+        groundtruth_rows=len(groundtruth),
+        groundtruth_first_time=float(truth.t[0]),
+        groundtruth_last_time=float(truth.t[-1]),
+        groundtruth_out_of_order=gt_unsorted,
+        start_time=start_time,
+        start_inside_groundtruth=bool(truth.t[0] <= start_time <= truth.t[-1]),
+    )
+    run = RunLog(meta=meta, controls=controls, detections=detections, groundtruth=truth)
+    # the measurements share the odometry's clock; the Vicon truth's cover is only reported
+    names = tuple(paths[k].name for k in ROBOT_KINDS)
+    check_time_spans(dataclasses.replace(run, groundtruth=None), folder, names, lines=False)
+    return run, report
+
+
+def interpolate_pose(t: ArrayLike, pose: ArrayLike, at: float) -> Array:
+    """The pose (x, y, θ) at time `at`, linearly interpolated between ground-truth samples.
+
+    Parameters
+    ----------
+    t : (K,) s, non-decreasing.
+    pose : (K, 3) (x, y, θ) in m, m, rad.
+    at : s; clamped to [t[0], t[-1]].
+
+    Returns
+    -------
+    (3,) with θ interpolated on the unwrapped heading, then wrapped to [-π, π).
+    """
+    t = np.asarray(t, dtype=np.float64)
+    pose = np.asarray(pose, dtype=np.float64)
+    heading = np.unwrap(pose[:, 2])
+    return np.array(
+        [
+            np.interp(at, t, pose[:, 0]),
+            np.interp(at, t, pose[:, 1]),
+            wrap_angle(float(np.interp(at, t, heading))),
+        ]
+    )
+
+
+def read_barcodes(path: str | Path) -> dict[int, int]:
+    """Barcodes.dat as {barcode: subject}; a barcode or subject listed twice is an InputError."""
+    path = Path(path)
+    table = _read_table(path, _BARCODE_COLUMNS)
+    _require_integers(path, table, _BARCODE_COLUMNS, (0, 1))
+    mapping: dict[int, int] = {}
+    first_row_of_subject: dict[int, int] = {}
+    for row, (subject, barcode) in enumerate(table.astype(np.int64).tolist()):
+        if subject < 1 or barcode < 0:
+            _raise_at_row(path, row, f"subject {subject} must be >= 1, barcode {barcode} >= 0")
+        if barcode in mapping:
+            _raise_at_row(
+                path,
+                row,
+                f"barcode {barcode} is mapped twice (subjects {mapping[barcode]} and {subject})",
+            )
+        if subject in first_row_of_subject:
+            _raise_at_row(path, row, f"subject {subject} has two barcodes")
+        mapping[barcode] = subject
+        first_row_of_subject[subject] = row
+    return mapping
+
+
+def read_landmarks(path: str | Path) -> dict[int, Array]:
+    """Landmark_Groundtruth.dat as {subject: array (2,) (x, y) in m}."""
+    path = Path(path)
+    table = _read_table(path, _LANDMARK_COLUMNS)
+    _require_integers(path, table, _LANDMARK_COLUMNS, (0,))
+    tag_map: dict[int, Array] = {}
+    for row, (subject, x, y, _sx, _sy) in enumerate(table.tolist()):
+        subject = int(subject)
+        if subject in ROBOTS:
+            _raise_at_row(path, row, f"subject {subject} is a robot, not a landmark")
+        if subject in tag_map:
+            _raise_at_row(path, row, f"landmark {subject} is listed twice")
+        tag_map[subject] = np.array([x, y])
+    return tag_map
+
+
+def _wrapped(angle: Array) -> Array:
+    """Angles wrapped to [-π, π), leaving those already inside bit-for-bit as recorded."""
+    inside = (angle >= -math.pi) & (angle < math.pi)
+    return np.where(inside, angle, wrap_angle(angle))
+
+
+def _dataset_number(folder: Path) -> str:
+    match = re.search(r"(\d+)$", folder.resolve().name)
+    return match.group(1) if match else folder.name
+
+
+def _require_files(folder: Path, robot: int, paths: list[Path]) -> None:
+    missing = [p for p in paths if not p.is_file()]
+    if missing:
+        names = ", ".join(p.name for p in missing)
+        raise InputError(
+            missing[0], None, f"file not found: robot {robot} needs {names} in {folder}"
+        )
+
+
+def _sorted_by_time(table: Array) -> tuple[Array, int]:
+    """Stable sort on column 0; returns the table and the number of rows earlier than the last."""
+    out_of_order = int(np.count_nonzero(np.diff(table[:, 0]) < 0))
+    if out_of_order:
+        table = table[np.argsort(table[:, 0], kind="stable")]
+    return table, out_of_order
+
+
+def _check_measurements(path: Path, table: Array, subjects: dict, tag_map: dict) -> None:
+    """Our own reader's rules (`ekfslam.logs.runlog`): range >= 0, bearing in [-π, π], and every
+    sighted landmark (a subject of Barcodes.dat, not a robot) in Landmark_Groundtruth.dat."""
+    _require_integers(path, table, _MEASUREMENT_COLUMNS, (1,))
+    for row, (_, barcode, r, b) in enumerate(table.tolist()):
+        s = subjects.get(int(barcode), ROBOTS[0])
+        if r < 0:
+            _raise_at_row(path, row, f"negative range {r:g} m")
+        if abs(b) > math.pi:
+            _raise_at_row(path, row, f"bearing {b!r} rad is outside [-pi, pi] (degrees?)")
+        if s not in ROBOTS and s not in tag_map:
+            where = f"(barcode {int(barcode)} in {BARCODES}) is not in {LANDMARKS}"
+            _raise_at_row(path, row, f"landmark {s} {where}")
+
+
+def _require_integers(
+    path: Path, table: Array, names: tuple[str, ...], columns: tuple[int, ...]
+) -> None:
+    for col in columns:
+        values = table[:, col]
+        bad = np.flatnonzero((values != np.round(values)) | (np.abs(values) > 2**31))
+        if bad.size:
+            row = int(bad[0])
+            _raise_at_row(
+                path, row, f"{names[col]} {values[row]:g} is not a whole number below 2^31"
+            )
+
+
+def _read_table(path: Path, names: tuple[str, ...]) -> Array:
+    """Parse a whitespace-separated numeric file into (N, columns) float64, validating it.
+
+    np.loadtxt (C parser) does the fast pass; only when it or the shape/finiteness checks fail
+    do we walk the file line by line, to name the exact line.
+    """
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
+            table = np.loadtxt(path, comments="#", ndmin=2, dtype=np.float64, encoding="utf-8-sig")
+    except (ValueError, UnicodeDecodeError) as exc:
+        _raise_first_bad_line(path, names, fallback=str(exc))
+    except OSError as exc:
+        raise InputError(path, None, f"cannot read the file: {exc.strerror or exc}") from None
+    if table.size == 0:
+        raise InputError(path, None, f"empty file: no data rows ({', '.join(names)})")
+    if table.shape[1] != len(names) or not np.isfinite(table).all():
+        _raise_first_bad_line(path, names, fallback="malformed table")
+    return table
+
+
+def _data_lines(path: Path) -> list[tuple[int, list[str]]]:
+    """(1-based line number, fields) of every line that holds data, as np.loadtxt sees them."""
+    raw = path.read_bytes()
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        raise InputError(path, line, f"not text: byte 0x{raw[exc.start]:02x}") from None
+    rows = []
+    for number, line in enumerate(_NEWLINE.split(text), start=1):
+        fields = line.split("#", 1)[0].split()
+        if fields:
+            rows.append((number, fields))
+    return rows
+
+
+def _raise_first_bad_line(path: Path, names: tuple[str, ...], fallback: str) -> None:
+    for number, fields in _data_lines(path):
+        if len(fields) != len(names):
+            raise InputError(
+                path,
+                number,
+                f"expected {len(names)} columns ({', '.join(names)}), found {len(fields)}",
+            )
+        for name, field in zip(names, fields, strict=True):
+            if _NON_FINITE.fullmatch(field):
+                raise InputError(path, number, f"{name} is {field}, not a finite number")
+            if not _NUMBER.fullmatch(field):
+                raise InputError(path, number, f"{name} is {field!r}, not a number")
+            if not math.isfinite(float(field)):
+                raise InputError(path, number, f"{name} is {field}, too large to be a number")
+    raise InputError(path, None, f"could not parse: {fallback}")
+
+
+def _raise_at_row(path: Path, row: int, problem: str) -> None:
+    raise InputError(path, _data_lines(path)[row][0], problem)
+
+
+SHARED_DATA_ENV = "EKFSLAM_SHARED_DATA"
+
+
+def shared_data_dir() -> Path | None:
+    """The shared data folder (it may not exist): ``$EKFSLAM_SHARED_DATA`` if set, else
+    ``shared/data`` beside a source checkout, else None (an installed package has no checkout).
+    `find_dataset` looks here before the download cache, and so do the tests' fixtures."""
+    import os
+
+    if os.environ.get(SHARED_DATA_ENV):
+        return Path(os.environ[SHARED_DATA_ENV]).expanduser()
+    checkout = Path(__file__).resolve().parents[3]
+    return checkout.parent / "shared" / "data" if (checkout / "pyproject.toml").is_file() else None
+
+
+def find_dataset(n: int = 7) -> Path:
+    """Where MRCLAM dataset n is on this machine, for notebooks and scripts.
+
+    Looks in ``mrclam/`` of `shared_data_dir()`, then in the download cache of
+    ``python -m ekfslam fetch mrclam N``.
+
+    Raises
+    ------
+    InputError
+        Not found anywhere; the message says how to fetch it.
+    """
+    from ekfslam.logs.mrclam.fetch import mrclam_path
+
+    shared = shared_data_dir()
+    places = [shared / "mrclam" / f"MRCLAM_Dataset{n}"] if shared is not None else []
+    for place in [*places, mrclam_path(n)]:
+        if (place / BARCODES).is_file():
+            return place
+    raise InputError(
+        mrclam_path(n), None, f"dataset {n} not found; run `python -m ekfslam fetch mrclam {n}`"
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# Command line: python -m ekfslam convert mrclam DATASET --robot N --out DIR
+
+
+def convert_formats(subparsers: argparse._SubParsersAction) -> argparse._SubParsersAction:
+    """The sub-commands of ``convert`` (created on first use), one per input format.
+
+    Several modules add a format (``mrclam`` here, ``rosbag`` in `ekfslam.logs.rosbag`), so the
+    ``convert`` parser is shared: the first caller creates it, later ones find it.
+    """
+    parser = subparsers.choices.get("convert")
+    if parser is None:
+        parser = subparsers.add_parser(
+            "convert", help="convert a recorded log (MRCLAM, ROS bag) to a run folder"
+        )
+        parser.set_defaults(formats=parser.add_subparsers(dest="format", required=True))
+    return parser.get_default("formats")
+
+
+def add_cli(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``convert mrclam``, and ``score-mrclam`` (`ekfslam.analysis.mrclam_tuning`)."""
+    from ekfslam.analysis.mrclam_tuning import add_score_cli
+
+    add_score_cli(subparsers)
+    p = convert_formats(subparsers).add_parser(
+        "mrclam", help="one robot of a MRCLAM dataset -> a run folder (with its Vicon truth)"
+    )
+    from ekfslam.cli import args as ca
+    from ekfslam.cli.main import ROBOTS, add_run_folder_arguments
+
+    p.add_argument("dataset", type=Path, help="a MRCLAM_Dataset<N> folder")
+    p.add_argument("--robot", type=ca.one_of(ROBOTS, "MRCLAM robots"), required=True,
+                   help="which robot (1-5)")  # fmt: skip
+    add_run_folder_arguments(p)
+    p.add_argument(
+        "--calibrate", action="store_true",
+        help="shift and scale the commands by MRCLAM_CALIBRATION (lag 0.25 s, v x0.90, w x0.935)",
+    )  # fmt: skip
+    p.set_defaults(func=_cmd_convert_mrclam)
+
+
+def _cmd_convert_mrclam(args: argparse.Namespace) -> int:
+    from ekfslam.logs.runlog import validate_run, write_run
+
+    run, report = load_mrclam(args.dataset, args.robot)
+    if args.calibrate:
+        from ekfslam.analysis.mrclam_tuning import MRCLAM_CALIBRATION, calibrate_commands
+
+        run = calibrate_commands(run, MRCLAM_CALIBRATION)
+    try:  # load_mrclam checks what it reads; name the dataset, not a file the user never gave
+        validate_run(run)
+    except InputError as err:
+        raise InputError(args.dataset, None, f"robot {args.robot}: {err.problem}") from None
+    write_run(run, args.out, overwrite=args.overwrite)
+    print(report.summary())
+    print(f"wrote {args.out}")
+    return 0

@@ -1,0 +1,3 @@
+"""The simulation floor: the seed's robot and camera simulated, and the test scenarios.
+
+Imports core (never `core.filter`), logs and the leaves."""

@@ -1,0 +1,500 @@
+"""A simulator of the seed's robot: it writes the run log that a real robot would record.
+
+The robot is a mecanum base commanded by four wheel speeds (seed Section 2.2) that drives a square
+or an octagon around the seed's arena (Section 1) with a forward camera that reads the AprilTags.
+
+How a run is made, and why:
+
+1. **Plan.** A waypoint controller turns in place to face the next waypoint, then drives forward
+   with a small heading correction. It steers on the pose the robot *believes*: the nominal start
+   dead-reckoned with the commanded twist and no noise. A real robot placed slightly off the
+   nominal start believes it is exactly there, so its commands do not depend on the placement
+   error or on wheel slip.
+2. **Move.** The true robot starts at nominal start + placement error and executes the commanded
+   wheel speeds plus Gaussian wheel-speed noise, held constant over each control interval and
+   integrated exactly along the arc. Its true path is the commanded path moved by the start
+   error, plus drift.
+3. **See.** At each camera frame every tag wholly in the camera's image (its printed outline,
+   white border included, through the pinhole model with its distortion, height, pitch and
+   mounting: `ekfslam.core.camera.tags_in_view`, the rule the vision evaluation counts by), within
+   range and not too edge-on, is detected (unless dropped out) with noisy range and bearing
+   (eq. 10). Optional outliers (wrong id, gross range) exercise robust filters.
+
+Random numbers come from `numpy.random.default_rng` children of one `SeedSequence(config.seed)`,
+one child per stage, and every stage draws the same arrays whatever the rates: the same config
+gives identical arrays, and turning one noise off leaves the others' draws unchanged.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ekfslam.core.arena import SEED_ARENA, Arena
+from ekfslam.core.camera import (
+    DEFAULT_MOUNTING,
+    TAG_HEIGHT,
+    TAG_SIZE,
+    Camera,
+    TagSpec,
+    pinhole_camera,
+    tags_in_view,
+)
+from ekfslam.core.kinematics import MecanumGeometry, twist_to_wheels, wheels_to_twist
+from ekfslam.errors import ConfigError
+from ekfslam.geometry import wrap_angle
+from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta
+
+Array = NDArray[np.float64]
+
+TRAJECTORIES = ("square", "octagon")
+DEFAULT_SIZE = 0.75  # m: the seed's square side (and octagon size), 1.5 m arena
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    """Every setting of a simulated run, with the defaults used throughout the course.
+
+    Path
+        trajectory : "square" or "octagon" (see `waypoints`).  size : m (0.75).  laps : (2).
+    Randomness
+        seed : the one seed of every random draw (0).
+    Rates
+        controls_hz : wheel commands and ground truth, Hz (20).  camera_hz : camera frames, Hz (10).
+    Controller (acts on the believed pose)
+        max_speed : m/s (0.15).  max_turn_rate : rad/s (0.8).  max_accel : m/s² (0.5).
+        max_angular_accel : rad/s² (4.0).  heading_gain : 1/s (2.0), proportional heading
+        correction while driving.  stop_duration : s (1.0) at rest after the last waypoint.
+    Robot
+        robot : the mecanum geometry (`MecanumGeometry()`).
+    Motion noise, drawn per control interval and per wheel, only while the robot is commanded to
+    move (a robot at rest does not creep)
+        wheel_noise_sigma : rad/s (0.3).  wheel_noise_fraction : extra std as a fraction of the
+        commanded wheel speed (0.03); the two add in quadrature.  wheel_scale_sigma : std of a
+        per-run, per-wheel scale error (a radius miscalibration) as a fraction (0.0, off because the
+        seed's filter models white noise only; turn it on for systematic drift).
+    Placement error (true start = nominal start + error)
+        start_error : explicit (dx, dy, dθ) in m, m, rad, or None to draw it (None).
+        start_error_sigma : std of the drawn error (0.03 m, 0.03 m, 0.08 rad); the seed's Table 1
+        reports offsets of 2-6 cm and 0.14 rad.
+    Camera (the one the frames runs are rendered with; see `ekfslam.core.camera.tags_in_view`)
+        camera : the pinhole camera, intrinsics, distortion, height and pitch
+        (`ekfslam.core.camera.pinhole_camera()`: 640x480, 65° horizontal field of view, mild barrel
+        distortion, 12 cm above the floor, level).  camera_mounting : its (x, y, yaw) in the
+        robot frame, m, m, rad (6 cm ahead of the centre, facing forward).  tag_size : side of
+        the tags' black squares, m (0.16).  tag_height : height of the tags' centres, m (0.15).
+        view_margin_px : how far inside the image the tag's outline must stay, px (1.0).
+        camera_min_range, camera_max_range : m from the robot centre (0.1, 2.0).
+        max_incidence : largest angle between a tag's normal and the line of sight for the tag
+        to be read, rad (75°, the angle beyond which `ekfslam.vision.detect` refuses a tag).
+    Detection noise
+        range_noise_sigma : m (0.02).  range_noise_fraction : extra std as a fraction of the range
+        (0.0); in quadrature.  bearing_noise_sigma : rad (0.02).  dropout : probability that a
+        visible tag is missed in a frame (0.1).
+    Outliers (default off)
+        outlier_wrong_id_rate : probability that a detection reports another tag's id, one not
+        otherwise reported in that frame (0.0).  outlier_range_rate : probability that its range
+        is multiplied or divided (equally likely) by U(1.5, 3) (0.0).
+    """
+
+    trajectory: str = "square"
+    size: float = DEFAULT_SIZE
+    laps: int = 2
+    seed: int = 0
+    controls_hz: float = 20.0
+    camera_hz: float = 10.0
+    max_speed: float = 0.15
+    max_turn_rate: float = 0.8
+    max_accel: float = 0.5
+    max_angular_accel: float = 4.0
+    heading_gain: float = 2.0
+    stop_duration: float = 1.0
+    robot: MecanumGeometry = field(default_factory=MecanumGeometry)
+    wheel_noise_sigma: float = 0.3
+    wheel_noise_fraction: float = 0.03
+    wheel_scale_sigma: float = 0.0
+    start_error: tuple[float, float, float] | None = None
+    start_error_sigma: tuple[float, float, float] = (0.03, 0.03, 0.08)
+    camera: Camera = field(default_factory=pinhole_camera)
+    camera_mounting: tuple[float, float, float] = DEFAULT_MOUNTING
+    tag_size: float = TAG_SIZE
+    tag_height: float = TAG_HEIGHT
+    view_margin_px: float = 1.0
+    camera_min_range: float = 0.1
+    camera_max_range: float = 2.0
+    max_incidence: float = math.radians(75.0)
+    range_noise_sigma: float = 0.02
+    range_noise_fraction: float = 0.0
+    bearing_noise_sigma: float = 0.02
+    dropout: float = 0.1
+    outlier_wrong_id_rate: float = 0.0
+    outlier_range_rate: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.trajectory not in TRAJECTORIES:
+            raise ConfigError(f"trajectory must be one of {TRAJECTORIES}, got {self.trajectory!r}")
+        for name in ("start_error", "start_error_sigma", "camera_mounting"):  # lists -> tuples
+            value = getattr(self, name)
+            if value is not None:
+                if len(value) != 3 or not all(math.isfinite(float(v)) for v in value):
+                    raise ConfigError(f"SimulationConfig.{name} is 3 finite numbers, got {value!r}")
+                object.__setattr__(self, name, tuple(float(v) for v in value))
+        if not isinstance(self.camera, Camera) or self.camera.mount_height is None:
+            raise ConfigError("SimulationConfig.camera must be a Camera with its mount_height set")
+        rules = (
+            ("laps", lambda v: v == int(v) >= 1, "a positive whole number"),
+            ("size controls_hz camera_hz max_speed max_turn_rate max_accel max_angular_accel "
+             "tag_size tag_height camera_max_range max_incidence", lambda v: v > 0, "positive"),
+            ("heading_gain stop_duration wheel_noise_sigma wheel_noise_fraction wheel_scale_sigma "
+             "camera_min_range range_noise_sigma range_noise_fraction bearing_noise_sigma "
+             "view_margin_px", lambda v: v >= 0, "zero or positive"),
+            ("start_error_sigma", lambda v: min(v) >= 0, "zero or positive"),
+            ("dropout outlier_wrong_id_rate outlier_range_rate", lambda v: 0 <= v <= 1,
+             "a probability in [0, 1]"),
+        )  # fmt: skip
+        for names, ok, what in rules:
+            for name in names.split():
+                if not ok(getattr(self, name)):
+                    raise ConfigError(
+                        f"SimulationConfig.{name} must be {what}, got {getattr(self, name)!r}"
+                    )
+        object.__setattr__(self, "laps", int(self.laps))
+
+    @property
+    def name(self) -> str:
+        """The run's name, from what was simulated (`ekfslam.analysis.evaluation.run_name`)."""
+        from ekfslam.analysis.evaluation import run_name
+
+        return run_name(self)
+
+    @property
+    def tags(self) -> TagSpec:
+        """The printed tags (`tag_size`)."""
+        return TagSpec(self.tag_size)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Every field as plain JSON types (robot and camera as dicts, tuples as lists)."""
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, MecanumGeometry | Camera):
+                value = {k: list(v) if isinstance(v, tuple) else v
+                         for k, v in dataclasses.asdict(value).items()}  # fmt: skip
+            elif isinstance(value, tuple):
+                value = list(value)
+            out[f.name] = value
+        return out
+
+
+def config_from_dict(data: dict[str, Any]) -> SimulationConfig:
+    """The inverse of `SimulationConfig.to_dict`; missing keys take their defaults.
+
+    A config written before the simulator had a camera model names only ``camera_fov`` (rad,
+    the horizontal field of view); it becomes the default camera with that field of view.
+    """
+    data = dict(data)
+    fov = data.pop("camera_fov", None)
+    if fov is not None and "camera" not in data:
+        data["camera"] = pinhole_camera(horizontal_fov_deg=math.degrees(fov))
+    known = {f.name for f in dataclasses.fields(SimulationConfig)}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ValueError(
+            f"unknown SimulationConfig fields {unknown}; known fields: {sorted(known)}"
+        )
+    kwargs = dict(data)
+    if isinstance(kwargs.get("robot"), dict):
+        kwargs["robot"] = MecanumGeometry(**kwargs["robot"])
+    if isinstance(kwargs.get("camera"), dict):
+        kwargs["camera"] = Camera(**kwargs["camera"])
+    for name in ("start_error", "start_error_sigma"):
+        if kwargs.get(name) is not None:
+            kwargs[name] = tuple(kwargs[name])
+    return SimulationConfig(**kwargs)
+
+
+def waypoints(trajectory: str = "square", size: float = 0.75, laps: int = 2) -> Array:
+    """Corners of the path, counter-clockwise, starting and ending at the start corner.
+
+    square : the axis-aligned square of side `size` centred at the origin, from its lower-left
+        corner (-size/2, -size/2): the default passes through the nominal start.
+    octagon : the regular octagon inscribed in the square's circumcircle (circumradius
+        size/√2) with the square's four corners among its vertices, from the lower-left one.
+        The other four vertices lie on the axes at ±size/√2 (0.53 m by default, 0.22 m from the
+        walls); the robot turns 45° at each vertex instead of 90°.
+
+    Returns
+    -------
+    array (laps * n + 1, 2), m; n = 4 (square) or 8 (octagon).
+    """
+    if trajectory not in TRAJECTORIES:
+        raise ValueError(f"trajectory must be one of {TRAJECTORIES}, got {trajectory!r}")
+    n = 4 if trajectory == "square" else 8
+    radius = size / math.sqrt(2.0)
+    angles = math.radians(225.0) + 2.0 * math.pi * np.arange(n) / n
+    corners = radius * np.column_stack([np.cos(angles), np.sin(angles)])
+    if trajectory == "square":
+        corners = np.round(corners / (size / 2.0)) * (size / 2.0)  # exact ±size/2, no cos error
+    path = np.vstack([np.tile(corners, (int(laps), 1)), corners[:1]])
+    return path
+
+
+def arc_increment(theta: ArrayLike, twist: ArrayLike, dt: ArrayLike) -> Array:
+    """World-frame displacement (dx, dy, dθ) of a constant body twist held for dt, exactly.
+
+    Parameters
+    ----------
+    theta : () or (M,) heading at the start of the interval, rad.
+    twist : (3,) or (M, 3) body twist (vx, vy, ωz), m/s, m/s, rad/s.
+    dt : () or (M,) duration, s.
+
+    Returns
+    -------
+    (3,) or (M, 3): the exact arc, which tends to the seed's eq. (5) as ωz dt -> 0.
+    """
+    v = np.asarray(twist, dtype=float)
+    a = v[..., 2] * dt
+    # sin(a)/a and (1 - cos a)/a, written with sinc so that a = 0 needs no special case
+    s = np.sinc(a / np.pi)
+    c = np.sin(a / 2.0) * np.sinc(a / (2.0 * np.pi))
+    bx = (s * v[..., 0] - c * v[..., 1]) * dt
+    by = (c * v[..., 0] + s * v[..., 1]) * dt
+    ct, st = np.cos(theta), np.sin(theta)
+    return np.stack([ct * bx - st * by, st * bx + ct * by, a], axis=-1)
+
+
+def integrate_twist(start: ArrayLike, twist: ArrayLike, dt: ArrayLike) -> Array:
+    """Poses (M+1, 3) from `start` (3,) after each of M constant twists (M, 3) held for dt (M,).
+
+    Headings are returned wrapped to [-π, π).
+    """
+    v = np.asarray(twist, dtype=float).reshape(-1, 3)
+    dt = np.broadcast_to(np.asarray(dt, dtype=float), (len(v),))
+    start = np.asarray(start, dtype=float)
+    theta = start[2] + np.concatenate([[0.0], np.cumsum(v[:, 2] * dt)])
+    steps = arc_increment(theta[:-1], v, dt)
+    xy = start[:2] + np.vstack([[0.0, 0.0], np.cumsum(steps[:, :2], axis=0)])
+    return np.column_stack([xy, wrap_angle(theta)])
+
+
+@dataclass(frozen=True, eq=False)
+class CommandPlan:
+    """What the controller commands, and where the robot believes it is.
+
+    t : (N,) control times k / controls_hz, s.  wheels : (N, 4) commanded wheel speeds, rad/s
+    (the last row is a stop).  believed : (N, 3) believed pose at each control time.
+    waypoints : (K, 2) m.  waypoint_index : (K,) control index at which each waypoint was reached
+    (0 for the start).
+    """
+
+    t: Array
+    wheels: Array
+    believed: Array
+    waypoints: Array
+    waypoint_index: NDArray[np.int64]
+
+
+def _speed(remaining: float, previous: float, top: float, accel: float, dt: float) -> float:
+    """Speed magnitude that accelerates, cruises, brakes, and lands exactly on `remaining`."""
+    return min(top, previous + accel * dt, math.sqrt(2.0 * accel * remaining), remaining / dt)
+
+
+def plan_commands(config: SimulationConfig, nominal_start: ArrayLike) -> CommandPlan:
+    """Run the waypoint controller on the believed (noise-free, dead-reckoned) pose."""
+    c = config
+    dt = 1.0 / c.controls_hz
+    path = waypoints(c.trajectory, c.size, c.laps)
+    pose = np.asarray(nominal_start, dtype=float).copy()
+    reach = 1e-4  # m: the final step is deadbeat, so the controller lands far closer than this
+    max_steps = int(1e4 * c.controls_hz)  # a safety net, never reached by a sane config
+    twists, believed, reached = [], [], [0]
+    target, turning, v_prev, w_prev = 1, True, 0.0, 0.0
+    while target < len(path):
+        if len(believed) > max_steps:
+            raise RuntimeError(f"controller did not reach waypoint {target} of {c.name}")
+        d = path[target] - pose[:2]
+        dist = math.hypot(*d)
+        err = wrap_angle(math.atan2(d[1], d[0]) - pose[2]) if dist > reach else 0.0
+        along = d[0] * math.cos(pose[2]) + d[1] * math.sin(pose[2])
+        if dist <= reach or (not turning and along <= reach):
+            reached.append(len(believed))
+            target, turning = target + 1, True
+            continue
+        if turning and abs(err) < 1e-9:
+            turning = False
+        v = w = 0.0
+        if turning:
+            w = math.copysign(
+                _speed(abs(err), abs(w_prev), c.max_turn_rate, c.max_angular_accel, dt), err
+            )
+        else:
+            v = _speed(along, v_prev, c.max_speed, c.max_accel, dt)
+            if dist > 0.05:  # near the waypoint the bearing to it swings; hold the heading
+                w = max(-c.max_turn_rate, min(c.max_turn_rate, c.heading_gain * err))
+        believed.append(pose.copy())
+        twists.append((v, 0.0, w))
+        # the exact arc of eq. (5)'s constant twist, in scalars because this loop is the hot path
+        a = w * dt
+        s, k = (1.0, 0.0) if a == 0.0 else (math.sin(a) / a, 2.0 * math.sin(a / 2.0) ** 2 / a)
+        cos_t, sin_t = math.cos(pose[2]), math.sin(pose[2])
+        pose = pose + v * dt * np.array([cos_t * s - sin_t * k, sin_t * s + cos_t * k, 0.0])
+        pose[2] = wrap_angle(pose[2] + a)
+        v_prev, w_prev = v, w
+    n_stop = max(1, round(c.stop_duration * c.controls_hz))
+    for _ in range(n_stop):  # at rest; the last row is the stop that ends the log
+        believed.append(pose.copy())
+        twists.append((0.0, 0.0, 0.0))
+    n = len(twists)
+    return CommandPlan(
+        t=np.arange(n) / c.controls_hz,
+        wheels=twist_to_wheels(np.array(twists), c.robot),
+        believed=np.array(believed),
+        waypoints=path,
+        waypoint_index=np.array(reached, dtype=np.int64),
+    )
+
+
+def visible(pose: ArrayLike, arena: Arena, config: SimulationConfig) -> NDArray[np.bool_]:
+    """Which tags the camera can read from each pose: (F, 3) poses -> (F, n) bool.
+
+    A tag is visible when it is fully in view of the config's camera and faces it at an
+    incidence of at most max_incidence (`ekfslam.core.camera.tags_in_view`: its printed outline,
+    white border included, inside the image by view_margin_px), and its range from the robot
+    centre is within [camera_min_range, camera_max_range].
+    """
+    c = config
+    p = np.asarray(pose, dtype=float).reshape(-1, 3)
+    in_view = tags_in_view(
+        c.camera, c.tags, c.camera_mounting, p, arena.tag_positions(), arena.tag_normals(),
+        tag_height=c.tag_height, max_incidence=c.max_incidence, margin_px=c.view_margin_px,
+    )  # fmt: skip
+    d = arena.tag_positions()[None, :, :] - p[:, None, :2]  # (F, n, 2) robot -> tag
+    r = np.hypot(d[..., 0], d[..., 1])
+    return in_view & (r >= c.camera_min_range) & (r <= c.camera_max_range)
+
+
+def _true_motion(config: SimulationConfig, plan: CommandPlan, true_start: Array, rng, t_cam):
+    """True poses at the control times and at the camera times, and the noisy wheel speeds."""
+    c = config
+    cmd = plan.wheels
+    scale = 1.0 + c.wheel_scale_sigma * rng.standard_normal(4)
+    normal = rng.standard_normal(cmd.shape)
+    std = np.hypot(c.wheel_noise_sigma, c.wheel_noise_fraction * np.abs(cmd))
+    moving = np.any(cmd != 0.0, axis=1, keepdims=True)
+    true_wheels = np.where(moving, cmd * scale + std * normal, 0.0)
+    twist = wheels_to_twist(true_wheels, c.robot)
+    # split the control intervals at camera times, so the camera sees the exact true pose
+    events = np.union1d(plan.t, t_cam)
+    k = np.searchsorted(plan.t, events[:-1], side="right") - 1
+    poses = integrate_twist(true_start, twist[k], np.diff(events))
+    return poses[np.searchsorted(events, plan.t)], poses[np.searchsorted(events, t_cam)]
+
+
+def _detect(config: SimulationConfig, arena: Arena, poses: Array, t_cam: Array, rng):
+    """Detections (t, id, range, bearing) from camera poses (F, 3), and the outlier counts."""
+    c = config
+    shape = (len(poses), len(arena.tags))
+    # one draw of each kind per (frame, tag), whatever is visible: seeds stay comparable
+    u_drop, u_id, u_range, u_which, u_side = (rng.random(shape) for _ in range(5))
+    n_range, n_bearing = rng.standard_normal(shape), rng.standard_normal(shape)
+    factor = rng.uniform(1.5, 3.0, shape)
+    d = arena.tag_positions()[None, :, :] - poses[:, None, :2]
+    r_true = np.hypot(d[..., 0], d[..., 1])
+    b_true = np.arctan2(d[..., 1], d[..., 0]) - poses[:, None, 2]
+    r = r_true + np.hypot(c.range_noise_sigma, c.range_noise_fraction * r_true) * n_range
+    b = wrap_angle(b_true + c.bearing_noise_sigma * n_bearing)
+    gross = u_range < c.outlier_range_rate
+    r = np.where(gross, np.where(u_side < 0.5, r * factor, r / factor), r)
+    keep = visible(poses, arena, c) & (u_drop >= c.dropout)
+    ids = np.broadcast_to(arena.tag_ids, shape).copy()
+    wrong = keep & (u_id < c.outlier_wrong_id_rate)
+    for f, j in zip(*np.nonzero(wrong), strict=True):
+        # a misread id names a tag not otherwise reported in this frame, so (t, id) stays unique
+        taken = set(ids[f, keep[f] & ~wrong[f]].tolist()) | set(ids[f, :j][wrong[f, :j]].tolist())
+        free = [i for i in arena.tag_ids.tolist() if i not in taken and i != ids[f, j]]
+        if free:
+            ids[f, j] = free[int(u_which[f, j] * len(free))]
+        else:  # every other tag is already reported in this frame: nothing left to misread as
+            wrong[f, j] = False
+    frame, col = np.nonzero(keep)
+    order = np.lexsort((ids[frame, col], frame))
+    frame, col = frame[order], col[order]
+    detections = Detections(
+        t=t_cam[frame],
+        tag_id=ids[frame, col].astype(np.int64),
+        range=r[frame, col],
+        bearing=np.asarray(b[frame, col], dtype=float),
+    )
+    counts = {"wrong_id": int(wrong.sum()), "range": int((gross & keep).sum())}
+    return detections, counts
+
+
+def simulate(config: SimulationConfig | None = None, arena: Arena = SEED_ARENA) -> RunLog:
+    """Simulate one run of the seed's robot and return its log, ground truth included.
+
+    Parameters
+    ----------
+    config : SimulationConfig, default `SimulationConfig()`.
+    arena : Arena, default the seed's.
+
+    Returns
+    -------
+    RunLog with wheel-speed controls (N, 4) at t = k / controls_hz (the last row a stop),
+    detections at t = k / camera_hz sorted by time then tag id, ground truth (N, 3) at the
+    control times, and `meta.simulation` holding the seed, the true start, the noise settings,
+    the outlier counts and the whole config.
+    """
+    c = config if config is not None else SimulationConfig()
+    start_rng, motion_rng, camera_rng = (
+        np.random.default_rng(s) for s in np.random.SeedSequence(c.seed).spawn(3)
+    )
+    drawn = np.asarray(c.start_error_sigma) * start_rng.standard_normal(3)
+    start_error = np.asarray(c.start_error if c.start_error is not None else drawn, dtype=float)
+    nominal = np.asarray(arena.nominal_start, dtype=float)
+    true_start = nominal + start_error
+    true_start[2] = wrap_angle(true_start[2])
+    plan = plan_commands(c, nominal)
+    t_cam = np.arange(math.floor(plan.t[-1] * c.camera_hz + 1e-9) + 1) / c.camera_hz
+    truth, cam_poses = _true_motion(c, plan, true_start, motion_rng, t_cam)
+    detections, outliers = _detect(c, arena, cam_poses, t_cam, camera_rng)
+    noise_names = (
+        "wheel_noise_sigma", "wheel_noise_fraction", "wheel_scale_sigma", "start_error_sigma",
+        "range_noise_sigma", "range_noise_fraction", "bearing_noise_sigma", "dropout",
+        "outlier_wrong_id_rate", "outlier_range_rate",
+    )  # fmt: skip
+    config_dict = c.to_dict()
+    simulation = {
+        "seed": c.seed,
+        "trajectory": c.trajectory,
+        "size": c.size,
+        "laps": c.laps,
+        "true_start": [float(v) for v in true_start],
+        "start_error": [float(v) for v in start_error],
+        "noise": {name: config_dict[name] for name in noise_names},
+        "outliers": outliers,
+        "waypoints": plan.waypoints.tolist(),
+        "waypoint_times": plan.t[plan.waypoint_index].tolist(),
+        "config": config_dict,
+    }
+    meta = RunMeta(
+        name=c.name,
+        source="simulated",
+        nominal_start=nominal.copy(),
+        control_rate_hz=float(c.controls_hz),
+        camera_rate_hz=float(c.camera_hz),
+        robot=c.robot,
+        camera_mounting=np.array(c.camera_mounting, dtype=float),
+        tag_map=arena.tag_map(),
+        simulation=simulation,
+    )
+    return RunLog(
+        meta=meta,
+        controls=Controls(t=plan.t.copy(), kind="wheels", values=plan.wheels.copy()),
+        detections=detections,
+        groundtruth=GroundTruth(t=plan.t.copy(), pose=truth),
+    )

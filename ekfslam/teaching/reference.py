@@ -1,0 +1,204 @@
+"""The seed's equations written literally, with the lift matrices F_x and F_x,j and full-size G, H.
+
+This is a teaching artefact and the test oracle for `ekfslam.core.filter.ekf`: every product here is
+(3 + 2n) wide, so a step costs O(n^3). Read it next to the report; never use it for real runs.
+
+Where the seed's printed shapes are wrong (eqs. 7 and 9 write F_x R F_x^T, which is 3x3), this
+uses the lift that type-checks: G = I + F_xᵀ (g - I) F_x and R lifted as F_xᵀ R F_x.
+The covariance update is Joseph's form (I - KH) Σ (I - KH)ᵀ + K Q Kᵀ, which for the optimal gain
+equals the seed's eq. (16) (I - KH) Σ but stays symmetric and positive semi-definite.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ekfslam.core.filter.ekf import FilterConfig, FilterCounts
+from ekfslam.core.models import (
+    MIN_RANGE_SQUARED,
+    inverse_observation,
+    inverse_observation_jacobians,
+    motion,
+    motion_jacobian,
+    observation,
+    observation_jacobians,
+)
+from ekfslam.geometry import wrap_angle
+from ekfslam.teaching.derivations import landmark_lift_matrix_numeric, lift_matrix_numeric
+
+
+class LiteralEKFSLAM:
+    """Same interface as `ekfslam.core.filter.ekf.EKFSLAM` (predict, update, mu, Sigma,
+    landmark_map)."""
+
+    def __init__(
+        self,
+        pose: ArrayLike,
+        pose_covariance: ArrayLike | None = None,
+        config: FilterConfig | None = None,
+    ) -> None:
+        self.config = config or FilterConfig()
+        self.mu = np.asarray(pose, dtype=float).copy()
+        self.mu[2] = wrap_angle(float(self.mu[2]))
+        self.Sigma = (
+            np.zeros((3, 3)) if pose_covariance is None else np.array(pose_covariance, dtype=float)
+        )
+        self.slot: dict[int, int] = {}
+        self._sightings: list[int] = []
+        self._fej = self.config.linearization == "fej"
+        self._prior = self.mu[:2].copy()  # FEJ: the predicted position at the current step
+        self._first: list[np.ndarray] = []  # FEJ: each landmark's first estimate
+        self._rejected: list[list[np.ndarray]] = []  # per slot: rejected sightings' positions
+        self._counts = dict.fromkeys(FilterCounts.__dataclass_fields__, 0)
+
+    @property
+    def n_landmarks(self) -> int:
+        return len(self.slot)
+
+    @property
+    def counts(self) -> FilterCounts:
+        return FilterCounts(**self._counts)
+
+    def landmark_map(self) -> dict[int, np.ndarray]:
+        return {i: self.mu[3 + 2 * j : 5 + 2 * j].copy() for i, j in self.slot.items()}
+
+    def predict(self, u: ArrayLike, R: ArrayLike, t: float | None = None) -> None:
+        """Eqs. (6), (7), (9) with F_x (eq. 8)."""
+        n = self.n_landmarks
+        F_x = lift_matrix_numeric(n)  # 3 x (2n+3)
+        I = np.eye(3 + 2 * n)
+        pose = self.mu[:3]
+        predicted = motion(pose, u)
+        g = motion_jacobian(pose, u)
+        if self._fej:  # eq. (7) at the predicted positions p̂(k+1|k) and p̂(k|k-1)
+            g[0, 2] = -(predicted[1] - self._prior[1])
+            g[1, 2] = predicted[0] - self._prior[0]
+        self._prior = predicted[:2].copy()
+        G = I + F_x.T @ (g - np.eye(3)) @ F_x
+        step = predicted - pose
+        step[2] = wrap_angle(float(step[2]))
+        self.mu = self.mu + F_x.T @ step
+        self.mu[2] = wrap_angle(float(self.mu[2]))
+        self.Sigma = G @ self.Sigma @ G.T + F_x.T @ np.asarray(R, dtype=float) @ F_x
+        self._counts["predictions"] += 1
+
+    def update(self, landmark_id: int, z: ArrayLike, Q: ArrayLike, t: float | None = None) -> str:
+        """Eqs. (12)-(16) with F_x,j (eq. 14) and full-width H."""
+        z = np.asarray(z, dtype=float)
+        Q = np.asarray(Q, dtype=float)
+        j = self.slot.get(landmark_id)
+        if j is None:
+            if z[0] * z[0] <= MIN_RANGE_SQUARED:
+                return self._count("refused")
+            j = self._augment(landmark_id, z, Q)
+            if self.config.init == "inverse":
+                return self._count("initialised")
+            return self._correct(j, z, Q, gated=False, fresh=True, accepted_as="initialised")
+        gated = self.config.gate is not None and self._sightings[j] >= self.config.gate_after
+        return self._correct(j, z, Q, gated=gated, fresh=False)
+
+    def _augment(self, landmark_id: int, z: np.ndarray, Q: np.ndarray) -> int:
+        n = self.n_landmarks
+        pose = self.mu[:3]
+        m = inverse_observation(pose, z)
+        if self.config.init == "inverse":
+            G_p, G_z = inverse_observation_jacobians(pose, z)
+            G_x = G_p @ lift_matrix_numeric(n)  # 2 x (2n+3): the new landmark against the state
+            top = np.hstack([self.Sigma, self.Sigma @ G_x.T])
+            bottom = np.hstack([G_x @ self.Sigma, G_x @ self.Sigma @ G_x.T + G_z @ Q @ G_z.T])
+            self.Sigma = np.vstack([top, bottom])
+        else:  # eq. (3)
+            big = self.config.seed_init_variance * np.eye(2)
+            d = self.Sigma.shape[0]
+            self.Sigma = np.block([[self.Sigma, np.zeros((d, 2))], [np.zeros((2, d)), big]])
+        self.mu = np.concatenate([self.mu, m])
+        self._first.append(m.copy())
+        self.slot[landmark_id] = n
+        self._sightings.append(1)
+        self._rejected.append([])
+        return n
+
+    def _reinitialise(self, j: int, z: np.ndarray, Q: np.ndarray) -> str:
+        """Slot j from this sighting alone: eq. (12) again, its old rows and columns replaced."""
+        n = self.n_landmarks
+        pose = self.mu[:3]
+        m = inverse_observation(pose, z)
+        rows = slice(3 + 2 * j, 5 + 2 * j)
+        if self.config.init == "inverse":
+            G_p, G_z = inverse_observation_jacobians(pose, z)
+            G_x = G_p @ lift_matrix_numeric(n)
+            cross = G_x @ self.Sigma
+            self.Sigma[rows, :] = cross
+            self.Sigma[:, rows] = cross.T
+            self.Sigma[rows, rows] = G_x @ self.Sigma @ G_x.T + G_z @ Q @ G_z.T
+        else:
+            self.Sigma[rows, :] = 0.0
+            self.Sigma[:, rows] = 0.0
+            self.Sigma[rows, rows] = self.config.seed_init_variance * np.eye(2)
+        self.mu[rows] = m
+        self._first[j] = m.copy()
+        self._sightings[j] = 1
+        self._rejected[j] = []
+        if self.config.init == "seed":
+            return self._correct(j, z, Q, gated=False, fresh=True, accepted_as="reinitialised")
+        return self._count("reinitialised")
+
+    def _correct(
+        self,
+        j: int,
+        z: np.ndarray,
+        Q: np.ndarray,
+        gated: bool,
+        fresh: bool,
+        accepted_as: str = "accepted",
+    ) -> str:
+        n = self.n_landmarks
+        pose = self.mu[:3]
+        landmark = self.mu[3 + 2 * j : 5 + 2 * j]
+        at_pose, at_landmark = pose, landmark
+        if self._fej:  # eq. (14) at the predicted position and the landmark's first estimate
+            at_pose = np.array([self._prior[0], self._prior[1], pose[2]])
+            at_landmark = self._first[j]
+        for p, m in ((pose, landmark), (at_pose, at_landmark)):
+            d = m - p[:2]
+            if not float(d @ d) > MIN_RANGE_SQUARED:
+                return self._count("refused")
+        z_hat = observation(pose, landmark)
+        H_p, H_l = observation_jacobians(at_pose, at_landmark)
+        H = np.hstack([H_p, H_l]) @ landmark_lift_matrix_numeric(n, j)  # eq. (14)
+        S = H @ self.Sigma @ H.T + Q
+        nu = z - z_hat
+        nu[1] = wrap_angle(float(nu[1]))
+        if not np.all(np.linalg.eigvalsh(S) > 0):
+            return self._count("refused")
+        nis = float(nu @ np.linalg.solve(S, nu))
+        if gated and nis > self.config.gate:
+            k = self.config.reinit_after
+            if k is not None:  # do the last k sightings, all rejected, agree on a new place?
+                k = max(k, self._sightings[j])  # as many as it has accepted, if more
+                self._rejected[j] = ([*self._rejected[j], inverse_observation(pose, z)])[-k:]
+                seen = np.array(self._rejected[j])
+                centre = seen.mean(axis=0)
+                others = [m for i, m in enumerate(self.mu[3:].reshape(-1, 2)) if i != j]
+                radius = self.config.reinit_radius
+                if (
+                    len(seen) == k
+                    and np.linalg.norm(seen - centre, axis=1).max() <= radius
+                    and all(np.linalg.norm(m - centre) > radius for m in others)
+                ):
+                    return self._reinitialise(j, z, Q)
+            return self._count("rejected")
+        K = self.Sigma @ H.T @ np.linalg.inv(S)  # eq. (15)
+        self.mu = self.mu + K @ nu  # eq. (16)
+        self.mu[2] = wrap_angle(float(self.mu[2]))
+        IKH = np.eye(self.Sigma.shape[0]) - K @ H
+        self.Sigma = IKH @ self.Sigma @ IKH.T + K @ Q @ K.T
+        if not fresh:
+            self._sightings[j] += 1
+        self._rejected[j] = []
+        return self._count(accepted_as)
+
+    def _count(self, name: str) -> str:
+        self._counts[name] += 1
+        return name

@@ -1,0 +1,210 @@
+"""The live tuning panel: log-scale R and Q sliders that re-run the replay and redraw in place.
+
+The panel is the ipywidgets + ipympl face of an `ekfslam.ui.tuning.Tuner`; the settings, the
+coalescing of rapid changes, the figure updates and their tests live there. For a classroom
+projector serve the notebook as an app: ``voila notebooks/08-live-tuning.ipynb``.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+import traceback
+from collections.abc import Mapping
+from functools import partial
+
+from matplotlib.figure import Figure
+
+from ekfslam.analysis.evaluation import SEED_TABLE1
+from ekfslam.pipeline import default_noise
+from ekfslam.ui.tuning import (
+    DEFAULT_FIGSIZE,
+    GATES,
+    SLIDERS,
+    SPECS,
+    RunSource,
+    Tuner,
+    TunerSettings,
+    TunerState,
+    benchmark,
+    seed_runs,
+)
+
+
+class TuningPanel:
+    """The ipywidgets + ipympl face of a `Tuner` (build it with `tuning_panel`).
+
+    Attributes: `tuner`; `sliders` {NoiseConfig field: FloatLogSlider}; `run`, `init`, `gate`
+    pickers; `reset` (the run's documented noise); `status` (HTML: the Table 1 row);
+    `errors` (Output: tracebacks of failed updates); `widget`, the whole panel.
+    """
+
+    def __init__(self, tuner: Tuner) -> None:
+        import ipywidgets as w
+
+        self.tuner, s = tuner, tuner.settings
+        tuner.raise_errors, tuner.on_update, tuner.on_error = False, self._updated, self._failed
+        self._quiet = False
+        wide = {"description_width": "110px"}
+        self.sliders = {
+            spec.field: w.FloatLogSlider(
+                value=getattr(s.noise, spec.field),
+                base=10,
+                min=spec.grid(getattr(s.noise, spec.field))[0],
+                max=spec.grid(getattr(s.noise, spec.field))[1],
+                step=spec.step,
+                description=f"{spec.label} ({spec.unit})",
+                readout_format=".3g",
+                style=wide,
+                layout=w.Layout(width="430px"),
+            )
+            for spec in SLIDERS
+        }
+        gates = dict(GATES)
+        if (s.config.gate or 0.0) not in gates.values():
+            gates[f"{s.config.gate:.3g}"] = s.config.gate
+        self.run = w.Dropdown(options=list(tuner.runs), value=s.run, description="run", style=wide)
+        self.init = w.Dropdown(
+            options=[("inverse, eq. (12)", "inverse"), ("seed, eq. (3)", "seed")],
+            value=s.config.init,
+            description="landmark init",
+            style=wide,
+        )
+        self.gate = w.Dropdown(
+            options=list(gates.items()),
+            value=s.config.gate or 0.0,
+            description="NIS gate (χ²)",
+            style=wide,
+        )
+        self.reset = w.Button(description="reset R and Q", icon="undo")
+        self.status, self.errors = w.HTML(), w.Output()
+        for name, widget in (
+            *self.sliders.items(),
+            ("run", self.run),
+            ("init", self.init),
+            ("gate", self.gate),
+        ):
+            widget.observe(partial(self._changed, name), names="value")
+        self.reset.on_click(self._reset)
+        canvas = tuner.figure.canvas
+        if isinstance(canvas, w.DOMWidget):  # ipympl: the figure is itself a widget
+            canvas.header_visible = False
+            canvas.toolbar_position = "right"
+        else:  # any other backend (tests): the controls still work, without a picture
+            canvas = w.HTML("<i>(the figure needs <code>%matplotlib widget</code>)</i>")
+        pickers = w.VBox([self.run, self.init, self.gate, self.reset])
+        controls = w.HBox([w.VBox(list(self.sliders.values())), pickers])
+        self.widget = w.VBox([controls, canvas, self.status, self.errors])
+        if tuner.state is not None:
+            self._updated(tuner.state)
+
+    def apply(self, **changes: object) -> TunerState:
+        """Set widgets and settings together and re-run now (for code cells and checks)."""
+        self._show_values(changes)
+        return self.tuner.apply(**changes)
+
+    def _repr_mimebundle_(self, **kwargs):
+        return self.widget._repr_mimebundle_(**kwargs)
+
+    def _changed(self, name: str, change: dict) -> None:
+        if self._quiet:
+            return
+        if name in self.sliders:  # the browser may echo a value back with its last bit changed
+            if math.isclose(change["new"], getattr(self.tuner.settings.noise, name), rel_tol=1e-9):
+                return
+        self.tuner.set(**{name: change["new"]})
+
+    def _reset(self, _button: object) -> None:
+        try:
+            noise = default_noise(self.tuner.load(self.tuner.settings.run))
+        except Exception as exc:
+            self._failed(exc)
+            return
+        values = {spec.field: getattr(noise, spec.field) for spec in SLIDERS}
+        self._show_values(values)
+        self.tuner.set(**values)
+
+    def _show_values(self, values: Mapping[str, object]) -> None:
+        self._quiet = True  # the widgets follow; their observers must not re-run the replay
+        try:
+            for name, value in values.items():
+                if name in self.sliders:
+                    slider, spec = self.sliders[name], SPECS[name]
+                    with slider.hold_sync():  # re-anchor the grid: the value must not snap
+                        lo, hi = spec.grid(value)
+                        slider.min, slider.max = min(lo, slider.min), max(hi, slider.max)
+                        slider.value = value
+                        slider.min, slider.max = lo, hi
+                elif name in ("run", "init", "gate"):
+                    getattr(self, name).value = 0.0 if name == "gate" and value is None else value
+        finally:
+            self._quiet = False
+
+    def _updated(self, state: TunerState) -> None:
+        self.errors.outputs = ()  # (clear_output needs a kernel; this works everywhere)
+        lines = state.text.splitlines()
+        seed = next((v for k, v in SEED_TABLE1.items() if state.summary.name.startswith(k)), None)
+        if seed is not None:  # the seed's real-robot row under ours, for comparison
+            x0, y0, theta0, error = seed
+            lines.insert(2, f"{'seed (real)':<16}{x0:>8.3f}{y0:>8.3f}{theta0:>8.3f}{error:>11.3f}")
+        self.status.value = (
+            '<pre class="ekfslam-table1" style="font:15px monospace;margin:4px 0">'
+            f"{html.escape(chr(10).join(lines))}</pre>"
+            '<div class="ekfslam-timing" style="color:#666">'
+            f"replay {state.replay_seconds * 1e3:.0f} ms, "
+            f"with the figure update {state.update_seconds * 1e3:.0f} ms; "
+            f"{self.tuner.renders} replays for {self.tuner.changes} changes so far</div>"
+        )
+
+    def _failed(self, exc: BaseException) -> None:
+        self.status.value = (
+            f'<pre class="ekfslam-error" style="color:#b00">'
+            f"error: {html.escape(str(exc))} (the figure shows the last good "
+            f"setting)</pre>"
+        )
+        self.errors.append_stderr("".join(traceback.format_exception(exc)))
+
+
+def tuning_panel(
+    runs: Mapping[str, RunSource] | None = None,
+    *,
+    settings: TunerSettings | None = None,
+    figure: Figure | None = None,
+) -> TuningPanel:
+    """The live tuning panel over `runs` (default: the seed runs), drawn once before returning.
+
+    Use after ``%matplotlib widget``; the figure is then an ipympl canvas (9x6 in).
+    """
+    if figure is None:
+        import matplotlib.pyplot as plt
+
+        with plt.ioff():  # the panel places the canvas itself
+            figure = plt.figure(figsize=DEFAULT_FIGSIZE)
+    tuner = Tuner(runs or seed_runs(), figure, settings=settings)
+    tuner.apply()
+    return TuningPanel(tuner)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m ekfslam.ui.widgets --bench``: print the change-to-figure latency per seed run."""
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="python -m ekfslam.ui.widgets", description=main.__doc__)
+    parser.add_argument("--bench", action="store_true", help="time the panel's update")
+    parser.add_argument("--repeats", type=int, default=15)
+    args = parser.parse_args(argv)
+    if not args.bench:
+        parser.print_help()
+        return 0
+    for name, r in benchmark(repeats=args.repeats).items():
+        print(
+            f"{name:<16} median {r['median_ms']:6.1f} ms = replay {r['replay_ms']:.1f} ms "
+            f"+ summary and artists {r['update_ms'] - r['replay_ms']:.1f} ms "
+            f"+ render to PNG {r['draw_ms']:.1f} ms; CPU time {r['cpu_ms']:.1f} ms "
+            f"({r['samples']} samples; target 100 ms)"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
