@@ -49,7 +49,7 @@ MAY_IMPORT = {  # besides its own floor
     "teaching": {"leaves", "core"},
     "logs": {"leaves", "core"},
     "sim": {"leaves", "core", "logs"},  # the simulator writes a run log
-    "vision": {"leaves", "core"},
+    "vision": {"leaves", "core", "logs"},  # frames_run renders and detects a run log's frames
     "pipeline": {"leaves", "core", "logs"},
     "analysis": _BELOW_ANALYSIS,
     "viz": {"leaves", "core", "logs"},  # at run time; types from below ui under TYPE_CHECKING

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam.analysis.evaluation import interpolate_poses, summarize
 from ekfslam.core.arena import SEED_ARENA, Arena
 from ekfslam.core.camera import (
     DEFAULT_MOUNTING,
@@ -38,8 +39,12 @@ from ekfslam.core.camera import (
     tags_in_view,
 )
 from ekfslam.geometry import wrap_angle
+from ekfslam.logs.runjson import read_meta
 from ekfslam.logs.runlog import Detections, RunLog
+from ekfslam.pipeline import default_noise, replay
+from ekfslam.sim.simulation import config_from_dict, simulate
 from ekfslam.vision.detect import TagObserver, VisionConfig, VisionCounts
+from ekfslam.vision.frames_run import read_frames_run
 from ekfslam.vision.render import ArenaRenderer, RenderConfig
 
 Array = NDArray[np.float64]
@@ -279,8 +284,6 @@ class ReplayComparison:
 
 def exact_sightings(run: RunLog) -> Detections:
     """The run's detections with range and bearing replaced by their true values (ground truth)."""
-    from ekfslam.analysis.evaluation import interpolate_poses
-
     d = run.detections
     pose, _ = interpolate_poses(run.groundtruth, d.t)
     tags = np.array([run.meta.tag_map[int(i)] for i in d.tag_id]).reshape(-1, 2)
@@ -294,12 +297,6 @@ def compare_replays(folder: str | Path, config: VisionConfig | None = None) -> R
 
     All four replays use the run's default noise (`ekfslam.pipeline.default_noise`).
     """
-    from ekfslam.analysis.evaluation import summarize
-    from ekfslam.logs.frames import read_frames_run
-    from ekfslam.logs.runjson import read_meta
-    from ekfslam.pipeline import default_noise, replay
-    from ekfslam.sim.simulation import config_from_dict, simulate
-
     meta = read_meta(Path(folder) / "run.json")
     sim = meta.simulation or {}
     if "config" not in sim:

@@ -217,7 +217,8 @@ def load_run(args: argparse.Namespace):
             folder, None, "no run.json (our run format) and no Barcodes.dat (MRCLAM) in this folder"
         )
     # A run logged as camera frames, with no detections.csv yet: detect the tags in its frames.
-    from ekfslam.logs.frames import has_frames_only, read_frames_run
+    from ekfslam.logs.frames import has_frames_only
+    from ekfslam.vision.frames_run import read_frames_run
 
     if has_frames_only(folder):
         return read_frames_run(folder)
@@ -309,8 +310,8 @@ def _seed_report(run) -> dict | None:
 
 def _detections_source(run, report) -> str:
     """Which detections a replay used: detected from frames now, or read from which file."""
-    from ekfslam.logs.frames import FramesReport
     from ekfslam.logs.mrclam.load import MrclamLoadReport
+    from ekfslam.vision.frames_run import FramesReport
 
     if isinstance(report, FramesReport):
         return "frames (detected now)"

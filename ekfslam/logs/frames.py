@@ -1,4 +1,4 @@
-"""Runs logged as camera frames: store the frames, render them for a simulated run, detect tags.
+"""Runs logged as camera frames, on disk: frames.csv and the frames as a video or as images.
 
 A run of camera frames is an ordinary run folder (``data/README.md``) whose run.json has
 ``camera`` (intrinsics, distortion), ``tags`` (printed size) and ``frames``, plus:
@@ -7,18 +7,14 @@ A run of camera frames is an ordinary run folder (``data/README.md``) whose run.
     frames/000000.png or one image per frame: ``{"kind": "images", "file": "frames/%06d.png"}``
     frames.csv        ``t,frame``: each frame's time (s) and its index in the video / image pattern
 
-detections.csv is optional in such a run: ``python -m ekfslam detect RUN --out DIR`` makes a
-copy of the run with it (``--in-place`` writes the run's own; `detect_run`), and
-``python -m ekfslam run RUN`` without it detects on the fly (`read_frames_run`). Videos are
-written as MPEG-4 part 2 (``mp4v``), the one compact codec every ``opencv-python-headless``
-wheel can write: H.264 writers do not open there.
+Videos are written as MPEG-4 part 2 (``mp4v``), the one compact codec every
+``opencv-python-headless`` wheel can write: H.264 writers do not open there. Rendering a
+simulated run's frames and detecting the tags in them is `ekfslam.vision.frames_run`.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
-import shutil
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,23 +23,10 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ekfslam.core.arena import SEED_ARENA, Arena
-from ekfslam.core.camera import TAG_SIZE, Camera, TagSpec, pinhole_camera
 from ekfslam.errors import InputError
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runjson import FramesSpec, RunMeta, read_meta
-from ekfslam.logs.runlog import (
-    DETECTIONS_CSV,
-    RUN_JSON,
-    Detections,
-    RunLog,
-    read_columns,
-    read_run,
-    write_detections,
-    write_run,
-)
-from ekfslam.vision.detect import TagObserver, VisionConfig, VisionCounts, observations_table
-from ekfslam.vision.render import ArenaRenderer, RenderConfig
+from ekfslam.logs.runlog import DETECTIONS_CSV, RUN_JSON, read_columns, read_run, write_detections
 
 Array = NDArray[np.float64]
 
@@ -178,7 +161,7 @@ def write_frames(
 
 
 # ---------------------------------------------------------------------------------------------
-# Simulated runs with frames
+# The camera times of a simulated run
 
 
 @dataclass(frozen=True, eq=False)
@@ -208,197 +191,12 @@ def frame_times(
     return FrameTimes(t, out)
 
 
-def with_camera(
-    run: RunLog,
-    camera: Camera | None = None,
-    tags: TagSpec | None = None,
-    mounting: ArrayLike | None = None,
-    kind: str = "video",
-    name: str | None = None,
-) -> RunLog:
-    """`run` as a run of camera frames: camera, tags and frames in its metadata, no detections.
-
-    Defaults: the run's own camera, tags and mounting; for a simulated run without a camera in
-    its metadata, the camera and tags its simulator saw with (so that its frames show the tags
-    its simulated detections saw), else `ekfslam.core.camera.pinhole_camera()` and 0.16 m tags; a
-    video.
-    """
-    from ekfslam.sim.simulation import config_from_dict
-
-    spec = FramesSpec(kind, VIDEO_FILE if kind == "video" else IMAGE_PATTERN)  # type: ignore[arg-type]
-    sim = (run.meta.simulation or {}).get("config")
-    seen_with = config_from_dict(sim) if sim is not None else None
-    if camera is None:
-        camera = run.meta.camera or (seen_with.camera if seen_with else pinhole_camera())
-    if tags is None:
-        tags = run.meta.tags or (seen_with.tags if seen_with else TagSpec(TAG_SIZE))
-    meta = dataclasses.replace(
-        run.meta,
-        name=name or run.meta.name,
-        camera=camera,
-        tags=tags,
-        frames=spec,
-        camera_mounting=np.asarray(
-            run.meta.camera_mounting if mounting is None else mounting, dtype=float
-        ),
-    )
-    empty = Detections(np.empty(0), np.empty(0, np.int64), np.empty(0), np.empty(0))
-    return dataclasses.replace(run, meta=meta, detections=empty)
-
-
-def write_frames_run(
-    run: RunLog,
-    folder: str | Path,
-    *,
-    render: RenderConfig | None = None,
-    arena: Arena = SEED_ARENA,
-    overwrite: bool = False,
-) -> FrameIndex:
-    """Render the frames of a run of camera frames (see `with_camera`) and write the run.
-
-    The frames are the camera's view from the ground-truth pose at every k / camera_hz, drawn
-    by `ekfslam.vision.render.ArenaRenderer` (frame k's noise seeded by k). The run must have ground
-    truth, a camera rate and camera metadata; detections.csv is not written.
-    """
-    meta = run.meta
-    if meta.frames is None or meta.camera is None or meta.tags is None:
-        raise ValueError("give the run a camera first: write_frames_run(with_camera(run), ...)")
-    if run.groundtruth is None or meta.camera_rate_hz is None:
-        raise ValueError("rendering frames needs the run's ground truth and camera rate")
-    if meta.tag_map is not None and meta.tag_map.keys() != arena.tag_map().keys():
-        raise ValueError("the run's tag map is not the arena's: render it with its own arena")
-    folder = Path(folder)
-    write_run(run, folder, overwrite=overwrite, with_detections=False)
-    renderer = ArenaRenderer(meta.camera, meta.tags, meta.camera_mounting, arena, render)
-    times = frame_times(run.groundtruth.t, run.groundtruth.pose, meta.camera_rate_hz)
-    frames = (renderer.render(pose, k) for k, pose in enumerate(times.pose))
-    return write_frames(folder, meta.frames, frames, times.t, meta.camera_rate_hz)
-
-
-# ---------------------------------------------------------------------------------------------
-# Frames -> detections
-
-
-def detect_frames(
-    folder: str | Path, meta: RunMeta | None = None, config: VisionConfig | None = None
-) -> tuple[Detections, VisionCounts]:
-    """Detect the tags in every frame of a run: (detections, counts of what was refused)."""
-    folder = Path(folder)
-    meta = meta if meta is not None else read_meta(folder / RUN_JSON)
-    if meta.frames is None or meta.camera is None or meta.tags is None:
-        raise InputError(
-            folder / RUN_JSON, None, 'no camera frames: run.json needs "frames", "camera", "tags"'
-        )
-    index = read_frame_index(folder)
-    ids = None if meta.tag_map is None else meta.tag_map.keys()
-    observer = TagObserver(meta.camera, meta.tags, meta.camera_mounting, ids, config)
-    results = [observer.observe(image) for image in iter_frames(folder, meta, index)]
-    t, tag_id, rng, bearing = observations_table(index.t.tolist(), results)
-    return Detections(t, tag_id, rng, bearing), observer.counts
-
-
 def has_frames_only(folder: str | Path) -> bool:
     """Whether `folder` is a run of camera frames without detections.csv (detect on the fly)."""
     folder = Path(folder)
     if (folder / DETECTIONS_CSV).exists() or not (folder / RUN_JSON).is_file():
         return False
     return read_meta(folder / RUN_JSON).frames is not None
-
-
-#: Why `ekfslam.vision.detect.TagObserver` refuses a tag it found, by refusal reason.
-REFUSAL_REASONS = {
-    "nonfinite": "range or bearing not finite",
-    "unknown_id": "id not in the tag map",
-    "duplicate_id": "id seen twice in one frame",
-    "outside_frame": "outline not wholly in the image",
-    "edge_on": "seen too edge-on",
-}
-
-
-@dataclass(frozen=True)
-class FramesReport:
-    """What detecting a run's frames found, kept and refused (``run`` prints it)."""
-
-    counts: VisionCounts
-
-    def as_dict(self) -> dict:
-        """``loaded`` (frames, tags found, detections kept) and ``dropped`` (count, reason)."""
-        c = self.counts
-        return {
-            "loaded": {"frames": c.frames, "tags_found": c.found, "detections": c.accepted},
-            "dropped": {
-                reason: {"count": int(c.refused.get(reason, 0)), "reason": why}
-                for reason, why in REFUSAL_REASONS.items()
-            },
-        }
-
-    def lines(self) -> tuple[str, str]:
-        """ "loaded: ..." (frames, tags found, detections kept) and "dropped: ..." (what, why)."""
-        c = self.counts
-        dropped = [
-            f"{d['count']} {name.replace('_', ' ')} ({d['reason']})"
-            for name, d in self.as_dict()["dropped"].items()
-            if d["count"]
-        ]
-        return (
-            f"loaded: {c.frames} frames, {c.found} tags found, {c.accepted} detections kept",
-            "dropped: " + (", ".join(dropped) if dropped else "nothing"),
-        )
-
-
-def read_frames_run(
-    folder: str | Path, config: VisionConfig | None = None
-) -> tuple[RunLog, FramesReport]:
-    """Read a run of camera frames with detections made from its frames (not detections.csv)."""
-    folder = Path(folder)
-    detections, counts = detect_frames(folder, config=config)
-    return read_run(folder, detections=detections), FramesReport(counts)
-
-
-def detect_run(
-    folder: str | Path,
-    out: str | Path | None = None,
-    config: VisionConfig | None = None,
-    overwrite: bool = False,
-    *,
-    in_place: bool = False,
-) -> tuple[Path, VisionCounts]:
-    """Detect the tags in a run's frames and write them; returns what was written, and counts.
-
-    `out` ending in ``.csv`` is written as that detections file. Any other `out` is a new run
-    folder: a copy of the run (frames included) with the detections.csv, so the original run
-    still replays from its frames. ``in_place=True`` (and no `out`) writes the run's own
-    detections.csv, which ``run`` then reads instead of the frames. Nothing existing is replaced
-    without `overwrite`; nothing is written unless the frames were all read.
-    """
-    folder = Path(folder)
-    meta = read_meta(folder / RUN_JSON)
-    if out is not None and in_place:
-        raise InputError(folder, None, "give --out or --in-place, not both")
-    if out is None and not in_place:
-        raise InputError(
-            folder, None, "say where to write the detections: --out DIR (a new run folder), "
-            "--out FILE.csv, or --in-place (this run's detections.csv, which `run` then uses "
-            "instead of the frames)",
-        )  # fmt: skip
-    if in_place:
-        target = path = folder / DETECTIONS_CSV
-    elif Path(out).suffix.lower() == ".csv":
-        target = path = Path(out)
-    else:
-        target, path = Path(out), Path(out) / DETECTIONS_CSV
-        if target.resolve().is_relative_to(folder.resolve()):
-            raise InputError(target, None, "is inside the run; use --in-place to write into it")
-    if target.is_dir() and target != path and any(target.iterdir()) and not overwrite:
-        raise InputError(target, None, "folder exists and is not empty; pass --overwrite")
-    if path.exists() and not overwrite:
-        raise InputError(path, None, "exists; pass --overwrite to replace it")
-    detections, counts = detect_frames(folder, meta, config)
-    if target != path:  # a new run folder: the run's own files, then its detections
-        shutil.copytree(folder, target, dirs_exist_ok=True)
-    else:  # a FILE.csv: its folder is made only once there is something to write into it
-        path.parent.mkdir(parents=True, exist_ok=True)
-    return write_detections(detections, path, meta.tag_map), counts
 
 
 def _detect_out(text: str) -> Path:
@@ -456,6 +254,10 @@ def add_cli(subparsers) -> None:
 
 
 def _cmd_render_frames(args) -> int:
+    # inside: the commands move to ekfslam.cli (F2), which imports vision at its top
+    from ekfslam.vision.frames_run import with_camera, write_frames_run
+    from ekfslam.vision.render import RenderConfig
+
     source = read_run(args.run)
     kind = "images" if args.images else "video"
     run = with_camera(source, mounting=args.mounting, kind=kind, name=args.name)
@@ -470,6 +272,10 @@ def _cmd_render_frames(args) -> int:
 
 
 def _cmd_detect(args) -> int:
+    # inside: the commands move to ekfslam.cli (F2), which imports vision at its top
+    from ekfslam.vision.detect import VisionConfig
+    from ekfslam.vision.frames_run import detect_run
+
     config = VisionConfig(detector=args.detector, max_incidence=math.radians(args.max_incidence))
     path, counts = detect_run(
         args.run, args.out, config, overwrite=args.overwrite, in_place=args.in_place

@@ -21,14 +21,12 @@ from ekfslam.logs.frames import (
     has_frames_only,
     iter_frames,
     read_frame_index,
-    read_frames_run,
-    with_camera,
-    write_frames_run,
 )
 from ekfslam.logs.runjson import FramesSpec, meta_json, read_meta
 from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog, read_run, write_run
 from ekfslam.sim.simulation import SimulationConfig, simulate
 from ekfslam.vision.detect import TagObserver, observations_table
+from ekfslam.vision.frames_run import read_frames_run, with_camera, write_frames_run
 from ekfslam.vision.render import ArenaRenderer, RenderConfig
 
 REPO = Path(__file__).resolve().parents[2]
