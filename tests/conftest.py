@@ -1,7 +1,7 @@
 """Shared test fixtures.
 
 Real recorded data (UTIAS MRCLAM) is read from one configurable folder, never copied into the
-repo: `ekfslam.logs.mrclam.load.shared_data_dir()`, i.e. ``EKFSLAM_SHARED_DATA`` if set, else
+repo: `ekfslam.places.shared_data_dir()`, i.e. ``EKFSLAM_SHARED_DATA`` if set, else
 ``../shared/data`` beside the checkout. MRCLAM Dataset 7 is found as the package finds it
 (`ekfslam.logs.mrclam.load.find_dataset`): there, else in the cache of ``python -m ekfslam fetch
 mrclam 7``. Where it is absent the tests that need it skip with a reason; in CI (``CI=true``) its
@@ -20,7 +20,8 @@ import matplotlib
 import pytest
 
 from ekfslam.errors import InputError
-from ekfslam.logs.mrclam.load import find_dataset, shared_data_dir
+from ekfslam.logs.mrclam.load import find_dataset
+from ekfslam.places import shared_data_dir
 
 matplotlib.use("Agg")  # tests never open windows, whatever the user's backend
 

@@ -29,6 +29,7 @@ FLOOR_OF = {
     "geometry": "leaves",
     "files": "leaves",
     "plausibility": "leaves",
+    "places": "leaves",
     "core": "core",
     "teaching": "teaching",
     "logs": "logs",

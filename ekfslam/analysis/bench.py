@@ -29,7 +29,7 @@ import statistics
 import time
 import tracemalloc
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -39,6 +39,11 @@ from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.models import observation_noise
 from ekfslam.errors import ConfigError
 from ekfslam.files import atomic_write_text, save_figure
+from ekfslam.logs.mrclam.fetch import mrclam_path
+from ekfslam.logs.mrclam.load import load_mrclam
+from ekfslam.logs.runlog import read_run
+from ekfslam.pipeline import default_noise, replay
+from ekfslam.places import seed_runs_dir, shared_data_dir
 
 if TYPE_CHECKING:  # the literal filter pulls in sympy: import it only when benchmarking
     from ekfslam.teaching.reference import LiteralEKFSLAM
@@ -49,7 +54,6 @@ SIZES = (10, 50, 100, 200, 400, 800, 1000)
 MAX_SIZE = 2000
 #: The literal reference is skipped at sizes where one step is predicted to take longer (s).
 LITERAL_MAX_STEP_S = 2.0
-REPO = Path(__file__).resolve().parents[2]
 RUNS = {"octagon": "octagon-2laps", "square": "square-2laps"}
 MRCLAM_ROBOT = 1
 
@@ -63,7 +67,8 @@ class BenchConfig:
     step_repeats: int = 41
     literal_repeats: int = 3
     mrclam_repeats: int = 3
-    runs_dir: Path | None = REPO / "data" / "runs"
+    #: the seed's runs (default: the source checkout's data/runs; None when installed)
+    runs_dir: Path | None = field(default_factory=seed_runs_dir)
     mrclam_dir: Path | None = None
     #: why there is no `mrclam_dir`, printed in the MRCLAM row (default `MRCLAM_MISSING`)
     mrclam_note: str | None = None
@@ -94,12 +99,11 @@ MRCLAM_SKIPPED = "not run: --no-mrclam"
 
 
 def default_mrclam_dir() -> Path | None:
-    """MRCLAM Dataset 7 in ``$EKFSLAM_SHARED_DATA`` (else ``../shared/data``), else where
-    ``python -m ekfslam fetch mrclam 7`` puts it, or None."""
-    from ekfslam.logs.mrclam.fetch import mrclam_path
-
-    shared = Path(os.environ.get("EKFSLAM_SHARED_DATA", REPO.parent / "shared" / "data"))
-    for path in (shared / "mrclam" / "MRCLAM_Dataset7", mrclam_path(7)):
+    """MRCLAM Dataset 7 in the shared data folder (`ekfslam.places.shared_data_dir`), else
+    where ``python -m ekfslam fetch mrclam 7`` puts it, or None."""
+    shared = shared_data_dir()
+    places = [shared / "mrclam" / "MRCLAM_Dataset7"] if shared is not None else []
+    for path in (*places, mrclam_path(7)):
         if path.is_dir():
             return path
     return None
@@ -118,9 +122,6 @@ def _median_time(fn: Callable[[], object], repeats: int) -> float:
 # ------------------------------------------------------------------------------------ replays
 def bench_replays(config: BenchConfig) -> dict:
     """Median replay times of the seed's runs (ms), events/s, and FEJ's cost on the octagon."""
-    from ekfslam.logs.runlog import read_run
-    from ekfslam.pipeline import replay
-
     out: dict = {"replay_ms": {}, "replay_events_per_s": {}, "fej_vs_standard": {}}
     folder = config.runs_dir
     if folder is None or not all((folder / name).is_dir() for name in RUNS.values()):
@@ -158,9 +159,6 @@ def bench_mrclam(config: BenchConfig) -> dict:
             "mrclam_replay_s": None, "mrclam_events_per_s": None, "mrclam_events": None,
             "mrclam_note": note,
         }  # fmt: skip
-    from ekfslam.logs.mrclam.load import load_mrclam
-    from ekfslam.pipeline import default_noise, replay
-
     run, _ = load_mrclam(folder, MRCLAM_ROBOT)
     noise = default_noise(run)
     events = len(replay(run, noise).history.t)
@@ -199,6 +197,8 @@ def literal_twin(f: EKFSLAM) -> LiteralEKFSLAM:
     Set directly: growing it one landmark at a time is itself O(n^3). Its per-landmark
     bookkeeping (sightings, first estimates) has no public setter, so it is filled here.
     """
+    # inside: the literal filter loads sympy (0.18 s), and the command table still imports this
+    # module for --help; at the top once the table is lazy (F2)
     from ekfslam.teaching.reference import LiteralEKFSLAM
 
     lit = LiteralEKFSLAM(f.pose, f.pose_covariance, f.config)

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.special import gammaincinv
 
 from ekfslam.core.filter.ekf import CHI2_2DOF_99, FilterConfig, FilterCounts
 from ekfslam.core.filter.history import OUTCOMES
@@ -54,8 +55,6 @@ def chi2_band(dof: float | Array, runs: float | Array = 1, confidence: float = C
 
     Returns (lower, upper) = chi2.ppf((1 ∓ confidence)/2, runs · dof) / runs; arrays broadcast.
     """
-    from scipy.special import gammaincinv  # here: the command line imports this module eagerly
-
     tail = (1.0 - confidence) / 2.0
     n = np.asarray(runs, dtype=float)
     k = n * np.asarray(dof, dtype=float) / 2.0  # chi2.ppf(q, 2k) = 2 gammaincinv(k, q)

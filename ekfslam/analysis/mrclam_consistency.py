@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import itertools
 import json
 import math
 import time
@@ -35,9 +36,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ekfslam.analysis.consistency import CONFIDENCE, chi2_band, nees
+from ekfslam.analysis.evaluation import interpolate_poses, summarize
+from ekfslam.analysis.mrclam_tuning import load_robot
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.mrclam.load import ROBOTS
-from ekfslam.pipeline import MRCLAM_CONFIG, MRCLAM_NOISE, NoiseConfig
+from ekfslam.pipeline import MRCLAM_CONFIG, MRCLAM_NOISE, NoiseConfig, replay
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -142,8 +145,6 @@ def vicon_errors(
     t (K,) s, e (K, 3) estimate - truth (heading wrapped), P (K, 3, 3) the pose covariance
     (eqs. 9 and 16): one row per distinct history time, the last event at it.
     """
-    from ekfslam.analysis.evaluation import interpolate_poses
-
     h, gt = result.history, run.groundtruth
     if gt is None or len(gt.t) < 2:
         raise ValueError(f"run {run.meta.name!r} has no ground truth to measure errors against")
@@ -169,9 +170,6 @@ def robot_nees(
     config : the filter's choices; its linearization is replaced by `linearization`.
     Rows where the covariance is not positive definite (only at the very start) are left out.
     """
-    from ekfslam.analysis.evaluation import summarize
-    from ekfslam.pipeline import replay
-
     started = time.perf_counter()
     result = replay(run, noise, dataclasses.replace(config, linearization=linearization))
     t, e, P = vicon_errors(run, result, max_gap_s)
@@ -255,8 +253,6 @@ def mrclam_consistency(
     noise : a NoiseConfig, or a name in `NOISE_SETTINGS` ("map" is `MRCLAM_NOISE`).
     Raises `ekfslam.errors.InputError` for a folder that is not a readable MRCLAM dataset.
     """
-    from ekfslam.analysis.mrclam_tuning import load_robot
-
     name = noise if isinstance(noise, str) else "custom"
     if isinstance(noise, str):
         if noise not in NOISE_SETTINGS:
@@ -325,10 +321,6 @@ def tune_for_consistency(
     (see `ConsistencyRow.meets`; None: no constraint) before those that do not, each group by
     `ConsistencyRow.distance`, so an over- and an under-confident robot do not cancel out.
     """
-    import itertools
-
-    from ekfslam.analysis.mrclam_tuning import load_robot
-
     grid = CONSISTENCY_GRID if grid is None else grid
     base = base or NoiseConfig(sigma_y=0.005)
     rows = []

@@ -8,7 +8,9 @@ comment there and notebook 10); `score_robots` gives the per-robot table of the 
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -16,12 +18,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam.analysis.evaluation import summarize
 from ekfslam.logs.mrclam.load import ROBOTS, load_mrclam
 from ekfslam.logs.runlog import Controls, RunLog
+from ekfslam.pipeline import MRCLAM_CONFIG, MRCLAM_NOISE, NoiseConfig, replay
 
 if TYPE_CHECKING:
     from ekfslam.core.filter.ekf import FilterConfig
-    from ekfslam.pipeline import NoiseConfig
 
 Array = NDArray[np.float64]
 # ---------------------------------------------------------------------------------------------
@@ -145,9 +148,6 @@ def score_robots(
         `ekfslam.pipeline.MRCLAM_CONFIG`.
     calibration : apply `calibrate_commands` first (None: the logged commands as they are).
     """
-    from ekfslam.analysis.evaluation import summarize
-    from ekfslam.pipeline import MRCLAM_CONFIG, MRCLAM_NOISE, replay
-
     scores = []
     for robot in robots:
         run = load_robot(str(dataset_dir), robot, calibration)
@@ -249,11 +249,6 @@ def tune_noise(
 
     Returns the rows sorted best first (by the average over the robots).
     """
-    import itertools
-    from concurrent.futures import ProcessPoolExecutor
-
-    from ekfslam.pipeline import NoiseConfig
-
     grid = TUNING_GRID if grid is None else grid
     base = base or NoiseConfig(sigma_y=0.005)
     names = list(grid)

@@ -1,6 +1,6 @@
 """Where shared data is found, what happens without it, and which tests say they need it.
 
-Shared data (MRCLAM) is found in one place, `ekfslam.logs.mrclam.load.shared_data_dir()`, by the
+Shared data (MRCLAM) is found in one place, `ekfslam.places.shared_data_dir()`, by the
 package and by the tests' fixtures (tests/conftest.py). Without it, notebooks stop in one line and
 the tests that need it skip with a reason (fail in CI), and ``-m "not shared_data"`` leaves every
 one of them out.
@@ -16,9 +16,10 @@ from pathlib import Path
 
 import pytest
 
-import ekfslam.logs.mrclam.load as mrclam
+import ekfslam.places as places
 from ekfslam.errors import InputError
-from ekfslam.logs.mrclam.load import find_dataset, shared_data_dir
+from ekfslam.logs.mrclam.load import find_dataset
+from ekfslam.places import shared_data_dir
 from ekfslam.teaching.lessons import NotebookStop, mrclam_dataset
 
 REPO = Path(__file__).resolve().parents[2]
@@ -48,7 +49,7 @@ def test_the_variable_replaces_the_folder_beside_the_checkout(monkeypatch, tmp_p
 def test_an_installed_package_has_no_folder_beside_it(monkeypatch, tmp_path: Path):
     monkeypatch.delenv("EKFSLAM_SHARED_DATA", raising=False)
     site = tmp_path / "lib" / "python3.11" / "site-packages"
-    monkeypatch.setattr(mrclam, "__file__", str(site / "ekfslam" / "logs" / "mrclam" / "load.py"))
+    monkeypatch.setattr(places, "__file__", str(site / "ekfslam" / "places.py"))
     assert shared_data_dir() is None
 
 

@@ -38,7 +38,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.errors import InputError
 from ekfslam.geometry import wrap_angle
+from ekfslam.logs.mrclam.fetch import mrclam_path
 from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta, check_time_spans
+from ekfslam.places import shared_data_dir
 
 Array = NDArray[np.float64]
 
@@ -426,21 +428,6 @@ def _raise_at_row(path: Path, row: int, problem: str) -> None:
     raise InputError(path, _data_lines(path)[row][0], problem)
 
 
-SHARED_DATA_ENV = "EKFSLAM_SHARED_DATA"
-
-
-def shared_data_dir() -> Path | None:
-    """The shared data folder (it may not exist): ``$EKFSLAM_SHARED_DATA`` if set, else
-    ``shared/data`` beside a source checkout, else None (an installed package has no checkout).
-    `find_dataset` looks here before the download cache, and so do the tests' fixtures."""
-    import os
-
-    if os.environ.get(SHARED_DATA_ENV):
-        return Path(os.environ[SHARED_DATA_ENV]).expanduser()
-    checkout = Path(__file__).resolve().parents[3]
-    return checkout.parent / "shared" / "data" if (checkout / "pyproject.toml").is_file() else None
-
-
 def find_dataset(n: int = 7) -> Path:
     """Where MRCLAM dataset n is on this machine, for notebooks and scripts.
 
@@ -452,8 +439,6 @@ def find_dataset(n: int = 7) -> Path:
     InputError
         Not found anywhere; the message says how to fetch it.
     """
-    from ekfslam.logs.mrclam.fetch import mrclam_path
-
     shared = shared_data_dir()
     places = [shared / "mrclam" / f"MRCLAM_Dataset{n}"] if shared is not None else []
     for place in [*places, mrclam_path(n)]:
