@@ -213,8 +213,9 @@ def read_rosbag(
         The bag is missing or unreadable, a topic is absent (the message lists the bag's topics),
         a topic has an unsupported type, or a topic holds no usable messages.
     """
+    # lazy: rosbags takes 0.06 s to import and only reading a bag needs it
     from rosbags.highlevel import AnyReader, AnyReaderError
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import Stores, get_typestore  # lazy: as above
 
     paths = [Path(paths)] if isinstance(paths, str | os.PathLike) else [Path(p) for p in paths]
     if not paths:

@@ -34,6 +34,7 @@ the panel shows it in an Output widget and keeps the last good figure; a bare `T
 from __future__ import annotations
 
 import asyncio
+import io
 import math
 import time
 from collections.abc import Callable, Mapping
@@ -466,8 +467,7 @@ def benchmark(runs: Mapping[str, RunSource] | None = None, repeats: int = 15) ->
     "median_ms" (the whole), "replay_ms", "update_ms" (replay to artists), "draw_ms", and
     "cpu_ms", the whole in this process's CPU time (steadier than wall time on a busy machine).
     """
-    import io
-
+    # lazy: the Agg canvas only times a render; the panel draws on the notebook's own backend
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     class _Canvas(FigureCanvasAgg):

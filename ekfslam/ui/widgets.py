@@ -40,7 +40,7 @@ class TuningPanel:
     """
 
     def __init__(self, tuner: Tuner) -> None:
-        import ipywidgets as w
+        import ipywidgets as w  # lazy: a notebook-only dependency; the tuner itself runs without
 
         self.tuner, s = tuner, tuner.settings
         tuner.raise_errors, tuner.on_update, tuner.on_error = False, self._updated, self._failed
@@ -176,7 +176,7 @@ def tuning_panel(
     Use after ``%matplotlib widget``; the figure is then an ipympl canvas (9x6 in).
     """
     if figure is None:
-        import matplotlib.pyplot as plt
+        import matplotlib.pyplot as plt  # lazy: pyplot picks a backend; only a new figure needs it
 
         with plt.ioff():  # the panel places the canvas itself
             figure = plt.figure(figsize=DEFAULT_FIGSIZE)

@@ -114,7 +114,7 @@ class AprilTagDetector:
 
     def __init__(self, quad_decimate: float = 2.0, max_hamming: int = 1) -> None:
         try:
-            import pupil_apriltags
+            import pupil_apriltags  # lazy: optional, only the 'apriltag' detector needs it
         except ImportError as err:
             raise ImportError(
                 "the 'apriltag' detector needs pupil-apriltags: pip install pupil-apriltags"
