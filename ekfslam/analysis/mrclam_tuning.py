@@ -7,10 +7,10 @@ comment there and notebook 10); `score_robots` gives the per-robot table of the 
 
 from __future__ import annotations
 
+import concurrent.futures  # its ProcessPoolExecutor (and multiprocessing) loads on first use
 import dataclasses
 import itertools
 import math
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -255,7 +255,7 @@ def tune_noise(
     points = [dict(zip(names, values, strict=True)) for values in itertools.product(*grid.values())]
     jobs = [(str(dataset_dir), dataclasses.replace(base, **p), robots, calibration) for p in points]
     if workers > 1:
-        with ProcessPoolExecutor(workers) as pool:
+        with concurrent.futures.ProcessPoolExecutor(workers) as pool:
             errors = list(pool.map(_grid_point, jobs))
     else:
         errors = [_grid_point(job) for job in jobs]
