@@ -37,6 +37,7 @@ import numpy as np
 
 from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.models import observation_noise
+from ekfslam.core.noise import default_noise
 from ekfslam.errors import ConfigError
 from ekfslam.files import atomic_write_text, save_figure
 
@@ -159,7 +160,7 @@ def bench_mrclam(config: BenchConfig) -> dict:
             "mrclam_note": note,
         }  # fmt: skip
     from ekfslam.logs.mrclam.load import load_mrclam
-    from ekfslam.pipeline import default_noise, replay
+    from ekfslam.pipeline import replay
 
     run, _ = load_mrclam(folder, MRCLAM_ROBOT)
     noise = default_noise(run)

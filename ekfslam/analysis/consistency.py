@@ -34,10 +34,11 @@ from numpy.typing import NDArray
 
 from ekfslam.core.filter.ekf import CHI2_2DOF_99, FilterConfig, FilterCounts
 from ekfslam.core.filter.history import OUTCOMES
+from ekfslam.core.noise import NoiseConfig
 from ekfslam.files import save_figure
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runlog import RunLog
-from ekfslam.pipeline import NoiseConfig, ReplayResult, replay
+from ekfslam.pipeline import ReplayResult, replay
 from ekfslam.sim.scenarios import SCENARIOS, noise_for_simulation, scenario
 from ekfslam.sim.simulation import simulate
 

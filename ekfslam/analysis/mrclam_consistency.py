@@ -35,9 +35,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ekfslam.analysis.consistency import CONFIDENCE, chi2_band, nees
+from ekfslam.core.noise import NoiseConfig
 from ekfslam.geometry import wrap_angle
+from ekfslam.logs.mrclam.defaults import MRCLAM_CONFIG, MRCLAM_NOISE
 from ekfslam.logs.mrclam.load import ROBOTS
-from ekfslam.pipeline import MRCLAM_CONFIG, MRCLAM_NOISE, NoiseConfig
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

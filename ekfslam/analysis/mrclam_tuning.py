@@ -1,8 +1,9 @@
 """MRCLAM beyond loading: correcting its logged commands, scoring robots, tuning the noise.
 
 `ekfslam.logs.mrclam.load` reads the dataset; this module asks how well the filter does on it. The
-noise defaults in `ekfslam.pipeline.MRCLAM_NOISE` were found with `tune_noise` on Dataset 7 (see the
-comment there and notebook 10); `score_robots` gives the per-robot table of the closing notes.
+noise defaults in `ekfslam.logs.mrclam.defaults.MRCLAM_NOISE` were found with `tune_noise` on
+Dataset 7 (see the comment there and notebook 10); `score_robots` gives the per-robot table of the
+closing notes.
 """
 
 from __future__ import annotations
@@ -16,12 +17,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam.core.noise import NoiseConfig
+from ekfslam.logs.mrclam.defaults import MRCLAM_CONFIG, MRCLAM_NOISE
 from ekfslam.logs.mrclam.load import ROBOTS, load_mrclam
 from ekfslam.logs.runlog import Controls, RunLog
 
 if TYPE_CHECKING:
-    from ekfslam.core.filter.ekf import FilterConfig
-    from ekfslam.pipeline import NoiseConfig
+    from ekfslam.core.filter.config import FilterConfig
 
 Array = NDArray[np.float64]
 # ---------------------------------------------------------------------------------------------
@@ -141,12 +143,12 @@ def score_robots(
 ) -> list[RobotScore]:
     """Replay each robot with the same noise and score it (what `tune_noise` minimises).
 
-    noise : None means `ekfslam.pipeline.MRCLAM_NOISE`; config : None,
-        `ekfslam.pipeline.MRCLAM_CONFIG`.
+    noise : None means `ekfslam.logs.mrclam.defaults.MRCLAM_NOISE`; config : None,
+        `ekfslam.logs.mrclam.defaults.MRCLAM_CONFIG`.
     calibration : apply `calibrate_commands` first (None: the logged commands as they are).
     """
     from ekfslam.analysis.evaluation import summarize
-    from ekfslam.pipeline import MRCLAM_CONFIG, MRCLAM_NOISE, replay
+    from ekfslam.pipeline import replay
 
     scores = []
     for robot in robots:
@@ -207,8 +209,9 @@ def scores_table(scores: list[RobotScore]) -> str:
     return "\n".join(lines)
 
 
-#: The grid `tune_noise` searched for `ekfslam.pipeline.MRCLAM_NOISE` (sigma_y fixed at 0.005
-#: m/√s: a differential drive does not slip sideways, Vicon shows < 0.01 m/s across the body).
+#: The grid `tune_noise` searched for `ekfslam.logs.mrclam.defaults.MRCLAM_NOISE` (sigma_y fixed
+#: at 0.005 m/√s: a differential drive does not slip sideways, Vicon shows < 0.01 m/s across the
+#: body).
 TUNING_GRID: dict[str, tuple[float, ...]] = {
     "sigma_x": (0.005, 0.01, 0.02),
     "sigma_theta": (0.03, 0.05, 0.1),
@@ -243,7 +246,7 @@ def tune_noise(
 ) -> list[TuningRow]:
     """Grid search of the noise on one dataset, minimising the robots' average aligned error.
 
-    Every combination of `grid` (field name of `ekfslam.pipeline.NoiseConfig` -> values) replays
+    Every combination of `grid` (field name of `ekfslam.core.noise.NoiseConfig` -> values) replays
     every robot with the same noise: one setting for all robots, never one per robot. `base`
     gives the fields the grid does not vary (default: sigma_y 0.005 m/√s, the rest NoiseConfig's).
 
@@ -251,8 +254,6 @@ def tune_noise(
     """
     import itertools
     from concurrent.futures import ProcessPoolExecutor
-
-    from ekfslam.pipeline import NoiseConfig
 
     grid = TUNING_GRID if grid is None else grid
     base = base or NoiseConfig(sigma_y=0.005)

@@ -48,9 +48,10 @@ from matplotlib.patches import Ellipse
 from ekfslam.analysis.evaluation import RunSummary, summarize
 from ekfslam.core.filter.ekf import CHI2_2DOF_99, FilterConfig
 from ekfslam.core.filter.history import OUTCOMES
+from ekfslam.core.noise import NoiseConfig, default_noise
 from ekfslam.errors import InputError
 from ekfslam.logs.runlog import RunLog, read_run
-from ekfslam.pipeline import NoiseConfig, ReplayResult, default_noise, replay
+from ekfslam.pipeline import ReplayResult, replay
 from ekfslam.viz.plotting import ellipse_parameters
 
 #: A run to offer in the panel: a function that loads it (called once, then cached).

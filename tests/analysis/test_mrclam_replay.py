@@ -24,9 +24,11 @@ from ekfslam.analysis.mrclam_tuning import (
     tune_noise,
 )
 from ekfslam.cli.main import main
+from ekfslam.core.noise import NoiseConfig, default_noise
+from ekfslam.logs.mrclam.defaults import MRCLAM_NOISE
 from ekfslam.logs.mrclam.load import ROBOTS, load_mrclam
 from ekfslam.logs.runlog import Controls, GroundTruth, RunLog, RunMeta, read_run
-from ekfslam.pipeline import MRCLAM_NOISE, NoiseConfig, default_noise, replay
+from ekfslam.pipeline import replay
 
 pytestmark = pytest.mark.shared_data
 

@@ -18,7 +18,7 @@ Nothing is dropped silently: every sighting that does not become a detection is 
 Beyond loading, in `ekfslam.analysis.mrclam_tuning`: `calibrate_commands` (an optional correction of
 the logged commands, `MRCLAM_CALIBRATION`, off by default); `score_robots`, `scores_table` and
 ``python -m ekfslam score-mrclam N`` (the per-robot table); `tune_noise` (the grid search that
-chose `ekfslam.pipeline.MRCLAM_NOISE`, one setting for all robots).
+chose `ekfslam.logs.mrclam.defaults.MRCLAM_NOISE`, one setting for all robots).
 
 ``python -m ekfslam convert mrclam DATASET --robot N --out DIR`` writes a robot as a run folder.
 """
@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.errors import InputError
 from ekfslam.geometry import wrap_angle
+from ekfslam.logs.mrclam.defaults import NAME as MRCLAM_DEFAULTS
 from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta, check_time_spans
 
 Array = NDArray[np.float64]
@@ -218,6 +219,7 @@ def load_mrclam(dataset_dir: str | Path, robot: int) -> tuple[RunLog, MrclamLoad
         source="recorded",
         nominal_start=nominal_start,
         tag_map=tag_map,
+        defaults=MRCLAM_DEFAULTS,  # the tuned noise and filter choices of `defaults`
     )
     gaps = np.diff(controls.t)
     report = MrclamLoadReport(
