@@ -25,6 +25,7 @@ from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.kinematics import MecanumGeometry
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.errors import InputError
+from ekfslam.logs.csvtable import read_lines
 from ekfslam.logs.mrclam import defaults as mrclam_defaults
 from ekfslam.plausibility import implausible_pose as _implausible
 
@@ -115,24 +116,6 @@ class RunMeta:
     def filter_defaults(self) -> FilterConfig | None:
         """The loader's filter choices for this run, or None (then `FilterConfig()` applies)."""
         return None if self.defaults is None else TUNED_DEFAULTS[self.defaults][1]
-
-
-def read_lines(path: str | os.PathLike) -> list[str]:
-    """The file's lines without BOM, line endings or trailing blank lines."""
-    path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as err:
-        raise InputError(path, None, f"cannot read the file: {err.strerror}") from None
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as err:
-        line = data.count(b"\n", 0, err.start) + 1
-        raise InputError(path, line, f"not UTF-8 text (byte {err.start}); save as UTF-8") from None
-    lines = text.removeprefix("\ufeff").splitlines()
-    while lines and not lines[-1].strip():
-        lines.pop()
-    return lines
 
 
 def check_shape(path: Path, what: str, array: np.ndarray, shape: tuple[int | None, ...]) -> None:
