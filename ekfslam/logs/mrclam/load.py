@@ -15,8 +15,9 @@ along its heading, so a measurement is already the (r, φ) of eq. (10).
 Nothing is dropped silently: every sighting that does not become a detection is counted in the
 `MrclamLoadReport` returned beside the run. Times stay on the dataset's own clock (Unix seconds).
 
-Beyond loading, in `ekfslam.analysis.mrclam_tuning`: `calibrate_commands` (an optional correction of
-the logged commands, `MRCLAM_CALIBRATION`, off by default); `score_robots`, `scores_table` and
+Beside loading, in `ekfslam.logs.mrclam.calibration`: `calibrate_commands` (an optional correction
+of the logged commands, `MRCLAM_CALIBRATION`, off by default); in `ekfslam.analysis.mrclam_tuning`:
+`score_robots`, `scores_table` and
 ``python -m ekfslam score-mrclam N`` (the per-robot table); `tune_noise` (the grid search that
 chose `ekfslam.logs.mrclam.defaults.MRCLAM_NOISE`, one setting for all robots).
 
@@ -512,7 +513,7 @@ def _cmd_convert_mrclam(args: argparse.Namespace) -> int:
 
     run, report = load_mrclam(args.dataset, args.robot)
     if args.calibrate:
-        from ekfslam.analysis.mrclam_tuning import MRCLAM_CALIBRATION, calibrate_commands
+        from ekfslam.logs.mrclam.calibration import MRCLAM_CALIBRATION, calibrate_commands
 
         run = calibrate_commands(run, MRCLAM_CALIBRATION)
     try:  # load_mrclam checks what it reads; name the dataset, not a file the user never gave
