@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from ekfslam.core.filter.ekf import CHI2_2DOF_99, FilterConfig, FilterCounts
+from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig, FilterCounts
 from ekfslam.core.filter.history import OUTCOMES
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.files import save_figure

@@ -43,7 +43,7 @@ from ekfslam.logs.mrclam.load import ROBOTS
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from ekfslam.core.filter.ekf import FilterConfig
+    from ekfslam.core.filter.config import FilterConfig
     from ekfslam.logs.runlog import RunLog
     from ekfslam.pipeline import ReplayResult
 

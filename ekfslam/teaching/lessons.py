@@ -27,7 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.analysis.alignment import align
 from ekfslam.analysis.evaluation import RunSummary, interpolate_poses
-from ekfslam.core.filter.ekf import FilterConfig
+from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.filter.history import History
 from ekfslam.core.models import observation, observation_jacobians
 from ekfslam.core.noise import NoiseConfig

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ekfslam.core.filter.ekf import FilterConfig, FilterCounts
+from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.models import (
     MIN_RANGE_SQUARED,
     inverse_observation,

@@ -46,7 +46,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Ellipse
 
 from ekfslam.analysis.evaluation import RunSummary, summarize
-from ekfslam.core.filter.ekf import CHI2_2DOF_99, FilterConfig
+from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig
 from ekfslam.core.filter.history import OUTCOMES
 from ekfslam.core.noise import NoiseConfig, default_noise
 from ekfslam.errors import InputError
