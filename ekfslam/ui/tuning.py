@@ -46,7 +46,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Ellipse
 
 from ekfslam.analysis.evaluation import RunSummary, summarize
-from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig
+from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig, chi2_2dof_quantile
 from ekfslam.core.filter.history import OUTCOMES
 from ekfslam.core.noise import NoiseConfig, default_noise
 from ekfslam.errors import InputError
@@ -66,9 +66,9 @@ COALESCE_DELAY = 0.03
 #: NIS gates offered (chi-square, 2 dof); 0 turns gating off, as on the command line.
 GATES = {
     "off": 0.0,
-    "95% (5.99)": 5.991464547107979,
+    "95% (5.99)": chi2_2dof_quantile(0.95),
     "99% (9.21)": CHI2_2DOF_99,
-    "99.9% (13.8)": 13.815510557964274,
+    "99.9% (13.8)": chi2_2dof_quantile(0.999),
 }
 #: The NIS axis starts here (smaller values are drawn on it): decades of tiny NIS say nothing.
 NIS_FLOOR = 1e-2
