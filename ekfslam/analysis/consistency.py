@@ -26,7 +26,7 @@ import dataclasses
 import json
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -252,7 +252,7 @@ def compare(
         raise ValueError(f"runs must be at least 1, got {runs}")
     configs = [FilterConfig(linearization=lin, gate=gate) for lin in linearizations]
     errors = [[] for _ in configs]
-    counts = [dict.fromkeys(FilterCounts.__dataclass_fields__, 0) for _ in configs]
+    counts = [dict.fromkeys((f.name for f in fields(FilterCounts)), 0) for _ in configs]
     seconds = [0.0] * len(configs)
     for i in range(runs):
         sim, arena = scenario(name, first_seed + i, wheel_noise_sigma)
@@ -274,7 +274,9 @@ def _average(name, errors, config, counts, noise, seconds) -> Consistency:
     runs = len(errors)
     if len({len(e.t) for e in errors}) != 1:
         raise RuntimeError("runs of one scenario must share their time steps")
-    stack = {f: np.array([getattr(e, f) for e in errors]) for f in RunErrors.__dataclass_fields__}
+    stack = {
+        f: np.array([getattr(e, f) for e in errors]) for f in (f.name for f in fields(RunErrors))
+    }
     with np.errstate(invalid="ignore", divide="ignore"):
         lm_runs = stack["landmark_sum"] / stack["landmark_count"]  # NaN where none was sighted
         lm_n = np.isfinite(lm_runs).sum(axis=0)

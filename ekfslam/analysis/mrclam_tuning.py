@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -117,7 +117,7 @@ def scores_table(scores: list[RobotScore]) -> str:
             f"| {s.robot} | {s.landmarks} | {s.aligned_error:.3f} | {s.unaligned_error:.3f} "
             f"| {s.ate_rmse:.3f} | {s.theta0:+.3f} | {s.seconds:.2f} |"
         )
-    mean = [np.mean([getattr(s, f) for s in scores]) for f in RobotScore.__dataclass_fields__]
+    mean = [np.mean([getattr(s, f) for s in scores]) for f in (f.name for f in fields(RobotScore))]
     lines.append(
         f"| average | {mean[1]:.1f} | {mean[2]:.3f} | {mean[3]:.3f} | {mean[4]:.3f} "
         f"| | {mean[6]:.2f} |"  # a mean of signed rotations means nothing

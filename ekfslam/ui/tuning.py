@@ -37,7 +37,7 @@ import asyncio
 import math
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from functools import partial
 from pathlib import Path
 
@@ -124,7 +124,7 @@ def apply_changes(settings: TunerSettings, changes: Mapping[str, object]) -> Tun
     """New settings from widget values: ``run``, a `NoiseConfig` field (a slider's value in its
     units, not its exponent), ``init`` ("inverse" or "seed") or ``gate`` (a NIS threshold; 0 or
     None is off). Raises ValueError for an unknown name or a value the configs refuse."""
-    noise = {k: float(v) for k, v in changes.items() if k in NoiseConfig.__dataclass_fields__}
+    noise = {k: float(v) for k, v in changes.items() if k in {f.name for f in fields(NoiseConfig)}}
     config: dict[str, object] = {}
     if "init" in changes:
         config["init"] = changes["init"]
