@@ -28,12 +28,14 @@ if TYPE_CHECKING:
     )
     from ekfslam.analysis.evaluation import RunSummary, ate_rmse, summarize
     from ekfslam.core.arena import SEED_ARENA, Arena, Tag
-    from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig, FilterCounts
+    from ekfslam.core.filter.config import FilterConfig, FilterCounts
+    from ekfslam.core.filter.ekf import EKFSLAM
     from ekfslam.core.filter.history import History
     from ekfslam.core.kinematics import MecanumGeometry, twist_to_wheels, wheels_to_twist
+    from ekfslam.core.noise import NoiseConfig, default_noise
     from ekfslam.errors import AlignmentError, EkfSlamError, InputError
     from ekfslam.logs.runlog import RunLog, read_run, write_run
-    from ekfslam.pipeline import NoiseConfig, ReplayResult, default_noise, replay
+    from ekfslam.pipeline import ReplayResult, replay
     from ekfslam.sim.simulation import SimulationConfig, simulate
 
 __version__ = "0.1.0"
@@ -45,12 +47,12 @@ _EXPORTS: dict[str, str] = {
     "Arena": "ekfslam.core.arena",
     "EKFSLAM": "ekfslam.core.filter.ekf",
     "EkfSlamError": "ekfslam.errors",
-    "FilterConfig": "ekfslam.core.filter.ekf",
-    "FilterCounts": "ekfslam.core.filter.ekf",
+    "FilterConfig": "ekfslam.core.filter.config",
+    "FilterCounts": "ekfslam.core.filter.config",
     "History": "ekfslam.core.filter.history",
     "InputError": "ekfslam.errors",
     "MecanumGeometry": "ekfslam.core.kinematics",
-    "NoiseConfig": "ekfslam.pipeline",
+    "NoiseConfig": "ekfslam.core.noise",
     "ReplayResult": "ekfslam.pipeline",
     "RunLog": "ekfslam.logs.runlog",
     "RunSummary": "ekfslam.analysis.evaluation",
@@ -61,7 +63,7 @@ _EXPORTS: dict[str, str] = {
     "align_least_squares": "ekfslam.analysis.alignment",
     "align_mean_distance": "ekfslam.analysis.alignment",
     "ate_rmse": "ekfslam.analysis.evaluation",
-    "default_noise": "ekfslam.pipeline",
+    "default_noise": "ekfslam.core.noise",
     "read_run": "ekfslam.logs.runlog",
     "replay": "ekfslam.pipeline",
     "simulate": "ekfslam.sim.simulation",

@@ -11,7 +11,6 @@ frames all arrive here as a `ekfslam.logs.runlog.RunLog`.
 
 from __future__ import annotations
 
-import math
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -19,67 +18,15 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig, FilterCounts
+from ekfslam.core.filter.config import FilterConfig, FilterCounts
+from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.filter.history import History
-from ekfslam.core.models import observation_noise
+from ekfslam.core.noise import NoiseConfig, default_config, default_noise
 from ekfslam.errors import ConfigError, EkfSlamError
 from ekfslam.logs.runlog import RunLog
 from ekfslam.plausibility import MAX_HEADING, MAX_POSITION
 
 Array = NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class NoiseConfig:
-    """The hand-tuned noise of the seed: motion R (eq. 9) and observation Q (eq. 11).
-
-    Motion noise is a random walk on the body-frame increment: over a prediction of dt seconds
-    the increment u = (Δux, Δuy, Δθ) gets covariance M = diag(σx², σy², σθ²) · dt, which
-    `ekfslam.core.models.motion_noise` maps into the state (R = V M Vᵀ). Splitting a control
-    interval at a detection therefore adds up to the same noise as not splitting it.
-
-    sigma_x, sigma_y : m/√s, the drift along and across the body axes after one second.
-    sigma_theta : rad/√s.
-    R_per_step : the seed's way instead: one fixed 3x3 state-space R for every prediction
-        (as nested tuples). When given, sigma_x/y/theta are ignored.
-    sigma_range : m, σ_r of eq. (11).
-    sigma_bearing : rad, σ_φ of eq. (11).
-    """
-
-    sigma_x: float = 0.01
-    sigma_y: float = 0.01
-    sigma_theta: float = 0.02
-    R_per_step: tuple[tuple[float, float, float], ...] | None = None
-    sigma_range: float = 0.03
-    sigma_bearing: float = 0.03
-
-    def __post_init__(self) -> None:
-        for name in ("sigma_x", "sigma_y", "sigma_theta", "sigma_range", "sigma_bearing"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value >= 0):
-                raise ConfigError(f"NoiseConfig.{name} must be a finite non-negative number")
-            if not math.isfinite(value * value):
-                raise ConfigError(f"NoiseConfig.{name} = {value!r}: its square overflows")
-        for name in ("sigma_range", "sigma_bearing"):
-            # a σ whose square underflows (1e-170² = 0) gives a Q as singular as σ = 0
-            if not getattr(self, name) ** 2 > 0:
-                raise ConfigError(
-                    f"NoiseConfig.{name} = {getattr(self, name)!r}: observation noise must be "
-                    "positive and its square must not underflow (Q would be singular)"
-                )
-        if self.R_per_step is not None:
-            R = np.asarray(self.R_per_step, dtype=float)
-            if R.shape != (3, 3) or not np.allclose(R, R.T) or np.linalg.eigvalsh(R).min() < 0:
-                raise ConfigError("R_per_step must be a symmetric positive semi-definite 3x3")
-
-    @property
-    def Q(self) -> Array:
-        """Eq. (11), 2x2."""
-        return observation_noise(self.sigma_range, self.sigma_bearing)
-
-    def motion_density(self) -> Array:
-        """diag(σx², σy², σθ²): the increment covariance per second of driving, (3, 3)."""
-        return np.diag([self.sigma_x**2, self.sigma_y**2, self.sigma_theta**2])
 
 
 @dataclass(frozen=True, eq=False)
@@ -230,40 +177,3 @@ def _check_finite(ekf: EKFSLAM, where: str) -> None:
             f"the filter state became non-finite at {where}: check the noise settings and the "
             "log's values near that time"
         )
-
-
-#: Noise for MRCLAM robots, one setting for all five, tuned on Dataset 7 by
-#: `ekfslam.analysis.mrclam_tuning.tune_noise`: a grid of 81 points (sigma_x 0.005/0.01/0.02,
-# sigma_theta : 0.03/0.05/0.1, sigma_range 0.15/0.2/0.3, sigma_bearing 0.01/0.02/0.05; sigma_y
-# 0.005, a : differential drive does not slip sideways), replaying robots 1-5 on their logged
-# commands : and minimising the average aligned landmark error. The best average (0.0516 m) left
-# robot 4 : at 0.105 m; this runner-up (0.0518 m) keeps every robot under 0.10 m. Its one-step grid
-#: neighbours score 0.052-0.059 m, except sigma_theta 0.03 (0.098 m: robot 4's map bends), so
-#: it sits on a plateau, not on a lucky point. Why these values: the bearing is precise (Vicon
-#: says 0.006-0.02 rad), the range is not (0.13 m with heavy tails and biased stretches of
-#: -0.3 m), so a wide sigma_range lets the bearings carry the map; the heading drifts about
-#: 0.07 rad per 5 s of driving on commands that lag and overshoot.
-MRCLAM_NOISE = NoiseConfig(
-    sigma_x=0.01, sigma_y=0.005, sigma_theta=0.05, sigma_range=0.3, sigma_bearing=0.01
-)
-
-
-#: Filter choices for MRCLAM: no landmark re-initialisation. Its ranges have long biased
-#: stretches (robot 4 reads landmarks 11-13 short by 0.3-0.5 m for seconds at a time), so a run
-#: of rejected sightings that agree is a biased range, not a landmark initialised from an
-#: outlier: with re-initialisation on, robot 4's aligned error goes from 0.086 m to 0.125 m.
-MRCLAM_CONFIG = FilterConfig(reinit_after=None)
-
-
-def default_config(run: RunLog) -> FilterConfig:
-    """The documented filter choices for a run: MRCLAM's for MRCLAM logs, else `FilterConfig()`."""
-    if run.meta.name.startswith("mrclam"):
-        return MRCLAM_CONFIG
-    return FilterConfig()
-
-
-def default_noise(run: RunLog) -> NoiseConfig:
-    """The documented starting noise for a run: MRCLAM's for MRCLAM logs, else `NoiseConfig()`."""
-    if run.meta.name.startswith("mrclam"):
-        return MRCLAM_NOISE
-    return NoiseConfig()

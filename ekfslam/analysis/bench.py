@@ -37,12 +37,13 @@ import numpy as np
 
 from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.models import observation_noise
+from ekfslam.core.noise import default_noise
 from ekfslam.errors import ConfigError
 from ekfslam.files import atomic_write_text, save_figure
 from ekfslam.logs.mrclam.fetch import mrclam_path
 from ekfslam.logs.mrclam.load import load_mrclam
 from ekfslam.logs.runlog import read_run
-from ekfslam.pipeline import default_noise, replay
+from ekfslam.pipeline import replay
 from ekfslam.places import seed_runs_dir, shared_data_dir
 
 if TYPE_CHECKING:  # the literal filter pulls in sympy: import it only when benchmarking

@@ -26,19 +26,20 @@ import dataclasses
 import json
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.special import gammaincinv
 
-from ekfslam.core.filter.ekf import CHI2_2DOF_99, FilterConfig, FilterCounts
+from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig, FilterCounts
 from ekfslam.core.filter.history import OUTCOMES
+from ekfslam.core.noise import NoiseConfig
 from ekfslam.files import save_figure
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runlog import RunLog
-from ekfslam.pipeline import NoiseConfig, ReplayResult, replay
+from ekfslam.pipeline import ReplayResult, replay
 from ekfslam.sim.scenarios import SCENARIOS, noise_for_simulation, scenario
 from ekfslam.sim.simulation import simulate
 
@@ -250,7 +251,7 @@ def compare(
         raise ValueError(f"runs must be at least 1, got {runs}")
     configs = [FilterConfig(linearization=lin, gate=gate) for lin in linearizations]
     errors = [[] for _ in configs]
-    counts = [dict.fromkeys(FilterCounts.__dataclass_fields__, 0) for _ in configs]
+    counts = [dict.fromkeys((f.name for f in fields(FilterCounts)), 0) for _ in configs]
     seconds = [0.0] * len(configs)
     for i in range(runs):
         sim, arena = scenario(name, first_seed + i, wheel_noise_sigma)
@@ -272,7 +273,9 @@ def _average(name, errors, config, counts, noise, seconds) -> Consistency:
     runs = len(errors)
     if len({len(e.t) for e in errors}) != 1:
         raise RuntimeError("runs of one scenario must share their time steps")
-    stack = {f: np.array([getattr(e, f) for e in errors]) for f in RunErrors.__dataclass_fields__}
+    stack = {
+        f: np.array([getattr(e, f) for e in errors]) for f in (f.name for f in fields(RunErrors))
+    }
     with np.errstate(invalid="ignore", divide="ignore"):
         lm_runs = stack["landmark_sum"] / stack["landmark_count"]  # NaN where none was sighted
         lm_n = np.isfinite(lm_runs).sum(axis=0)

@@ -6,9 +6,7 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -19,88 +17,13 @@ from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runlog import GroundTruth, RunLog
 from ekfslam.pipeline import ReplayResult
 
-if TYPE_CHECKING:
-    from ekfslam.sim.simulation import SimulationConfig
+# the command line (cli.main) asks here whether a run is one of the seed's experiments
+from ekfslam.sim.config import seed_experiment  # noqa: F401
 
 Array = NDArray[np.float64]
 
 #: The seed's Table 1, from the real robot: (x0, y0, θ0, average error) in m, m, rad, m.
 SEED_TABLE1 = {"square": (-0.020, 0.056, 0.142, 0.153), "octagon": (-0.040, 0.043, 0.137, 0.130)}
-
-
-#: The seed's two experiments as data/runs/generate.sh simulates them: two laps of each path,
-#: with fixed seeds and placement errors of the size the seed's Table 1 reports. Their replays
-#: are the ones compared with the seed's real-robot row (`seed_experiment`).
-SEED_EXPERIMENTS: dict[str, dict[str, Any]] = {
-    "square-2laps": dict(trajectory="square", laps=2, seed=1, start_error=(-0.02, 0.05, 0.14)),
-    "octagon-2laps": dict(trajectory="octagon", laps=2, seed=2, start_error=(-0.04, 0.04, 0.13)),
-}
-
-
-def same_experiment(config: dict[str, Any] | None, kwargs: dict[str, Any] | None) -> bool:
-    """Whether a config dict (`SimulationConfig.to_dict`, or as read back from run.json) is
-    the `SimulationConfig(**kwargs)` experiment, every field compared.
-
-    Numbers agree to a relative 1e-4, so a run.json written with fewer digits still counts.
-    """
-    if config is None or kwargs is None:
-        return False
-    from ekfslam.sim.simulation import SimulationConfig
-
-    try:
-        wanted = SimulationConfig(**kwargs).to_dict()
-    except (TypeError, ValueError):
-        return False
-    return _close(config, wanted)
-
-
-def _close(a: Any, b: Any) -> bool:
-    if isinstance(a, dict) and isinstance(b, dict):
-        return a.keys() == b.keys() and all(_close(a[k], b[k]) for k in a)
-    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
-        return len(a) == len(b) and all(_close(x, y) for x, y in zip(a, b, strict=True))
-    if isinstance(a, bool | str | None) or isinstance(b, bool | str | None):
-        return a == b
-    try:
-        return math.isclose(float(a), float(b), rel_tol=1e-4, abs_tol=1e-12)
-    except (TypeError, ValueError):
-        return False
-
-
-def run_name(config: SimulationConfig) -> str:
-    """A simulated run's name: "octagon-2laps" for one of `SEED_EXPERIMENTS` (the shipped
-    data/runs), else with what differs, e.g. "octagon-2laps-seed5-size0.6-start0.02,0,-0.1-
-    wheelscale0.01" (the seed, and any non-default size, start error, wheel scale), so that no
-    other run is mistaken for the seed's."""
-    from ekfslam.sim.simulation import DEFAULT_SIZE
-
-    c = config
-    base = f"{c.trajectory}-{c.laps}lap{'s' if c.laps != 1 else ''}"
-    if same_experiment(c.to_dict(), SEED_EXPERIMENTS.get(base)):
-        return base
-    parts = [base, f"seed{c.seed}"]
-    if c.size != DEFAULT_SIZE:
-        parts.append(f"size{c.size:g}")
-    if c.start_error is not None:
-        parts.append("start" + ",".join(f"{v:g}" for v in c.start_error))
-    if c.wheel_scale_sigma != 0.0:
-        parts.append(f"wheelscale{c.wheel_scale_sigma:g}")
-    return "-".join(parts)
-
-
-def seed_experiment(simulation: dict[str, Any] | None) -> str | None:
-    """The trajectory ("square" / "octagon") if a run is one of the seed's experiments, else None.
-
-    Decided by the run's ``simulation.config`` (run.json), not by its name: a run renamed, or
-    a different run named like one, is judged by what was simulated.
-    """
-    config = (simulation or {}).get("config")
-    if not isinstance(config, dict):
-        return None
-    for kwargs in SEED_EXPERIMENTS.values():
-        if same_experiment(config, kwargs):
-            return str(kwargs["trajectory"])
-    return None
 
 
 def interpolate_poses(groundtruth: GroundTruth, t: Array) -> tuple[Array, NDArray[np.bool_]]:

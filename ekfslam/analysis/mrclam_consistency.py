@@ -38,14 +38,16 @@ from numpy.typing import NDArray
 from ekfslam.analysis.consistency import CONFIDENCE, chi2_band, nees
 from ekfslam.analysis.evaluation import interpolate_poses, summarize
 from ekfslam.analysis.mrclam_tuning import load_robot
+from ekfslam.core.noise import NoiseConfig
 from ekfslam.geometry import wrap_angle
+from ekfslam.logs.mrclam.defaults import MRCLAM_CONFIG, MRCLAM_NOISE
 from ekfslam.logs.mrclam.load import ROBOTS
-from ekfslam.pipeline import MRCLAM_CONFIG, MRCLAM_NOISE, NoiseConfig, replay
+from ekfslam.pipeline import replay
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from ekfslam.core.filter.ekf import FilterConfig
+    from ekfslam.core.filter.config import FilterConfig
     from ekfslam.logs.runlog import RunLog
     from ekfslam.pipeline import ReplayResult
 

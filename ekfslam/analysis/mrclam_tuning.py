@@ -1,8 +1,10 @@
-"""MRCLAM beyond loading: correcting its logged commands, scoring robots, tuning the noise.
+"""MRCLAM beyond loading: scoring robots and tuning the noise on a whole dataset.
 
 `ekfslam.logs.mrclam.load` reads the dataset; this module asks how well the filter does on it. The
-noise defaults in `ekfslam.pipeline.MRCLAM_NOISE` were found with `tune_noise` on Dataset 7 (see the
-comment there and notebook 10); `score_robots` gives the per-robot table of the closing notes.
+noise defaults in `ekfslam.logs.mrclam.defaults.MRCLAM_NOISE` were found with `tune_noise` on
+Dataset 7 (see the comment there and notebook 10); `score_robots` gives the per-robot table of the
+closing notes. The optional correction of the logged commands is the dataset's knowledge, in
+`ekfslam.logs.mrclam.calibration`.
 """
 
 from __future__ import annotations
@@ -11,108 +13,25 @@ import concurrent.futures  # its ProcessPoolExecutor (and multiprocessing) loads
 import dataclasses
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from ekfslam.analysis.evaluation import summarize
+from ekfslam.core.noise import NoiseConfig
+from ekfslam.logs.mrclam.calibration import CommandCalibration, calibrate_commands
+from ekfslam.logs.mrclam.defaults import MRCLAM_CONFIG, MRCLAM_NOISE
 from ekfslam.logs.mrclam.load import ROBOTS, load_mrclam
-from ekfslam.logs.runlog import Controls, RunLog
-from ekfslam.pipeline import MRCLAM_CONFIG, MRCLAM_NOISE, NoiseConfig, replay
+from ekfslam.logs.runlog import RunLog
+from ekfslam.pipeline import replay
 
 if TYPE_CHECKING:
-    from ekfslam.core.filter.ekf import FilterConfig
+    from ekfslam.core.filter.config import FilterConfig
 
 Array = NDArray[np.float64]
-# ---------------------------------------------------------------------------------------------
-# Command calibration: an optional, documented correction of the logged commands
-
-
-@dataclass(frozen=True)
-class CommandCalibration:
-    """How the logged commands relate to the motion the robot made (fitted against Vicon).
-
-    The motion over [t, t + W] is taken to be the commands over [t - lag_s, t + W - lag_s],
-    scaled: forward distance by `v_scale`, turned angle by `w_scale`.
-    """
-
-    lag_s: float = 0.0
-    v_scale: float = 1.0
-    w_scale: float = 1.0
-
-
-_LAGS = tuple(0.05 * k for k in range(9))  # 0 to 0.4 s
-
-#: Fitted by `fit_command_calibration` on Dataset 7, pooled over robots 1-5 (1 s windows).
-MRCLAM_CALIBRATION = CommandCalibration(lag_s=0.25, v_scale=0.90, w_scale=0.935)
-
-
-def calibrate_commands(run: RunLog, calibration: CommandCalibration) -> RunLog:
-    """The run with its controls shifted later by ``lag_s`` and (v, ω) scaled.
-
-    Data handling, not filtering: the filter still integrates whatever twist it is given. The
-    start pose stays where it was (before the shifted first command the robot stands still).
-    """
-    c = run.controls
-    values = np.array(c.values, dtype=np.float64) * [calibration.v_scale, 1.0, calibration.w_scale]
-    controls = Controls(t=c.t + calibration.lag_s, kind=c.kind, values=values)
-    return dataclasses.replace(run, controls=controls)
-
-
-def fit_command_calibration(
-    runs: list[RunLog], lags: ArrayLike = _LAGS, window_s: float = 1.0
-) -> CommandCalibration:
-    """Fit one lag and two scales to several runs' commands against their ground truth.
-
-    For every lag, the commanded forward distance and turned angle over consecutive windows of
-    `window_s` are regressed (least squares through the origin, pooled over all runs) on the
-    distance and the heading change that Vicon saw; the lag with the smallest residual in the
-    heading wins (the heading is what the filter cannot recover afterwards).
-    """
-    best = None
-    for lag in np.asarray(lags, dtype=float).tolist():
-        pairs = [_window_motion(run, lag, window_s) for run in runs]
-        cmd = np.concatenate([p[0] for p in pairs])
-        true = np.concatenate([p[1] for p in pairs])
-        scales = np.sum(cmd * true, axis=0) / np.sum(cmd * cmd, axis=0)
-        residual = float(np.sqrt(np.mean((cmd[:, 1] * scales[1] - true[:, 1]) ** 2)))
-        if best is None or residual < best[0]:
-            best = (residual, CommandCalibration(lag, float(scales[0]), float(scales[1])))
-    return best[1]
-
-
-def _window_motion(run: RunLog, lag: float, window_s: float) -> tuple[Array, Array]:
-    """(commanded, true) (|distance|, heading change) per window, each (K, 2)."""
-    t, v, w = run.controls.t, run.controls.values[:, 0], run.controls.values[:, 2]
-    gt = run.groundtruth
-    start = max(t[0], gt.t[0]) + 1.0
-    a = np.arange(start, min(t[-1], gt.t[-1]) - window_s - 1.0, window_s)
-    b = a + window_s
-    cum_v = np.concatenate([[0.0], np.cumsum(v[:-1] * np.diff(t))])
-    cum_w = np.concatenate([[0.0], np.cumsum(w[:-1] * np.diff(t))])
-
-    def integral(cum: Array, rate: Array, at: Array) -> Array:
-        i = np.clip(np.searchsorted(t, at, side="right") - 1, 0, len(t) - 1)
-        return cum[i] + rate[i] * (at - t[i])
-
-    cmd = np.column_stack(
-        [
-            np.abs(integral(cum_v, v, b - lag) - integral(cum_v, v, a - lag)),
-            integral(cum_w, w, b - lag) - integral(cum_w, w, a - lag),
-        ]
-    )
-    heading = np.unwrap(gt.pose[:, 2])
-    dist = np.hypot(
-        np.interp(b, gt.t, gt.pose[:, 0]) - np.interp(a, gt.t, gt.pose[:, 0]),
-        np.interp(b, gt.t, gt.pose[:, 1]) - np.interp(a, gt.t, gt.pose[:, 1]),
-    )
-    turn = np.interp(b, gt.t, heading) - np.interp(a, gt.t, heading)
-    return cmd, np.column_stack([dist, turn])
-
-
 # ---------------------------------------------------------------------------------------------
 # Scoring robots and tuning the noise on a whole dataset
 
@@ -144,8 +63,8 @@ def score_robots(
 ) -> list[RobotScore]:
     """Replay each robot with the same noise and score it (what `tune_noise` minimises).
 
-    noise : None means `ekfslam.pipeline.MRCLAM_NOISE`; config : None,
-        `ekfslam.pipeline.MRCLAM_CONFIG`.
+    noise : None means `ekfslam.logs.mrclam.defaults.MRCLAM_NOISE`; config : None,
+        `ekfslam.logs.mrclam.defaults.MRCLAM_CONFIG`.
     calibration : apply `calibrate_commands` first (None: the logged commands as they are).
     """
     scores = []
@@ -199,7 +118,7 @@ def scores_table(scores: list[RobotScore]) -> str:
             f"| {s.robot} | {s.landmarks} | {s.aligned_error:.3f} | {s.unaligned_error:.3f} "
             f"| {s.ate_rmse:.3f} | {s.theta0:+.3f} | {s.seconds:.2f} |"
         )
-    mean = [np.mean([getattr(s, f) for s in scores]) for f in RobotScore.__dataclass_fields__]
+    mean = [np.mean([getattr(s, f) for s in scores]) for f in (f.name for f in fields(RobotScore))]
     lines.append(
         f"| average | {mean[1]:.1f} | {mean[2]:.3f} | {mean[3]:.3f} | {mean[4]:.3f} "
         f"| | {mean[6]:.2f} |"  # a mean of signed rotations means nothing
@@ -207,8 +126,9 @@ def scores_table(scores: list[RobotScore]) -> str:
     return "\n".join(lines)
 
 
-#: The grid `tune_noise` searched for `ekfslam.pipeline.MRCLAM_NOISE` (sigma_y fixed at 0.005
-#: m/√s: a differential drive does not slip sideways, Vicon shows < 0.01 m/s across the body).
+#: The grid `tune_noise` searched for `ekfslam.logs.mrclam.defaults.MRCLAM_NOISE` (sigma_y fixed
+#: at 0.005 m/√s: a differential drive does not slip sideways, Vicon shows < 0.01 m/s across the
+#: body).
 TUNING_GRID: dict[str, tuple[float, ...]] = {
     "sigma_x": (0.005, 0.01, 0.02),
     "sigma_theta": (0.03, 0.05, 0.1),
@@ -243,7 +163,7 @@ def tune_noise(
 ) -> list[TuningRow]:
     """Grid search of the noise on one dataset, minimising the robots' average aligned error.
 
-    Every combination of `grid` (field name of `ekfslam.pipeline.NoiseConfig` -> values) replays
+    Every combination of `grid` (field name of `ekfslam.core.noise.NoiseConfig` -> values) replays
     every robot with the same noise: one setting for all robots, never one per robot. `base`
     gives the fields the grid does not vary (default: sigma_y 0.005 m/√s, the rest NoiseConfig's).
 

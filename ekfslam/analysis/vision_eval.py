@@ -38,10 +38,11 @@ from ekfslam.core.camera import (
     pinhole_camera,
     tags_in_view,
 )
+from ekfslam.core.noise import default_noise
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runjson import read_meta
 from ekfslam.logs.runlog import Detections, RunLog
-from ekfslam.pipeline import default_noise, replay
+from ekfslam.pipeline import replay
 from ekfslam.sim.simulation import config_from_dict, simulate
 from ekfslam.vision.detect import TagObserver, VisionConfig, VisionCounts
 from ekfslam.vision.frames_run import read_frames_run
@@ -295,7 +296,7 @@ def exact_sightings(run: RunLog) -> Detections:
 def compare_replays(folder: str | Path, config: VisionConfig | None = None) -> ReplayComparison:
     """Replay a simulated run of camera frames from its frames and from exact detections.
 
-    All four replays use the run's default noise (`ekfslam.pipeline.default_noise`).
+    All four replays use the run's default noise (`ekfslam.core.noise.default_noise`).
     """
     meta = read_meta(Path(folder) / "run.json")
     sim = meta.simulation or {}

@@ -230,7 +230,7 @@ def load_run(args: argparse.Namespace):
 def noise_from_args(args: argparse.Namespace, run):
     from dataclasses import replace
 
-    from ekfslam.pipeline import NoiseConfig, default_config, default_noise
+    from ekfslam.core.noise import NoiseConfig, default_config, default_noise
 
     base = default_noise(run)
     overrides = {

@@ -21,8 +21,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ekfslam.core.camera import Camera, TagSpec
+from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.kinematics import MecanumGeometry
+from ekfslam.core.noise import NoiseConfig
 from ekfslam.errors import InputError
+from ekfslam.logs.csvtable import read_lines
+from ekfslam.logs.mrclam import defaults as mrclam_defaults
 from ekfslam.plausibility import implausible_pose as _implausible
 
 FORMAT = "ekfslam-run"
@@ -31,6 +35,12 @@ SUPPORTED_VERSIONS = (1,)
 UNITS = {"length": "m", "angle": "rad", "time": "s"}
 
 Array = NDArray[np.float64]
+
+#: The tuned defaults a loader can name in `RunMeta.defaults`: name -> (noise, filter choices).
+#: A dataset's loader owns its values (`ekfslam.logs.mrclam.defaults`); run.json keeps the name.
+TUNED_DEFAULTS: dict[str, tuple[NoiseConfig, FilterConfig]] = {
+    mrclam_defaults.NAME: (mrclam_defaults.MRCLAM_NOISE, mrclam_defaults.MRCLAM_CONFIG),
+}
 
 
 @dataclass(frozen=True)
@@ -78,6 +88,9 @@ class RunMeta:
         None.
     tags : the printed tags' family and size (`ekfslam.core.camera.TagSpec`), or None.
     frames : where the camera frames are (`FramesSpec`), or None for a run without frames.
+    defaults : the name of the tuned noise and filter choices its loader chose for it (a key of
+        `TUNED_DEFAULTS`: "mrclam" for MRCLAM runs), or None for `NoiseConfig()` and
+        `FilterConfig()`; see `noise_defaults`, `filter_defaults`.
     """
 
     name: str
@@ -92,24 +105,17 @@ class RunMeta:
     camera: Camera | None = None
     tags: TagSpec | None = None
     frames: FramesSpec | None = None
+    defaults: str | None = None
 
+    @property
+    def noise_defaults(self) -> NoiseConfig | None:
+        """The loader's tuned noise for this run, or None (then `NoiseConfig()` applies)."""
+        return None if self.defaults is None else TUNED_DEFAULTS[self.defaults][0]
 
-def read_lines(path: str | os.PathLike) -> list[str]:
-    """The file's lines without BOM, line endings or trailing blank lines."""
-    path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as err:
-        raise InputError(path, None, f"cannot read the file: {err.strerror}") from None
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as err:
-        line = data.count(b"\n", 0, err.start) + 1
-        raise InputError(path, line, f"not UTF-8 text (byte {err.start}); save as UTF-8") from None
-    lines = text.removeprefix("\ufeff").splitlines()
-    while lines and not lines[-1].strip():
-        lines.pop()
-    return lines
+    @property
+    def filter_defaults(self) -> FilterConfig | None:
+        """The loader's filter choices for this run, or None (then `FilterConfig()` applies)."""
+        return None if self.defaults is None else TUNED_DEFAULTS[self.defaults][1]
 
 
 def check_shape(path: Path, what: str, array: np.ndarray, shape: tuple[int | None, ...]) -> None:
@@ -158,6 +164,7 @@ def check_meta(meta: RunMeta, path: Path) -> None:
     require(meta.camera is None or isinstance(meta.camera, Camera), "camera must be a Camera")
     require(meta.tags is None or isinstance(meta.tags, TagSpec), "tags must be a TagSpec")
     require(meta.frames is None or isinstance(meta.frames, FramesSpec), "frames: FramesSpec")
+    require(meta.defaults is None or meta.defaults in TUNED_DEFAULTS, _DEFAULTS_PROBLEM)
     require(
         meta.frames is None or (meta.camera is not None and meta.tags is not None),
         'a run with "frames" needs "camera" (intrinsics) and "tags" (the printed size)',
@@ -170,7 +177,8 @@ def check_meta(meta: RunMeta, path: Path) -> None:
 _REQUIRED_KEYS = tuple(
     "format format_version name source units camera_mounting nominal_start".split()
 )
-_OPTIONAL_KEYS = ("rates", "robot", "tag_map", "simulation", "camera", "tags", "frames")
+_OPTIONAL_KEYS = ("rates", "robot", "tag_map", "simulation", "camera", "tags", "frames", "defaults")
+_DEFAULTS_PROBLEM = f"defaults must be one of {', '.join(map(repr, TUNED_DEFAULTS))} or null"
 # absent means null; camera, tags and frames are the camera-frame extension (ekfslam.logs.frames)
 _CAMERA_KEYS = ("image_size", "fx", "fy", "cx", "cy", "distortion", "mount_height", "pitch")
 _CAMERA_REQUIRED = ("image_size", "fx", "fy", "cx", "cy")
@@ -371,6 +379,9 @@ def read_meta(path: str | os.PathLike) -> RunMeta:
             fail("frames", f'"frames": {err}')
         if camera is None or tags is None:
             fail("frames", 'a run with "frames" needs "camera" (intrinsics) and "tags" (size)')
+    defaults = doc.get("defaults")
+    if defaults is not None and (not isinstance(defaults, str) or defaults not in TUNED_DEFAULTS):
+        fail("defaults", f'"defaults" is {_shown(defaults)}: {_DEFAULTS_PROBLEM}')
     return RunMeta(
         name=doc["name"],
         source=doc["source"],
@@ -392,6 +403,7 @@ def read_meta(path: str | os.PathLike) -> RunMeta:
         camera=camera,
         tags=tags,
         frames=frames,
+        defaults=defaults,
     )
 
 
@@ -479,4 +491,6 @@ def meta_json(meta: RunMeta) -> str:
         lines.append(
             f'  "frames": {_dump_json({"kind": meta.frames.kind, "file": meta.frames.file})}'
         )
+    if meta.defaults is not None:  # like the camera: absent from runs without tuned defaults
+        lines.append(f'  "defaults": {_dump_json(meta.defaults)}')
     return "{\n" + ",\n".join(lines) + "\n}\n"

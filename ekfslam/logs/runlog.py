@@ -12,7 +12,8 @@ A run is a folder::
 
 The format is specified, with units and an example, in ``data/README.md``. The reader validates
 strictly and raises `ekfslam.errors.InputError` naming the file, the line and the problem.
-run.json has its own module, `ekfslam.logs.runjson`; its names (`RunMeta`, ...) are re-exported
+run.json has its own module, `ekfslam.logs.runjson`, and the CSV text rules theirs,
+`ekfslam.logs.csvtable`; their public names (`RunMeta`, `read_columns`, ...) are re-exported
 here. The writer prints every float with ``repr`` (shortest round-trip), so ``read_run`` gives back
 the very same bits that ``write_run`` was given. Asked for ``decimals`` (simulated runs use
 `SIMULATED_DECIMALS`), it first rounds every float to that many decimals: the last bits of a
@@ -34,6 +35,7 @@ from numpy.typing import NDArray
 
 from ekfslam.core.kinematics import MecanumGeometry, wheels_to_twist
 from ekfslam.errors import InputError
+from ekfslam.logs.csvtable import csv_text, read_columns, read_lines, read_table  # noqa: F401
 from ekfslam.logs.runjson import (  # noqa: F401  (FORMAT... re-exported: the public API of runlog)
     FORMAT,
     FORMAT_VERSION,
@@ -44,7 +46,6 @@ from ekfslam.logs.runjson import (  # noqa: F401  (FORMAT... re-exported: the pu
     check_meta,
     check_shape,
     meta_json,
-    read_lines,
     read_meta,
 )
 from ekfslam.plausibility import check_clocks
@@ -56,7 +57,6 @@ DETECTION_COLUMNS = ("t", "tag_id", "range", "bearing")
 # Decimals of every float in a simulated run's CSVs: 1 ns, 1 nm, 1 nrad. Far below any noise we
 # simulate (mm, mrad), far above the 1e-16 that numpy's SIMD code paths change between CPUs.
 SIMULATED_DECIMALS = 9
-_INTEGER_COLUMNS = ("tag_id", "frame")  # parsed as int64; every other column is a float
 GROUNDTRUTH_COLUMNS = ("t", "x", "y", "theta")
 
 Array = NDArray[np.float64]
@@ -161,7 +161,7 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
         require_file(path, hint)
 
     path = folder / CONTROLS_CSV
-    kind, columns = _read_csv(path, CONTROL_COLUMNS)
+    kind, columns = read_table(path, CONTROL_COLUMNS)
     if kind == "wheels" and meta.robot is None:
         raise InputError(
             path,
@@ -175,14 +175,14 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
     path = folder / DETECTIONS_CSV
     found_in_frames = detections is not None
     if detections is None:
-        _, (t, tag_id, rng, bearing) = _read_csv(path, {"detections": DETECTION_COLUMNS})
+        _, (t, tag_id, rng, bearing) = read_table(path, {"detections": DETECTION_COLUMNS})
         detections = Detections(t=t, tag_id=tag_id, range=rng, bearing=bearing)
     _check_detections(detections, path, meta.tag_map)
 
     groundtruth = None
     path = folder / GROUNDTRUTH_CSV
     if path.exists():
-        _, columns = _read_csv(path, {"groundtruth": GROUNDTRUTH_COLUMNS})
+        _, columns = read_table(path, {"groundtruth": GROUNDTRUTH_COLUMNS})
         groundtruth = GroundTruth(t=columns[0], pose=np.column_stack(columns[1:]))
         _check_groundtruth(groundtruth, path)
     run = RunLog(meta=meta, controls=controls, detections=detections, groundtruth=groundtruth)
@@ -205,101 +205,6 @@ def require_file(path: Path, hint: str) -> None:
 _FILES_HINT = (
     "run.json, controls.csv, detections.csv and optionally groundtruth.csv (data/README.md)"
 )
-
-
-def _read_csv(path: Path, layouts: dict[str, tuple[str, ...]]) -> tuple[str, list[np.ndarray]]:
-    """Check the header against `layouts` and parse the rows: (layout name, one array per column).
-
-    The fast path parses the whole table at once; on any failure the rows are re-scanned one by
-    one so that the error names the first bad line.
-    """
-    lines = read_lines(path)
-    expected = " or ".join(repr(",".join(cols)) for cols in layouts.values())
-    if not lines:
-        raise InputError(path, 1, f"empty file: expected the header {expected} on line 1")
-    header = tuple(f.strip() for f in lines[0].split(","))
-    matches = [name for name, cols in layouts.items() if cols == header]
-    if not matches:
-        raise InputError(
-            path, 1, _header_problem(header, layouts) + f"; expected header {expected}"
-        )
-    name, columns = matches[0], layouts[matches[0]]
-    body = lines[1:]
-    if not body:
-        return name, [np.empty(0, _dtype(c)) for c in columns]
-    dtype = [(c, _dtype(c)) for c in columns]
-    try:
-        # numpy's C parser is ~10x faster than float() per cell; it skips blank lines silently,
-        # hence the row count check
-        table = np.loadtxt(body, dtype=dtype, delimiter=",", comments=None, ndmin=1)
-        if len(table) != len(body):
-            raise ValueError("blank line")
-    except (ValueError, OverflowError) as err:
-        _scan_rows(path, body, columns)
-        raise InputError(path, None, f"cannot parse the rows: {err}") from None
-    return name, [np.ascontiguousarray(table[c]) for c in columns]
-
-
-def read_columns(path: str | os.PathLike, columns: tuple[str, ...]) -> list[np.ndarray]:
-    """One CSV file of the run format: the header must be `columns`; one array per column.
-
-    The text rules of ``data/README.md`` apply (errors name the line); ``tag_id`` and ``frame``
-    columns are integers, the others floats. Used for files other modules add to a run, such as
-    frames.csv (`ekfslam.logs.frames`).
-    """
-    return _read_csv(Path(path), {"table": tuple(columns)})[1]
-
-
-def _dtype(column: str) -> type:
-    return np.int64 if column in _INTEGER_COLUMNS else np.float64
-
-
-def _parse_cell(column: str, text: str) -> None:
-    """Raise ValueError unless `text` is a plain ASCII number (an integer for tag_id, frame)."""
-    if not text.isascii() or "_" in text:  # float() also takes "1_000" and Arabic digits
-        raise ValueError(text)
-    if column not in _INTEGER_COLUMNS:
-        float(text)
-    elif not -(2**63) <= int(text) < 2**63:
-        raise OverflowError(text)
-
-
-def _header_problem(header: tuple[str, ...], layouts: dict[str, tuple[str, ...]]) -> str:
-    closest = max(layouts.values(), key=lambda cols: len(set(cols) & set(header)))
-    missing = [c for c in closest if c not in header]
-    unknown = [c for c in header if c not in closest]
-    parts = [f"missing column {', '.join(missing)}"] if missing else []
-    parts += [f"unknown column {', '.join(map(repr, unknown))}"] if unknown else []
-    return f"header {','.join(header)!r}: " + (
-        "; ".join(parts) or "columns repeated or out of order"
-    )
-
-
-def _scan_rows(path: Path, body: list[str], columns: tuple[str, ...]) -> None:
-    """Raise InputError for the first row that does not parse (the slow, precise path)."""
-    for number, line in enumerate(body, start=2):
-        fields = [f.strip() for f in line.split(",")]
-        if not line.strip():
-            raise InputError(path, number, "blank line in the middle of the file")
-        if fields[0] == "t":
-            raise InputError(
-                path,
-                number,
-                "header line repeated in the middle of the file (two logs pasted together?)",
-            )
-        if len(fields) != len(columns):
-            raise InputError(
-                path,
-                number,
-                f"expected {len(columns)} fields ({','.join(columns)}), "
-                f"found {len(fields)} (truncated line?)",
-            )
-        for column, text in zip(columns, fields, strict=True):
-            try:
-                _parse_cell(column, text)
-            except (ValueError, OverflowError):
-                what = "an integer" if column in _INTEGER_COLUMNS else "a number"
-                raise InputError(path, number, f"{column} is not {what}: {text!r}") from None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -457,13 +362,13 @@ def write_run(
     c, d, g = run.controls, run.detections, run.groundtruth
     texts = {
         RUN_JSON: meta_json(run.meta),
-        CONTROLS_CSV: _csv_text(CONTROL_COLUMNS[c.kind], [c.t, *np.asarray(c.values).T], decimals),
+        CONTROLS_CSV: csv_text(CONTROL_COLUMNS[c.kind], [c.t, *np.asarray(c.values).T], decimals),
     }
     if with_detections:
         detections = [d.t, d.tag_id, d.range, d.bearing]
-        texts[DETECTIONS_CSV] = _csv_text(DETECTION_COLUMNS, detections, decimals)
+        texts[DETECTIONS_CSV] = csv_text(DETECTION_COLUMNS, detections, decimals)
     if g is not None:
-        texts[GROUNDTRUTH_CSV] = _csv_text(
+        texts[GROUNDTRUTH_CSV] = csv_text(
             GROUNDTRUTH_COLUMNS, [g.t, *np.asarray(g.pose).T], decimals
         )
     if folder.exists() and not folder.is_dir():
@@ -495,27 +400,8 @@ def write_detections(
     path = Path(path)
     _check_detections(detections, path, tag_map)
     d = detections
-    text = _csv_text(DETECTION_COLUMNS, [d.t, d.tag_id, d.range, d.bearing])
+    text = csv_text(DETECTION_COLUMNS, [d.t, d.tag_id, d.range, d.bearing])
     temporary = path.with_name(f".{path.name}.partial")
     temporary.write_text(text, encoding="utf-8", newline="\n")
     os.replace(temporary, path)
     return path
-
-
-def _csv_text(
-    columns: tuple[str, ...], arrays: list[np.ndarray], decimals: int | None = None
-) -> str:
-    # tolist() gives Python floats/ints, whose repr is the shortest text that reads back exactly
-    cells = [np.asarray(a).tolist() for a in arrays]
-    if decimals is not None:
-        cells = [[_rounded(x, decimals) for x in column] for column in cells]
-    rows = [",".join(map(repr, row)) for row in zip(*cells, strict=True)]
-    return "\n".join([",".join(columns), *rows]) + "\n"
-
-
-def _rounded(x: float | int, decimals: int) -> float | int:
-    """`x` rounded to `decimals` (floats only), and -0.0 as 0.0: a last bit can flip that sign."""
-    if isinstance(x, float):
-        # Python's round() is correctly rounded (decimal, half to even): the same on every CPU
-        return round(x, decimals) + 0.0
-    return x

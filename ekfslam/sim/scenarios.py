@@ -15,7 +15,7 @@ import numpy as np
 
 from ekfslam.core.arena import SEED_ARENA, Arena, Tag
 from ekfslam.core.kinematics import wheel_noise_to_twist_covariance
-from ekfslam.pipeline import NoiseConfig
+from ekfslam.core.noise import NoiseConfig
 from ekfslam.sim.simulation import SimulationConfig
 
 SCENARIOS = ("square", "octagon", "loop")

@@ -27,14 +27,15 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.analysis.alignment import align
 from ekfslam.analysis.evaluation import RunSummary, interpolate_poses
-from ekfslam.core.filter.ekf import FilterConfig
+from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.filter.history import History
 from ekfslam.core.models import observation, observation_jacobians
+from ekfslam.core.noise import NoiseConfig
 from ekfslam.errors import AlignmentError, EkfSlamError, InputError
 from ekfslam.geometry import compose, invert, transform_points, wrap_angle
 from ekfslam.logs.mrclam.load import find_dataset
 from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog
-from ekfslam.pipeline import NoiseConfig, ReplayResult, replay
+from ekfslam.pipeline import ReplayResult, replay
 from ekfslam.sim.simulation import SimulationConfig, simulate
 from ekfslam.teaching.derivations import landmark_lift_matrix_numeric
 

@@ -11,10 +11,12 @@ equals the seed's eq. (16) (I - KH) Σ but stays symmetric and positive semi-def
 
 from __future__ import annotations
 
+from dataclasses import fields
+
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ekfslam.core.filter.ekf import FilterConfig, FilterCounts
+from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.models import (
     MIN_RANGE_SQUARED,
     inverse_observation,
@@ -50,7 +52,7 @@ class LiteralEKFSLAM:
         self._prior = self.mu[:2].copy()  # FEJ: the predicted position at the current step
         self._first: list[np.ndarray] = []  # FEJ: each landmark's first estimate
         self._rejected: list[list[np.ndarray]] = []  # per slot: rejected sightings' positions
-        self._counts = dict.fromkeys(FilterCounts.__dataclass_fields__, 0)
+        self._counts = dict.fromkeys((f.name for f in fields(FilterCounts)), 0)
 
     @property
     def n_landmarks(self) -> int:

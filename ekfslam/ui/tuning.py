@@ -38,7 +38,7 @@ import io
 import math
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from functools import partial
 from pathlib import Path
 
@@ -47,11 +47,12 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Ellipse
 
 from ekfslam.analysis.evaluation import RunSummary, summarize
-from ekfslam.core.filter.ekf import CHI2_2DOF_99, FilterConfig
+from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig, chi2_2dof_quantile
 from ekfslam.core.filter.history import OUTCOMES
+from ekfslam.core.noise import NoiseConfig, default_noise
 from ekfslam.errors import InputError
 from ekfslam.logs.runlog import RunLog, read_run
-from ekfslam.pipeline import NoiseConfig, ReplayResult, default_noise, replay
+from ekfslam.pipeline import ReplayResult, replay
 from ekfslam.viz.plotting import ellipse_parameters
 
 #: A run to offer in the panel: a function that loads it (called once, then cached).
@@ -66,9 +67,9 @@ COALESCE_DELAY = 0.03
 #: NIS gates offered (chi-square, 2 dof); 0 turns gating off, as on the command line.
 GATES = {
     "off": 0.0,
-    "95% (5.99)": 5.991464547107979,
+    "95% (5.99)": chi2_2dof_quantile(0.95),
     "99% (9.21)": CHI2_2DOF_99,
-    "99.9% (13.8)": 13.815510557964274,
+    "99.9% (13.8)": chi2_2dof_quantile(0.999),
 }
 #: The NIS axis starts here (smaller values are drawn on it): decades of tiny NIS say nothing.
 NIS_FLOOR = 1e-2
@@ -124,7 +125,7 @@ def apply_changes(settings: TunerSettings, changes: Mapping[str, object]) -> Tun
     """New settings from widget values: ``run``, a `NoiseConfig` field (a slider's value in its
     units, not its exponent), ``init`` ("inverse" or "seed") or ``gate`` (a NIS threshold; 0 or
     None is off). Raises ValueError for an unknown name or a value the configs refuse."""
-    noise = {k: float(v) for k, v in changes.items() if k in NoiseConfig.__dataclass_fields__}
+    noise = {k: float(v) for k, v in changes.items() if k in {f.name for f in fields(NoiseConfig)}}
     config: dict[str, object] = {}
     if "init" in changes:
         config["init"] = changes["init"]

@@ -16,7 +16,7 @@ from functools import partial
 from matplotlib.figure import Figure
 
 from ekfslam.analysis.evaluation import SEED_TABLE1
-from ekfslam.pipeline import default_noise
+from ekfslam.core.noise import default_noise
 from ekfslam.ui.tuning import (
     DEFAULT_FIGSIZE,
     GATES,

@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.analysis.alignment import Alignment
 from ekfslam.core.arena import Arena
+from ekfslam.core.filter.config import chi2_2dof_quantile
 from ekfslam.geometry import rotation, wrap_angle
 from ekfslam.logs.runlog import RunLog
 from ekfslam.pipeline import ReplayResult
@@ -25,14 +26,15 @@ from ekfslam.pipeline import ReplayResult
 if TYPE_CHECKING:
     from ekfslam.teaching.lessons import UpdateSteps
 
-#: chi-square(2 dof) quantiles: the Mahalanobis radius² of a 2-D confidence ellipse.
-CHI2_2DOF = {0.39: 1.0, 0.95: 5.991464547107979, 0.99: 9.21034037197618}
+#: The Mahalanobis radius² of a 2-D confidence ellipse is the chi-square(2 dof) quantile
+#: -2 ln(1 - p) (`chi2_2dof_quantile`); "39%" names the 1-sigma ellipse, radius² 1 (p = 1 - e^-½).
+CHI2_2DOF = {0.39: 1.0}
 
 
 def ellipse_parameters(cov: ArrayLike, confidence: float = 0.95) -> tuple[float, float, float]:
     """Width, height (m, full axes) and angle (degrees) of a 2-D covariance's confidence ellipse."""
     cov = np.asarray(cov, dtype=float)
-    k2 = CHI2_2DOF.get(confidence, -2.0 * math.log(1.0 - confidence))
+    k2 = CHI2_2DOF.get(confidence) or chi2_2dof_quantile(confidence)
     vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
     vals = np.clip(vals, 0.0, None)
     width, height = 2.0 * np.sqrt(k2 * vals[::-1])

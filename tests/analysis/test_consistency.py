@@ -22,8 +22,8 @@ from ekfslam.analysis.consistency import (
 )
 from ekfslam.analysis.evaluation import interpolate_poses
 from ekfslam.analysis.robustness import long_run, outlier_study
+from ekfslam.core.noise import NoiseConfig, default_noise
 from ekfslam.geometry import wrap_angle
-from ekfslam.pipeline import NoiseConfig, default_noise
 from ekfslam.sim.scenarios import noise_for_simulation, ring_arena, scenario
 
 REPO = Path(__file__).resolve().parents[2]

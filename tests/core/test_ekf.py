@@ -332,8 +332,8 @@ def test_predict_many_equals_stepping_predict_one_row_at_a_time(linearization, p
 @pytest.mark.shared_data
 def test_predict_many_equals_stepping_on_a_real_mrclam_log(mrclam7):
     """Robot 1 of MRCLAM Dataset 7, its first 20,000 odometry rows, with its observations."""
+    from ekfslam.logs.mrclam.defaults import MRCLAM_NOISE
     from ekfslam.logs.mrclam.load import load_mrclam
-    from ekfslam.pipeline import MRCLAM_NOISE
 
     run, _ = load_mrclam(mrclam7, 1)
     rows = 20_000

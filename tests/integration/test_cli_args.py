@@ -17,8 +17,8 @@ from ekfslam.analysis.bench import BenchConfig
 from ekfslam.cli import args as ca
 from ekfslam.cli.main import main
 from ekfslam.core.filter.config import FilterConfig
+from ekfslam.core.noise import NoiseConfig
 from ekfslam.errors import ConfigError, EkfSlamError
-from ekfslam.pipeline import NoiseConfig
 from ekfslam.sim.simulation import SimulationConfig
 
 RUN = Path(__file__).resolve().parents[2] / "data" / "runs" / "octagon-2laps"

@@ -10,8 +10,9 @@ import pytest
 from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.filter.history import OBSERVE, PREDICT
 from ekfslam.core.kinematics import MecanumGeometry, twist_to_wheels
+from ekfslam.core.noise import NoiseConfig
 from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta
-from ekfslam.pipeline import NoiseConfig, replay
+from ekfslam.pipeline import replay
 
 
 def make_run(ctrl_t, twist, det_t, det_id, det_z, kind="twist", robot=None):

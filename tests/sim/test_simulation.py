@@ -450,7 +450,7 @@ def test_outliers_are_injected_at_their_rates_and_counted():
 
 
 def test_a_run_is_named_after_what_makes_it_differ_from_the_seeds():
-    from ekfslam.analysis.evaluation import SEED_EXPERIMENTS, seed_experiment
+    from ekfslam.sim.config import SEED_EXPERIMENTS, seed_experiment
 
     assert SimulationConfig(**SEED_EXPERIMENTS["octagon-2laps"]).name == "octagon-2laps"
     assert SimulationConfig(**SEED_EXPERIMENTS["square-2laps"]).name == "square-2laps"

@@ -15,9 +15,10 @@ from matplotlib.figure import Figure
 
 from ekfslam.analysis.alignment import align
 from ekfslam.core.filter.history import OUTCOMES
+from ekfslam.core.noise import NoiseConfig
 from ekfslam.errors import InputError
+from ekfslam.logs.mrclam.defaults import MRCLAM_NOISE
 from ekfslam.logs.runlog import Detections, GroundTruth, RunLog, read_run
-from ekfslam.pipeline import MRCLAM_NOISE, NoiseConfig
 from ekfslam.ui.tuning import (
     GATES,
     RUNS_DIR,

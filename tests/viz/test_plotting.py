@@ -104,7 +104,8 @@ def test_figure2_says_before_alignment_and_draws_the_aligned_map_beside_it() -> 
 
     from ekfslam import read_run
     from ekfslam.analysis.alignment import align
-    from ekfslam.pipeline import default_config, default_noise, replay
+    from ekfslam.core.noise import default_config, default_noise
+    from ekfslam.pipeline import replay
     from ekfslam.viz.plotting import figure2
 
     run = read_run(Path(__file__).resolve().parents[2] / "data" / "runs" / "octagon-2laps")

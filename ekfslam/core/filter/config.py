@@ -6,13 +6,24 @@ re-initialisation, linearisation); the noise levels R and Q are passed with each
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
 from ekfslam.errors import ConfigError
 
-#: chi-square(2 dof) 99% quantile: the default Mahalanobis gate on (r, φ) innovations.
-CHI2_2DOF_99 = 9.21034037197618
+
+def chi2_2dof_quantile(p: float) -> float:
+    """The chi-square quantile for 2 degrees of freedom at probability p (0 <= p < 1).
+
+    With 2 dof the distribution is exponential, P(x) = 1 - exp(-x/2), so its quantile is
+    -2 ln(1 - p) (log1p keeps the digits for p near 1): 5.99 at 95%, 9.21 at 99%.
+    """
+    return -2.0 * math.log1p(-p)
+
+
+#: chi-square(2 dof) 99% quantile (9.2103...): the default Mahalanobis gate on (r, φ) innovations.
+CHI2_2DOF_99 = chi2_2dof_quantile(0.99)
 
 
 @dataclass(frozen=True)

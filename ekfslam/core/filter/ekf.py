@@ -26,6 +26,7 @@ it.
 from __future__ import annotations
 
 import math
+from dataclasses import fields
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -104,7 +105,7 @@ class EKFSLAM:
         self._ids: list[int] = []
         self.slot: dict[int, int] = {}
         self._sightings: list[int] = []
-        self._counts = dict.fromkeys(FilterCounts.__dataclass_fields__, 0)
+        self._counts = dict.fromkeys((f.name for f in fields(FilterCounts)), 0)
         self._recorder = Recorder() if record else None
         self._t = 0.0
         self._fej = self.config.linearization == "fej"
@@ -286,7 +287,9 @@ class EKFSLAM:
             j = self._add_landmark(landmark_id, np.array(z), np.asarray(Q, dtype=float))
             if self.config.init == "inverse":
                 return self._finish(landmark_id, z, INITIALISED, 3 + 2 * j, computed=False)
-            return self._correct(landmark_id, j, z, Qf, False, True, accepted_as=INITIALISED)
+            return self._correct(
+                landmark_id, j, z, Qf, gated=False, fresh=True, accepted_as=INITIALISED
+            )
         gated = self.config.gate is not None and self._sightings[j] >= self.config.gate_after
         return self._correct(landmark_id, j, z, Qf, gated=gated, fresh=False)
 
@@ -296,6 +299,7 @@ class EKFSLAM:
         j: int,
         z: tuple[float, float],
         Q: list,
+        *,
         gated: bool,
         fresh: bool,
         accepted_as: int = ACCEPTED,
@@ -380,7 +384,9 @@ class EKFSLAM:
         self._sightings[j] = 1
         self._rejected[j].clear()
         if self.config.init == "seed":  # eq. (3), then the update with this sighting
-            return self._correct(landmark_id, j, z, Q, False, True, accepted_as=REINITIALISED)
+            return self._correct(
+                landmark_id, j, z, Q, gated=False, fresh=True, accepted_as=REINITIALISED
+            )
         return self._finish(landmark_id, z, REINITIALISED, l, computed=False)
 
     def _grow(self) -> None:

@@ -15,10 +15,11 @@ along its heading, so a measurement is already the (r, φ) of eq. (10).
 Nothing is dropped silently: every sighting that does not become a detection is counted in the
 `MrclamLoadReport` returned beside the run. Times stay on the dataset's own clock (Unix seconds).
 
-Beyond loading, in `ekfslam.analysis.mrclam_tuning`: `calibrate_commands` (an optional correction of
-the logged commands, `MRCLAM_CALIBRATION`, off by default); `score_robots`, `scores_table` and
+Beside loading, in `ekfslam.logs.mrclam.calibration`: `calibrate_commands` (an optional correction
+of the logged commands, `MRCLAM_CALIBRATION`, off by default); in `ekfslam.analysis.mrclam_tuning`:
+`score_robots`, `scores_table` and
 ``python -m ekfslam score-mrclam N`` (the per-robot table); `tune_noise` (the grid search that
-chose `ekfslam.pipeline.MRCLAM_NOISE`, one setting for all robots).
+chose `ekfslam.logs.mrclam.defaults.MRCLAM_NOISE`, one setting for all robots).
 
 ``python -m ekfslam convert mrclam DATASET --robot N --out DIR`` writes a robot as a run folder.
 """
@@ -30,7 +31,6 @@ import dataclasses
 import math
 import re
 import warnings
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -38,7 +38,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.errors import InputError
 from ekfslam.geometry import wrap_angle
+from ekfslam.logs.mrclam.defaults import NAME as MRCLAM_DEFAULTS
 from ekfslam.logs.mrclam.fetch import mrclam_path
+from ekfslam.logs.mrclam.report import BARCODES, MrclamLoadReport
 from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta, check_time_spans
 from ekfslam.places import shared_data_dir
 
@@ -47,7 +49,6 @@ Array = NDArray[np.float64]
 #: The robots' subject numbers; every other subject in Barcodes.dat is a landmark.
 ROBOTS = (1, 2, 3, 4, 5)
 
-BARCODES = "Barcodes.dat"
 LANDMARKS = "Landmark_Groundtruth.dat"
 ROBOT_KINDS = ("Odometry", "Measurement", "Groundtruth")  # RobotN_<kind>.dat
 
@@ -66,79 +67,6 @@ _NEWLINE = re.compile(r"\r\n|\r|\n")  # the universal newlines np.loadtxt reads
 def robot_file(dataset_dir: str | Path, robot: int, kind: str) -> Path:
     """Path of robot N's file of `kind` ("Odometry", "Measurement" or "Groundtruth")."""
     return Path(dataset_dir) / f"Robot{robot}_{kind}.dat"
-
-
-@dataclass(frozen=True)
-class MrclamLoadReport:
-    """What `load_mrclam` read, kept and dropped; times in s on the dataset's clock.
-
-    measurement_rows == measurements_kept + robot_sightings_dropped + unknown_barcodes_dropped.
-    The ``*_out_of_order`` counts are rows whose time is earlier than the row before (they were
-    stably sorted). ``start_inside_groundtruth`` is False when the first odometry time lies
-    outside [groundtruth_first_time, groundtruth_last_time] and the start pose was clamped to the
-    nearest ground-truth pose.
-    """
-
-    dataset: str
-    robot: int
-    odometry_rows: int
-    odometry_duplicate_times: int
-    odometry_max_gap_s: float
-    odometry_out_of_order: int
-    measurement_rows: int
-    measurements_kept: int
-    robot_sightings_dropped: int
-    unknown_barcodes_dropped: int
-    unknown_barcodes: frozenset[int]
-    measurement_out_of_order: int
-    groundtruth_rows: int
-    groundtruth_first_time: float
-    groundtruth_last_time: float
-    groundtruth_out_of_order: int
-    start_time: float
-    start_inside_groundtruth: bool
-
-    def as_dict(self) -> dict:
-        """JSON-ready ``loaded`` (rows out of order were sorted, not dropped) and ``dropped``
-        (count and reason); times in s, rounded to the ms."""
-        first, last = round(self.groundtruth_first_time, 3), round(self.groundtruth_last_time, 3)
-        loaded = {k: getattr(self, k) for k in _LOADED} | {
-            "odometry_max_gap_s": round(self.odometry_max_gap_s, 3),
-            "groundtruth_span_s": [first, last],
-            "start_time_s": round(self.start_time, 3),
-        }
-        robots = {"count": self.robot_sightings_dropped, "reason": _ROBOTS_WHY}
-        unknown = {"count": self.unknown_barcodes_dropped, "reason": _UNKNOWN_WHY,
-                   "barcodes": sorted(self.unknown_barcodes)}  # fmt: skip
-        dropped = {"robot_sightings": robots, "unknown_barcodes": unknown}
-        return {"dataset": self.dataset, "robot": self.robot, "loaded": loaded, "dropped": dropped}
-
-    def lines(self) -> tuple[str, str]:
-        """ "loaded: ..." (what was read, with units) and "dropped: ..." (what and why)."""
-        unsorted = sum(getattr(self, k) for k in _LOADED if k.endswith("out_of_order"))
-        span = self.groundtruth_last_time - self.groundtruth_first_time
-        unknown = "".join(f" {b}," for b in sorted(self.unknown_barcodes)).rstrip(",")
-        return (
-            f"loaded: {self.odometry_rows} odometry rows (largest gap "
-            f"{self.odometry_max_gap_s:.3f} s, {self.odometry_duplicate_times} duplicate times), "
-            f"{self.measurements_kept} of {self.measurement_rows} measurements, "
-            f"{self.groundtruth_rows} ground-truth rows over {span:.1f} s"
-            + ("" if self.start_inside_groundtruth else " (the start clamped to it)")
-            + (f"; {unsorted} rows out of time order, sorted" if unsorted else ""),
-            f"dropped: {self.robot_sightings_dropped} robot sightings ({_ROBOTS_WHY}), "
-            f"{self.unknown_barcodes_dropped} sightings of unknown barcodes{unknown} "
-            f"({_UNKNOWN_WHY})",
-        )
-
-    def summary(self) -> str:
-        """A few lines for a terminal: the dataset, what was loaded, what was dropped and why."""
-        return "\n  ".join([f"MRCLAM dataset {self.dataset}, robot {self.robot}", *self.lines()])
-
-
-_LOADED = ("odometry_rows", "odometry_duplicate_times", "odometry_out_of_order", "measurement_rows",
-           "measurements_kept", "measurement_out_of_order", "groundtruth_rows",
-           "groundtruth_out_of_order", "start_inside_groundtruth")  # fmt: skip
-_ROBOTS_WHY, _UNKNOWN_WHY = "other robots, not landmarks", f"not in {BARCODES}"
 
 
 def load_mrclam(dataset_dir: str | Path, robot: int) -> tuple[RunLog, MrclamLoadReport]:
@@ -220,6 +148,7 @@ def load_mrclam(dataset_dir: str | Path, robot: int) -> tuple[RunLog, MrclamLoad
         source="recorded",
         nominal_start=nominal_start,
         tag_map=tag_map,
+        defaults=MRCLAM_DEFAULTS,  # the tuned noise and filter choices of `defaults`
     )
     gaps = np.diff(controls.t)
     report = MrclamLoadReport(
@@ -495,7 +424,7 @@ def _cmd_convert_mrclam(args: argparse.Namespace) -> int:
 
     run, report = load_mrclam(args.dataset, args.robot)
     if args.calibrate:
-        from ekfslam.analysis.mrclam_tuning import MRCLAM_CALIBRATION, calibrate_commands
+        from ekfslam.logs.mrclam.calibration import MRCLAM_CALIBRATION, calibrate_commands
 
         run = calibrate_commands(run, MRCLAM_CALIBRATION)
     try:  # load_mrclam checks what it reads; name the dataset, not a file the user never gave
