@@ -52,6 +52,7 @@ from ekfslam.errors import InputError
 from ekfslam.logs.runlog import RunLog, read_run
 from ekfslam.pipeline import NoiseConfig, ReplayResult, default_noise, replay
 from ekfslam.viz.plotting import ellipse_parameters
+from ekfslam.viz.tables import PANEL, Row, table1_lines
 
 #: A run to offer in the panel: a function that loads it (called once, then cached).
 RunSource = Callable[[], RunLog]
@@ -310,22 +311,17 @@ class TuningView:
         self.nis_ax.set_xlim(float(t[0]), float(t[-1]) + 1e-9)
 
 
-def status_text(summary: RunSummary) -> str:
-    """The Table 1 row of a replay (eq. 17), its average NIS and its update counts, 3 lines."""
-    head = f"{'Trajectory':<16}{'x0':>8}{'y0':>8}{'theta0':>8}{'Avg error':>11}{'avg NIS':>9}"
-    a = summary.alignment
+def status_text(summary: RunSummary, seed: Row | None = None) -> str:
+    """The Table 1 row of a replay (eq. 17), its average NIS and its update counts, 3 lines;
+    with `seed` (the seed's real-robot row), that row under ours, 4 lines."""
     nis = "-" if summary.nis_mean is None else f"{summary.nis_mean:.2f}"
-    if a is None:
-        row = f"{summary.name:<16}  (no alignment: {summary.alignment_note}){nis:>9}"
-    else:
-        row = f"{summary.name:<16}{a.x0:>8.3f}{a.y0:>8.3f}{a.theta0:>8.3f}{a.mean_error:>11.3f}"
-        row += f"{nis:>9}"
+    lines = table1_lines(summary, seed, layout=PANEL, extra=("avg NIS", nis))
     counts = (
         f"updates accepted {summary.accepted}, rejected {summary.rejected}, "
         f"initialised {summary.initialised}, refused {summary.refused}"
         + (f", singular S {summary.singular}" if summary.singular else "")
     )
-    return "\n".join((head, row, counts))
+    return "\n".join([*lines, counts])
 
 
 @dataclass(frozen=True, eq=False)
