@@ -17,9 +17,11 @@ from ekfslam.analysis.alignment import Alignment, align
 from ekfslam.errors import AlignmentError
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runlog import GroundTruth, RunLog
-from ekfslam.pipeline import ReplayResult
+from ekfslam.pipeline import ReplayResult, replay
 
 if TYPE_CHECKING:
+    from ekfslam.core.filter.config import FilterConfig
+    from ekfslam.pipeline import NoiseConfig
     from ekfslam.sim.simulation import SimulationConfig
 
 Array = NDArray[np.float64]
@@ -247,3 +249,14 @@ def summarize(run: RunLog, result: ReplayResult, method: str = "mean_distance") 
         seconds=result.seconds,
         alignment_note=note,
     )
+
+
+def replay_and_summarize(
+    run: RunLog, noise: NoiseConfig, config: FilterConfig
+) -> tuple[ReplayResult, RunSummary]:
+    """Replay a run with this noise and these filter options and score it (`summarize`).
+
+    What the live tuner computes for each setting (`ekfslam.ui.tuning.Tuner`'s default compute).
+    """
+    result = replay(run, noise, config)
+    return result, summarize(run, result)

@@ -17,6 +17,7 @@ from matplotlib.figure import Figure
 
 from ekfslam.analysis.evaluation import SEED_TABLE1, seed_experiment
 from ekfslam.pipeline import default_noise
+from ekfslam.ui.latency import benchmark
 from ekfslam.ui.tuning import (
     DEFAULT_FIGSIZE,
     GATES,
@@ -26,7 +27,6 @@ from ekfslam.ui.tuning import (
     Tuner,
     TunerSettings,
     TunerState,
-    benchmark,
     seed_runs,
     status_text,
 )

@@ -18,15 +18,15 @@ from ekfslam.core.filter.history import OUTCOMES
 from ekfslam.errors import InputError
 from ekfslam.logs.runlog import Detections, GroundTruth, RunLog, read_run
 from ekfslam.pipeline import MRCLAM_NOISE, NoiseConfig
+from ekfslam.ui.coalescer import Coalescer
+from ekfslam.ui.latency import benchmark
 from ekfslam.ui.tuning import (
     GATES,
     RUNS_DIR,
     SLIDERS,
-    Coalescer,
     Tuner,
     TunerSettings,
     apply_changes,
-    benchmark,
     seed_runs,
     status_text,
 )
