@@ -11,8 +11,10 @@ frames all arrive here as a `ekfslam.logs.runlog.RunLog`.
 
 from __future__ import annotations
 
+import copy
 import time
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,6 +25,7 @@ from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.filter.history import History
 from ekfslam.core.noise import NoiseConfig, default_config, default_noise
 from ekfslam.errors import ConfigError, EkfSlamError
+from ekfslam.logs.edit import truncate
 from ekfslam.logs.runlog import RunLog
 from ekfslam.plausibility import MAX_HEADING, MAX_POSITION
 
@@ -83,6 +86,29 @@ def replay(
             f"{MAX_POSITION:g} m, |theta| <= 2 pi rad"
         )
     ekf = EKFSLAM(pose0, start_covariance, config)
+    started = time.perf_counter()  # the schedule counts: it is part of the replay's work
+    steps = _schedule(run, noise)
+    with np.errstate(all="ignore"):  # an overflow is caught below, once, and said where
+        _feed(ekf, *steps)
+    seconds = time.perf_counter() - started
+    if not (np.isfinite(ekf.mu).all() and np.isfinite(ekf.Sigma).all()):
+        # once per replay, O(n²); only on failure is the run fed again, checking every step
+        with np.errstate(all="ignore"):
+            _feed(EKFSLAM(pose0, start_covariance, config, record=False), *steps, check=True)
+        raise NonFiniteStateError(f"run {run.meta.name!r}: the filter state became non-finite")
+    if ekf.counts.singular:
+        warnings.warn(
+            f"run {run.meta.name!r}: {ekf.counts.singular} updates skipped because the "
+            "innovation covariance S was singular or not finite (is the noise too small or "
+            "too large?)",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+    return _result(run, ekf, seconds, noise, config)
+
+
+def _schedule(run: RunLog, noise: NoiseConfig) -> tuple:
+    """`_feed`'s arguments for a run: the prediction pieces and the detections, in time order."""
     twist = run.control_twist()
     if len(twist) == 0:
         raise ValueError(f"run {run.meta.name!r} has no controls")
@@ -91,8 +117,6 @@ def replay(
     Q = noise.Q
     fixed_R = None if noise.R_per_step is None else np.asarray(noise.R_per_step, dtype=float)
     density = noise.motion_density()
-
-    started = time.perf_counter()
     # The prediction pieces: every control interval, split at the detection times inside it.
     det_t = np.asarray(det.t, dtype=float)
     t_first = min(t_ctrl[0], det_t[0]) if len(det_t) else t_ctrl[0]
@@ -110,24 +134,12 @@ def replay(
     us, dts, ends = (np.ascontiguousarray(a, dtype=float) for a in (us, dts, ends))
     det_id, det_time = det.tag_id.tolist(), det_t.tolist()
     det_z = np.column_stack([det.range, det.bearing]).tolist()
-    steps = (upto.tolist(), us, dts, ends, M, R, det_id, det_time, det_z, Q)
-    with np.errstate(all="ignore"):  # an overflow is caught below, once, and said where
-        _feed(ekf, *steps)
-    seconds = time.perf_counter() - started
-    if not (np.isfinite(ekf.mu).all() and np.isfinite(ekf.Sigma).all()):
-        # once per replay, O(n²); only on failure is the run fed again, checking every step
-        with np.errstate(all="ignore"):
-            _feed(EKFSLAM(pose0, start_covariance, config, record=False), *steps, check=True)
-        raise NonFiniteStateError(f"run {run.meta.name!r}: the filter state became non-finite")
-    if ekf.counts.singular:
-        warnings.warn(
-            f"run {run.meta.name!r}: {ekf.counts.singular} updates skipped because the "
-            "innovation covariance S was singular or not finite (is the noise too small or "
-            "too large?)",
-            RuntimeWarning,
-            stacklevel=2,
-        )
+    return (upto.tolist(), us, dts, ends, M, R, det_id, det_time, det_z, Q)
 
+
+def _result(
+    run: RunLog, ekf: EKFSLAM, seconds: float, noise: NoiseConfig, config: FilterConfig
+) -> ReplayResult:
     ids = ekf.landmark_ids
     return ReplayResult(
         name=run.meta.name,
@@ -147,14 +159,89 @@ class NonFiniteStateError(EkfSlamError):
     """The filter's mean or covariance became NaN or infinite; the message says where."""
 
 
-def _feed(ekf, upto, us, dts, ends, M, R, det_id, det_time, det_z, Q, check=False) -> None:
+def replay_until(
+    run: RunLog,
+    t_end: float,
+    noise: NoiseConfig | None = None,
+    config: FilterConfig | None = None,
+) -> ReplayResult:
+    """Replay the run up to `t_end` (s): the filter's state, with its full Σ, at that time.
+
+    Cut at a detection time, the result is exactly the full replay's state after that detection
+    (the prediction pieces are the same); cut between detections, the last piece is split.
+    """
+    return replay(truncate(run, t_end), noise, config)
+
+
+def replay_until_each(
+    run: RunLog,
+    times: Sequence[float],
+    noise: NoiseConfig | None = None,
+    config: FilterConfig | None = None,
+) -> tuple[ReplayResult, tuple[ReplayResult, ...]]:
+    """The full replay and, from the same pass, `replay_until(run, t)` for each t in `times`.
+
+    One pass over the log instead of one per time: at the last detection before t the filter is
+    copied and the copy predicted to t with the pieces `replay_until` would use, so each state
+    equals `replay_until`'s bit for bit while the full replay's pieces stay unsplit.
+    """
+    noise = noise or default_noise(run)
+    config = config or default_config(run)
+    ekf = EKFSLAM(run.meta.nominal_start, None, config)
+    started = time.perf_counter()
+    steps = _schedule(run, noise)
+    waiting: dict[int, list[tuple[int, RunLog, tuple]]] = {}
+    for k, t in enumerate(times):
+        cut = truncate(run, float(t))
+        waiting.setdefault(len(cut.detections.t), []).append((k, cut, _schedule(cut, noise)))
+    found: dict[int, ReplayResult] = {}
+
+    def pause(i: int, done: int) -> None:
+        for k, cut, (_, us, dts, ends, M, R, *_rest, Q) in waiting.get(i, ()):
+            twin = copy.deepcopy(ekf)
+            _feed(twin, [], us[done:], dts[done:], ends[done:], M, R, [], [], [], Q)
+            found[k] = _result(cut, twin, time.perf_counter() - started, noise, config)
+
+    with np.errstate(all="ignore"):
+        _feed(ekf, *steps, pause=pause)
+    full = _result(run, ekf, time.perf_counter() - started, noise, config)
+    return full, tuple(found[k] for k in range(len(times)))
+
+
+def prior_before(
+    run: RunLog, k: int, noise: NoiseConfig | None = None, config: FilterConfig | None = None
+) -> ReplayResult:
+    """The state just before detection k is used: predicted to its time, detections 0..k-1 applied.
+
+    Feeding detection k to `ekfslam.core.steps.update_steps` with this state is the step the full
+    replay takes.
+    """
+    return replay(truncate(run, float(run.detections.t[k]), max_detections=k), noise, config)
+
+
+def landmark_slots(result: ReplayResult) -> list[int]:
+    """Landmark ids in the order of their slots in `result.mu` (slot j at indices 3+2j, 4+2j)."""
+    ids = list(result.landmarks)
+    for j, i in enumerate(ids):
+        if not np.array_equal(result.mu[3 + 2 * j : 5 + 2 * j], result.landmarks[i]):
+            raise EkfSlamError(f"landmark {i} is not in slot {j} of the state")
+    return ids
+
+
+def _feed(
+    ekf, upto, us, dts, ends, M, R, det_id, det_time, det_z, Q, check=False, pause=None
+) -> None:
     """Predict through the pieces before each detection, update, and predict to the end.
 
     check: after every step, raise `NonFiniteStateError` naming the step if the state is no
     longer finite (the locating pass; the normal pass checks once, at the end).
+    pause: called as pause(i, done) when detections 0..i-1 are applied and `done` pieces
+    predicted, before the prediction for detection i (i = len(upto): before the last one).
     """
     done = 0
     for i, p in enumerate(upto):
+        if pause is not None:
+            pause(i, done)
         if p > done:
             ekf.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
             done = p
@@ -165,6 +252,8 @@ def _feed(ekf, upto, us, dts, ends, M, R, det_id, det_time, det_z, Q, check=Fals
             _check_finite(
                 ekf, f"t = {det_time[i]:.3f} s (update of landmark {det_id[i]}, detection {i + 1})"
             )
+    if pause is not None:
+        pause(len(upto), done)
     if done < len(us):
         ekf.predict_many(us[done:], dts[done:], ends[done:], M, R)
         if check:

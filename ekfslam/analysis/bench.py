@@ -39,7 +39,7 @@ from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.models import observation_noise
 from ekfslam.core.noise import default_noise
 from ekfslam.errors import ConfigError
-from ekfslam.files import atomic_write_text, save_figure
+from ekfslam.files import atomic_write_text
 from ekfslam.logs.mrclam.fetch import mrclam_path
 from ekfslam.logs.mrclam.load import load_mrclam
 from ekfslam.logs.runlog import read_run
@@ -402,41 +402,11 @@ def markdown_table(r: dict) -> str:
     return "\n".join(lines)
 
 
-def plot_costs(r: dict, path: Path) -> None:
-    """Log-log plot of the per-step cost against n, both implementations, with the floor."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(9, 6))
-    for impl, style in (("efficient", "-"), ("literal", "--")):
-        for step, marker in (("predict", "o"), ("update", "s")):
-            costs = r["cost_s"][impl][step]
-            ns = [n for n in r["sizes"] if costs[n] is not None]
-            ax.loglog(ns, [costs[n] for n in ns], style, marker=marker, label=f"{impl} {step}")
-    hi = r["floor_n"]
-    ax.loglog([hi], [r["floor_s"]], "kx", ms=10, label="floor: Sigma -= A @ B (rank 2)")
-    ax.loglog([hi], [r["inplace_pass_s"]], "k+", ms=12, label="one pass over Sigma (*= 1.0)")
-    lo = r["update_slope_between"][0]
-    ns = np.array([n for n in r["sizes"] if n >= lo], dtype=float)
-    ref = r["cost_s"]["efficient"]["update"][hi]
-    ax.loglog(ns, ref * (ns / hi) ** 2, ":", color="grey", label="∝ n² (through the update)")
-    ax.set_xlabel("landmarks in the map, n")
-    ax.set_ylabel("time per step, s (median)")
-    ax.set_title("EKF-SLAM: cost of one step against the map size")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
-    fig.tight_layout()
-    save_figure(fig, path)
-    plt.close(fig)
-
-
 def write_outputs(r: dict, out: Path) -> None:
-    # each file is renamed into place when complete: a failed run keeps the previous outputs
+    # each file is renamed into place when complete: a failed run keeps the previous outputs;
+    # the figure is the caller's to draw (`ekfslam.viz.bench.plot_costs`): analysis draws none
     atomic_write_text(out / "bench.md", markdown_table(r) + "\n")
     atomic_write_text(out / "bench.json", json.dumps(r, indent=2, allow_nan=False) + "\n")
-    plot_costs(r, out / "cost_vs_n.png")
 
 
 def add_cli(subparsers) -> None:
@@ -473,6 +443,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     config = BenchConfig.quick(**kwargs) if args.quick else BenchConfig(**kwargs)
     r = run_benchmarks(config, command=_command(args))
     write_outputs(r, args.out)
+    from ekfslam.viz.bench import plot_costs  # F2 moves this command to cli/
+
+    plot_costs(r, args.out / "cost_vs_n.png")
     if args.json:
         print(json.dumps(r, indent=2, allow_nan=False))
     else:

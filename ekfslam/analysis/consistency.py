@@ -27,7 +27,6 @@ import json
 import math
 import time
 from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,9 +41,6 @@ from ekfslam.logs.runlog import RunLog
 from ekfslam.pipeline import ReplayResult, replay
 from ekfslam.sim.scenarios import SCENARIOS, noise_for_simulation, scenario
 from ekfslam.sim.simulation import simulate
-
-if TYPE_CHECKING:
-    from matplotlib.figure import Figure
 
 Array = NDArray[np.float64]
 
@@ -172,6 +168,11 @@ class Consistency:
     noise: NoiseConfig
     gate: float | None
     seconds: float
+
+    @property
+    def confidence(self) -> float:
+        """The two-sided confidence of the bands (`CONFIDENCE`), for a figure to say."""
+        return CONFIDENCE
 
     def fraction_in_band(self, name: str) -> float:
         """Share of the steps with a value (not NaN) whose average lies inside its band."""
@@ -309,48 +310,6 @@ def _average(name, errors, config, counts, noise, seconds) -> Consistency:
     )
 
 
-def plot_consistency(results, title: str | None = None, figsize=(9.0, 9.0)) -> Figure:
-    """Average pose NEES, heading NEES and NIS against their 95% bands, one line per result.
-
-    results : a `Consistency` or a sequence of them (e.g. standard and FEJ on one scenario).
-    """
-    from matplotlib.figure import Figure
-    from matplotlib.ticker import ScalarFormatter
-
-    results = [results] if isinstance(results, Consistency) else list(results)
-    fig = Figure(figsize=figsize, layout="constrained")
-    axes = fig.subplots(3, 1, sharex=True)
-    panels = (
-        ("nees_pose", "pose NEES (3 dof)"),
-        ("nees_heading", "heading NEES (1 dof)"),
-        ("nis", "NIS (2 dof)"),
-    )
-    colors = {"standard": "tab:red", "fej": "tab:blue"}
-    for ax, (name, label) in zip(axes, panels, strict=True):
-        r0 = results[0]
-        band = getattr(r0, "band_" + name.removeprefix("nees_"))
-        band = np.broadcast_to(band[:, None] if band.ndim == 1 else band, (2, len(r0.t)))
-        ok = np.isfinite(getattr(r0, name))  # NIS exists only at camera frames
-        ax.fill_between(
-            r0.t[ok], band[0, ok], band[1, ok], color="0.85",
-            label=f"{CONFIDENCE:.0%} band for {r0.runs} runs",
-        )  # fmt: skip
-        for r in results:
-            ax.plot(
-                r.t[ok], getattr(r, name)[ok], lw=1.0, color=colors.get(r.linearization),
-                label=f"{r.linearization}: {r.fraction_in_band(name):.0%} of steps in band",
-            )  # fmt: skip
-        ax.set_ylabel(f"average {label}")
-        ax.set_yscale("log")
-        ax.yaxis.set_major_formatter(ScalarFormatter())  # 3, not 3 x 10^0
-        ax.yaxis.set_minor_formatter(ScalarFormatter())
-        ax.grid(True, alpha=0.3, which="both")
-        ax.legend(loc="upper left", fontsize=9)
-    axes[-1].set_xlabel("time (s)")
-    fig.suptitle(title or f"Consistency on the {results[0].scenario} scenario")
-    return fig
-
-
 # ---------------------------------------------------------------------------------- command line
 def add_cli(subparsers) -> None:
     """``python -m ekfslam consistency``: NEES/NIS over runs; --outliers, --long-run, --mrclam."""
@@ -445,6 +404,8 @@ def _cmd_consistency(args: argparse.Namespace) -> int:
     )  # fmt: skip
     out = {r.linearization: r.as_dict() for r in results}
     if args.plot is not None:
+        from ekfslam.viz.consistency import plot_consistency  # F2 moves this command to cli/
+
         save_figure(plot_consistency(results), args.plot)
         for d in out.values():
             d["plot"] = str(args.plot)

@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -15,10 +16,14 @@ from ekfslam.analysis.alignment import Alignment, align
 from ekfslam.errors import AlignmentError
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runlog import GroundTruth, RunLog
-from ekfslam.pipeline import ReplayResult
+from ekfslam.pipeline import ReplayResult, replay
 
 # the command line (cli.main) asks here whether a run is one of the seed's experiments
 from ekfslam.sim.config import seed_experiment  # noqa: F401
+
+if TYPE_CHECKING:
+    from ekfslam.core.filter.config import FilterConfig
+    from ekfslam.core.noise import NoiseConfig
 
 Array = NDArray[np.float64]
 
@@ -170,3 +175,14 @@ def summarize(run: RunLog, result: ReplayResult, method: str = "mean_distance") 
         seconds=result.seconds,
         alignment_note=note,
     )
+
+
+def replay_and_summarize(
+    run: RunLog, noise: NoiseConfig, config: FilterConfig
+) -> tuple[ReplayResult, RunSummary]:
+    """Replay a run with this noise and these filter options and score it (`summarize`).
+
+    What the live tuner computes for each setting (`ekfslam.ui.tuning.Tuner`'s default compute).
+    """
+    result = replay(run, noise, config)
+    return result, summarize(run, result)

@@ -45,8 +45,6 @@ from ekfslam.logs.mrclam.load import ROBOTS
 from ekfslam.pipeline import replay
 
 if TYPE_CHECKING:
-    from matplotlib.figure import Figure
-
     from ekfslam.core.filter.config import FilterConfig
     from ekfslam.logs.runlog import RunLog
     from ekfslam.pipeline import ReplayResult
@@ -213,6 +211,21 @@ class MrclamConsistency:
     def linearizations(self) -> tuple[str, ...]:
         return tuple(dict.fromkeys(r.linearization for r in self.runs))
 
+    @property
+    def confidence(self) -> float:
+        """The two-sided confidence of `interval` (`CONFIDENCE`)."""
+        return CONFIDENCE
+
+    @property
+    def interval(self) -> tuple[float, float]:
+        """The single-run interval of a chi-square(3) value (`INTERVAL`)."""
+        return INTERVAL
+
+    @property
+    def ideal(self) -> float:
+        """The mean NEES of a consistent filter (`IDEAL`: 3, the pose's dof)."""
+        return IDEAL
+
     def get(self, robot: int, linearization: str) -> RobotNees:
         """The run of one robot with one linearization."""
         for r in self.runs:
@@ -336,41 +349,6 @@ def tune_for_consistency(
                                        r.distance))  # fmt: skip
 
 
-# ------------------------------------------------------------------------------------ the plot
-def plot_mrclam_nees(study: MrclamConsistency, figsize=None, floor: float = 0.01) -> Figure:
-    """Pose NEES over time, one panel per robot, each linearization a line; log y, shared.
-
-    The grey band is the single-run 95% chi-square(3) interval, the dashed line the ideal 3.
-    Values below `floor` (NEES of a few 1e-5 occur right after the start) are drawn at it.
-    """
-    from matplotlib.figure import Figure
-    from matplotlib.ticker import FuncFormatter
-
-    robots = study.robots
-    fig = Figure(figsize=figsize or (9.0, 1.5 + 1.7 * len(robots)), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(len(robots), 1, sharex=True, sharey=True))
-    colors = {"standard": "tab:red", "fej": "tab:blue"}
-    for ax, robot in zip(axes, robots, strict=True):
-        ax.axhspan(*INTERVAL, color="0.88", label=f"{CONFIDENCE:.0%} interval for one run")
-        ax.axhline(IDEAL, color="k", ls="--", lw=1, label=f"ideal mean {IDEAL:g}")
-        stats = []
-        for lin in study.linearizations:
-            r = study.get(robot, lin)
-            minutes = (r.t - r.t[0]) / 60.0
-            ax.plot(minutes, np.maximum(r.nees, floor), lw=0.6, color=colors.get(lin), label=lin)
-            stats.append(f"{lin} mean {r.mean:.1f}, {r.fraction_in_interval:.0%} in interval")
-        ax.set_yscale("log")
-        ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-        ax.set_ylabel("pose NEES")
-        ax.set_title(f"robot {robot}: " + "; ".join(stats), loc="left", fontsize=9)
-        ax.grid(True, alpha=0.3, which="major")
-    axes[0].set_ylim(bottom=floor)
-    axes[-1].set_xlabel("time since the first command (min)")
-    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncol=4)
-    fig.suptitle(f"Pose NEES against Vicon, noise '{study.noise_name}'")
-    return fig
-
-
 # -------------------------------------------------------------------------------- command line
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The ``--mrclam`` options of ``python -m ekfslam consistency`` (see `run_cli`)."""
@@ -404,6 +382,7 @@ def run_cli(args: argparse.Namespace) -> int:
     out = study.as_dict()
     if args.plot is not None:
         from ekfslam.files import save_figure
+        from ekfslam.viz.consistency import plot_mrclam_nees  # F2 moves this command to cli/
 
         save_figure(plot_mrclam_nees(study), args.plot)
         out["plot"] = str(args.plot)

@@ -20,6 +20,7 @@ from ekfslam.analysis.evaluation import SEED_TABLE1
 from ekfslam.cli import args as ca
 from ekfslam.errors import ConfigError, EkfSlamError, InputError
 from ekfslam.files import save_figure
+from ekfslam.viz.tables import table1_lines
 
 EXIT_BAD_INPUT = 2
 
@@ -265,8 +266,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         from ekfslam.viz.plotting import figure2
 
         fig = figure2(
-            run, result, arena_half_size=_arena_half_size(run), alignment=summary.alignment
-        )
+            run, result, arena_half_size=_arena_half_size(run), alignment=summary.alignment,
+            alignment_note=summary.alignment_note,
+        )  # fmt: skip
         out["plot"] = str(save_figure(fig, args.plot))
     if args.json:
         print(json.dumps(out, indent=2, allow_nan=False))
@@ -323,22 +325,13 @@ def _detections_source(run, report) -> str:
 
 
 def _table(summary, out: dict, report=None) -> str:
-    lines = []
     a = summary.alignment
-    header = f"{'Trajectory':<22}{'x0':>9}{'y0':>9}{'theta0':>9}{'Average Error':>15}"
-    lines.append(header)
-    if a is None:
-        lines.append(f"{summary.name:<22}  (no alignment: {summary.alignment_note})")
-    else:
-        lines.append(
-            f"{summary.name:<22}{a.x0:>9.3f}{a.y0:>9.3f}{a.theta0:>9.3f}{a.mean_error:>15.3f}"
-        )
-        seed = out.get("seed_report")
-        if seed is not None:  # only for a replay of the seed's own experiment (cmd_run)
-            lines.append(
-                f"{'  seed report (real)':<22}{seed['x0']:>9.3f}{seed['y0']:>9.3f}"
-                f"{seed['theta0']:>9.3f}{seed['mean_error']:>15.3f}"
-            )
+    seed = out.get("seed_report")  # only for a replay of the seed's own experiment (cmd_run)
+    row = None
+    if seed is not None and a is not None:
+        row = (seed["x0"], seed["y0"], seed["theta0"], seed["mean_error"])
+    lines = table1_lines(summary, row)
+    if a is not None:
         sp = summary.start_pose
         lines.append(f"recovered start pose: ({sp[0]:.3f}, {sp[1]:.3f}, {sp[2]:.3f})")
     if summary.true_start is not None:

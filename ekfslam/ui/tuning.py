@@ -1,31 +1,14 @@
 """Live tuning, the logic: R and Q settings that re-run the replay and redraw a figure in place.
 
-The ipywidgets panel over it is `ekfslam.ui.widgets`; everything here runs without a browser.
-
-Three layers, so that everything but the last is ordinary, unit-tested code:
-
+Three layers, each ordinary code, tested without a browser:
 - `TunerSettings` and `apply_changes`: widget values -> `NoiseConfig` (R of eq. 9, Q of eq. 11)
   and `FilterConfig` (landmark initialisation, NIS gate).
 - `TuningView`: one figure built once (the seed's Figure 2 on the left, the NIS of every update on
   the right, a Table 1 row as its title) whose artists `show` updates in place.
-- `Tuner`: holds the runs and the current settings, re-runs `ekfslam.pipeline.replay` and
-  `ekfslam.analysis.evaluation.summarize`, updates the view and calls ``canvas.draw_idle()``.
-  `TuningPanel` (built by `tuning_panel`) is the ipywidgets + ipympl face of a Tuner.
-
-Stale work: each slider value reaches the kernel as a comm message, handled one at a time on
-its main thread, and the replay is synchronous (~0.1-0.2 s). Re-running inside each ``observe``
-callback would replay every value that queued up meanwhile, each after the last, and the figure
-would lag seconds behind the hand. So a change only records the settings as *pending* and, if no
-run is scheduled yet, schedules one on the kernel's asyncio loop `COALESCE_DELAY` s later. By
-then the kernel has read the messages that queued up during the previous replay (each just
-overwrites *pending*), and the run uses the latest value: at most one replay in flight and one
-waiting, whatever the rate of changes. Measured in a kernel with 20 values sent at 50 Hz and a
-0.2 s callback: 4 runs, the last with the final value; with a delay of 0 the loop runs the flush
-between two queued messages and 11 runs happen. The browser adds a first stage: ipywidgets keeps
-one message per widget in flight and merges further changes until the kernel is idle (in the
-browser test, 8 key presses arrive as about 4 values, each replayed once); the kernel-side
-stage is what protects against several widgets or several browsers (a projector and a laptop)
-at once. Outside an event loop (tests, scripts) the work runs at once.
+- `Tuner`: holds the runs and the current settings, asks its injected compute (by default
+  `ekfslam.analysis.evaluation.replay_and_summarize`) for the replay and its score, updates the
+  view and calls ``canvas.draw_idle()``; changes are coalesced (`ekfslam.ui.coalescer`), so at
+  most one replay runs and one waits. `ekfslam.ui.widgets.TuningPanel` is its ipywidgets face.
 
 Errors: an exception in a widget callback is logged by the kernel where no student sees it, so
 the panel shows it in an Output widget and keeps the last good figure; a bare `Tuner` re-raises.
@@ -33,8 +16,6 @@ the panel shows it in an Output widget and keeps the last good figure; a bare `T
 
 from __future__ import annotations
 
-import asyncio
-import io
 import math
 import time
 from collections.abc import Callable, Mapping
@@ -46,24 +27,27 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Ellipse
 
-from ekfslam.analysis.evaluation import RunSummary, summarize
+from ekfslam.analysis.evaluation import RunSummary, replay_and_summarize
 from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig, chi2_2dof_quantile
 from ekfslam.core.filter.history import OUTCOMES
 from ekfslam.core.noise import NoiseConfig, default_noise
 from ekfslam.errors import InputError
 from ekfslam.logs.runlog import RunLog, read_run
-from ekfslam.pipeline import ReplayResult, replay
+from ekfslam.pipeline import ReplayResult
+from ekfslam.ui.coalescer import Coalescer
 from ekfslam.viz.plotting import ellipse_parameters
+from ekfslam.viz.tables import PANEL, Row, table1_lines
 
 #: A run to offer in the panel: a function that loads it (called once, then cached).
 RunSource = Callable[[], RunLog]
+#: What the tuner computes for a setting: the replay and its score (the view only draws them).
+Compute = Callable[[RunLog, NoiseConfig, FilterConfig], tuple[ReplayResult, RunSummary]]
 
+#: Where `seed_runs` looks by default: data/runs of the source checkout this package runs from.
+#: An installed wheel ships no runs; `seed_runs` then says so and asks for the folder.
 RUNS_DIR = Path(__file__).resolve().parents[2] / "data" / "runs"
 SEED_RUNS = ("square-2laps", "octagon-2laps")
 DEFAULT_FIGSIZE = (9.0, 6.0)
-#: Seconds between a change and its replay: long enough for the kernel to read the values that
-#: queued up meanwhile (see the module docstring), short against the replay itself.
-COALESCE_DELAY = 0.03
 #: NIS gates offered (chi-square, 2 dof); 0 turns gating off, as on the command line.
 GATES = {
     "off": 0.0,
@@ -141,61 +125,21 @@ def apply_changes(settings: TunerSettings, changes: Mapping[str, object]) -> Tun
     )
 
 
-def seed_runs(folder: str | Path = RUNS_DIR) -> dict[str, RunSource]:
-    """The simulated seed runs (square and octagon, two laps) as lazy loaders.
+def seed_runs(folder: str | Path | None = None) -> dict[str, RunSource]:
+    """The simulated seed runs (square and octagon, two laps) in `folder`, as lazy loaders.
 
+    folder : default `RUNS_DIR`, the checkout's data/runs. Raises InputError when it is not
+    there (an installed package has no data/runs): pass the folder of a checkout instead.
     Hook for more: any ``{name: loader}`` works, e.g. a MRCLAM robot
     ``{**seed_runs(), "mrclam7-r1": lambda: ekfslam.logs.mrclam.load.load_mrclam(path, 1)[0]}``.
     """
-    folder = Path(folder)
+    folder = Path(RUNS_DIR if folder is None else folder)
     if not folder.is_dir():
-        raise InputError(folder, None, "run folder not found; pass seed_runs(<repo>/data/runs)")
+        raise InputError(
+            folder, None, "run folder not found (an installed ekfslam ships no data/runs); "
+            "pass seed_runs(<checkout>/data/runs)",
+        )  # fmt: skip
     return {name: partial(read_run, folder / name) for name in SEED_RUNS}
-
-
-class Coalescer:
-    """Latest value wins: `request` records a value; the work runs on the newest one only.
-
-    schedule(fn) arranges for fn() to be called later; the default uses the running asyncio loop
-    (`COALESCE_DELAY`) or calls at once when there is none. Tests pass their own.
-    """
-
-    def __init__(self, work: Callable[[object], None], schedule=None) -> None:
-        self._work = work
-        self._schedule = schedule or _loop_schedule
-        self._pending: object = _NOTHING
-        self._scheduled = False
-
-    def request(self, value: object) -> None:
-        self._pending = value
-        if not self._scheduled:
-            self._scheduled = True
-            self._schedule(self.flush)
-
-    def cancel(self) -> None:
-        """Forget the pending value (a scheduled flush then does nothing)."""
-        self._pending = _NOTHING
-
-    def flush(self) -> None:
-        """Run the work on the latest value, if any (and let the next request schedule again)."""
-        self._scheduled = False
-        value, self._pending = self._pending, _NOTHING
-        if value is not _NOTHING:
-            self._work(value)
-
-
-_NOTHING = object()
-
-
-def _loop_schedule(fn: Callable[[], None]) -> None:
-    try:
-        loop = asyncio.get_running_loop()
-    except RuntimeError:
-        loop = None
-    if loop is None:
-        fn()
-    else:
-        loop.call_later(COALESCE_DELAY, fn)
 
 
 class TuningView:
@@ -312,22 +256,17 @@ class TuningView:
         self.nis_ax.set_xlim(float(t[0]), float(t[-1]) + 1e-9)
 
 
-def status_text(summary: RunSummary) -> str:
-    """The Table 1 row of a replay (eq. 17), its average NIS and its update counts, 3 lines."""
-    head = f"{'Trajectory':<16}{'x0':>8}{'y0':>8}{'theta0':>8}{'Avg error':>11}{'avg NIS':>9}"
-    a = summary.alignment
+def status_text(summary: RunSummary, seed: Row | None = None) -> str:
+    """The Table 1 row of a replay (eq. 17), its average NIS and its update counts, 3 lines;
+    with `seed` (the seed's real-robot row), that row under ours, 4 lines."""
     nis = "-" if summary.nis_mean is None else f"{summary.nis_mean:.2f}"
-    if a is None:
-        row = f"{summary.name:<16}  (no alignment: {summary.alignment_note}){nis:>9}"
-    else:
-        row = f"{summary.name:<16}{a.x0:>8.3f}{a.y0:>8.3f}{a.theta0:>8.3f}{a.mean_error:>11.3f}"
-        row += f"{nis:>9}"
+    lines = table1_lines(summary, seed, layout=PANEL, extra=("avg NIS", nis))
     counts = (
         f"updates accepted {summary.accepted}, rejected {summary.rejected}, "
         f"initialised {summary.initialised}, refused {summary.refused}"
         + (f", singular S {summary.singular}" if summary.singular else "")
     )
-    return "\n".join((head, row, counts))
+    return "\n".join([*lines, counts])
 
 
 @dataclass(frozen=True, eq=False)
@@ -353,6 +292,8 @@ class Tuner:
     schedule : how to defer work (see `Coalescer`); default: the kernel's loop, or at once.
     raise_errors : re-raise exceptions from an update (tests); otherwise they go to `on_error`.
     on_update, on_error : called with each `TunerState` / exception.
+    compute : (run, noise, config) -> (replay, summary); default
+        `ekfslam.analysis.evaluation.replay_and_summarize`.
     """
 
     def __init__(
@@ -365,6 +306,7 @@ class Tuner:
         raise_errors: bool = True,
         on_update: Callable[[TunerState], None] | None = None,
         on_error: Callable[[BaseException], None] | None = None,
+        compute: Compute = replay_and_summarize,
     ) -> None:
         if not runs:
             raise ValueError("a Tuner needs at least one run")
@@ -376,6 +318,7 @@ class Tuner:
         self.settings = settings
         self.view = TuningView(figure if figure is not None else Figure(figsize=DEFAULT_FIGSIZE))
         self.raise_errors, self.on_update, self.on_error = raise_errors, on_update, on_error
+        self.compute = compute
         self.state: TunerState | None = None
         self.last_error: BaseException | None = None
         self._renders = self._changes = 0
@@ -429,9 +372,7 @@ class Tuner:
     def _render_now(self, settings: TunerSettings) -> None:
         started = time.perf_counter()
         run = self.load(settings.run)
-        result = replay(run, settings.noise, settings.config)
-        replayed = time.perf_counter()
-        summary = summarize(run, result)
+        result, summary = self.compute(run, settings.noise, settings.config)
         self.view.show(run, result, summary)
         self.figure.canvas.draw_idle()
         self.last_error = None
@@ -441,7 +382,7 @@ class Tuner:
             result,
             summary,
             status_text(summary),
-            replayed - started,
+            result.seconds,  # the replay loop's own time
             time.perf_counter() - started,
         )
         if self.on_update is not None:
@@ -456,43 +397,3 @@ class Tuner:
                 self.on_error(exc)
             if self.raise_errors or self.on_error is None:
                 raise
-
-
-def benchmark(runs: Mapping[str, RunSource] | None = None, repeats: int = 15) -> dict[str, dict]:
-    """Time from a changed value to an updated figure, per run, in this process.
-
-    Each sample changes σr (alternating two values) and times what the kernel does for it in the
-    panel: replay, summary (eq. 17), artist updates, then the render ipympl's draw request runs,
-    an Agg render of the whole figure (`DEFAULT_FIGSIZE`, 100 dpi) encoded to PNG. The browser's
-    share (the round trip and the PNG decode) is not in it. Returns, per run, medians in ms:
-    "median_ms" (the whole), "replay_ms", "update_ms" (replay to artists), "draw_ms", and
-    "cpu_ms", the whole in this process's CPU time (steadier than wall time on a busy machine).
-    """
-    # lazy: the Agg canvas only times a render; the panel draws on the notebook's own backend
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-    class _Canvas(FigureCanvasAgg):
-        def draw_idle(self, *args, **kwargs) -> None:  # ipympl's: a message, no drawing
-            pass
-
-    out = {}
-    for name, source in (runs or seed_runs()).items():
-        fig = Figure(figsize=DEFAULT_FIGSIZE, dpi=100)
-        _Canvas(fig)
-        tuner = Tuner({name: source}, fig)
-        tuner.apply()
-        fig.canvas.print_png(io.BytesIO())  # warm the font and text caches
-        samples = []
-        for k in range(repeats):
-            cpu, started = time.process_time(), time.perf_counter()
-            state = tuner.apply(sigma_range=(0.02, 0.04)[k % 2])
-            updated = time.perf_counter()
-            fig.canvas.print_png(io.BytesIO())
-            done = time.perf_counter()
-            samples.append((done - started, state.replay_seconds, updated - started,
-                            done - updated, time.process_time() - cpu))  # fmt: skip
-        medians = (np.median(np.array(samples), axis=0) * 1e3).tolist()
-        out[name] = dict(zip(("median_ms", "replay_ms", "update_ms", "draw_ms", "cpu_ms"),
-                             medians, strict=True))  # fmt: skip
-        out[name]["samples"] = repeats
-    return out

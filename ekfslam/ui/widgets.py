@@ -15,8 +15,9 @@ from functools import partial
 
 from matplotlib.figure import Figure
 
-from ekfslam.analysis.evaluation import SEED_TABLE1
+from ekfslam.analysis.evaluation import SEED_TABLE1, seed_experiment
 from ekfslam.core.noise import default_noise
+from ekfslam.ui.latency import benchmark
 from ekfslam.ui.tuning import (
     DEFAULT_FIGSIZE,
     GATES,
@@ -26,8 +27,8 @@ from ekfslam.ui.tuning import (
     Tuner,
     TunerSettings,
     TunerState,
-    benchmark,
     seed_runs,
+    status_text,
 )
 
 
@@ -142,14 +143,13 @@ class TuningPanel:
 
     def _updated(self, state: TunerState) -> None:
         self.errors.outputs = ()  # (clear_output needs a kernel; this works everywhere)
-        lines = state.text.splitlines()
-        seed = next((v for k, v in SEED_TABLE1.items() if state.summary.name.startswith(k)), None)
-        if seed is not None:  # the seed's real-robot row under ours, for comparison
-            x0, y0, theta0, error = seed
-            lines.insert(2, f"{'seed (real)':<16}{x0:>8.3f}{y0:>8.3f}{theta0:>8.3f}{error:>11.3f}")
+        # the seed's real-robot row under ours when the run is the seed's experiment, judged
+        # by its simulation config as on the command line, not by its name
+        trajectory = seed_experiment(self.tuner.load(state.settings.run).meta.simulation)
+        seed = None if trajectory is None else SEED_TABLE1[trajectory]
         self.status.value = (
             '<pre class="ekfslam-table1" style="font:15px monospace;margin:4px 0">'
-            f"{html.escape(chr(10).join(lines))}</pre>"
+            f"{html.escape(status_text(state.summary, seed))}</pre>"
             '<div class="ekfslam-timing" style="color:#666">'
             f"replay {state.replay_seconds * 1e3:.0f} ms, "
             f"with the figure update {state.update_seconds * 1e3:.0f} ms; "

@@ -16,15 +16,15 @@ from matplotlib.image import AxesImage
 from matplotlib.patches import Ellipse, Rectangle
 from numpy.typing import ArrayLike, NDArray
 
-from ekfslam.analysis.alignment import Alignment
 from ekfslam.core.arena import Arena
 from ekfslam.core.filter.config import chi2_2dof_quantile
 from ekfslam.geometry import rotation, wrap_angle
 from ekfslam.logs.runlog import RunLog
-from ekfslam.pipeline import ReplayResult
 
 if TYPE_CHECKING:
-    from ekfslam.teaching.lessons import UpdateSteps
+    from ekfslam.analysis.alignment import Alignment
+    from ekfslam.core.steps import UpdateSteps
+    from ekfslam.pipeline import ReplayResult
 
 #: The Mahalanobis radius² of a 2-D confidence ellipse is the chi-square(2 dof) quantile
 #: -2 ln(1 - p) (`chi2_2dof_quantile`); "39%" names the 1-sigma ellipse, radius² 1 (p = 1 - e^-½).
@@ -157,26 +157,20 @@ def figure2(
     arena_half_size: float | None = None,
     title: str | None = None,
     alignment: Alignment | None = None,
+    alignment_note: str | None = None,
     figsize: tuple[float, float] = (14.0, 8.0),
 ) -> Figure:
     """The seed's Figure 2 for one run, and beside it the same map after alignment.
 
     Left: the estimate before alignment, in the filter's own frame, over the true tags: the
     seed's Figure 2, whose landmarks can sit outside the walls by the start's placement error.
-    Right: the same estimate after eq. (17)'s transform (`alignment`, else the mean-distance
-    alignment of the run's tag map), which is what the printed average error measures. With
-    no tag map, or too few landmarks to align, only the left panel is drawn and its title says
-    why. No pyplot state: safe in scripts and tests.
+    Right: the same estimate after eq. (17)'s transform `alignment` (computed by the caller,
+    e.g. `ekfslam.analysis.evaluation.summarize`'s), which is what the printed average error
+    measures. Without an alignment only the left panel is drawn and its title says why
+    (`alignment_note`, e.g. the summary's; by default: no known tag map). No pyplot state: safe
+    in scripts and tests.
     """
-    from ekfslam.analysis.alignment import align
-    from ekfslam.errors import AlignmentError
-
-    note = "the run has no known tag map"
-    if alignment is None and run.meta.tag_map:
-        try:
-            alignment = align(result.landmarks, run.meta.tag_map)
-        except AlignmentError as exc:  # not an error of the run: said in the title
-            note = str(exc)
+    note = alignment_note or "the run has no known tag map"
     fig = Figure(figsize=figsize if alignment is not None else (9.0, 8.0), layout="constrained")
     # not sharex/sharey: with equal aspects the constrained layout then misplaces the labels
     axes = fig.subplots(1, 2 if alignment is not None else 1, squeeze=False)[0]
@@ -279,7 +273,7 @@ def plot_covariance_matrix(
 ) -> AxesImage:
     """Σ (or its correlation matrix) as a heat map, rows and columns named by `state_labels`.
 
-    landmark_ids : the ids in slot order (see `ekfslam.teaching.lessons.landmark_slots`).
+    landmark_ids : the ids in slot order (see `ekfslam.pipeline.landmark_slots`).
     Correlations are drawn on a fixed -1..1 scale so snapshots of a run can be compared; a variance
     of zero (a known start) gives a correlation of zero.
     """

@@ -17,7 +17,6 @@ from ekfslam.analysis.consistency import (
     chi2_band,
     compare,
     monte_carlo,
-    plot_consistency,
     run_errors,
 )
 from ekfslam.analysis.evaluation import interpolate_poses
@@ -25,6 +24,7 @@ from ekfslam.analysis.robustness import long_run, outlier_study
 from ekfslam.core.noise import NoiseConfig, default_noise
 from ekfslam.geometry import wrap_angle
 from ekfslam.sim.scenarios import noise_for_simulation, ring_arena, scenario
+from ekfslam.viz.consistency import plot_consistency
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -23,12 +23,12 @@ from ekfslam.analysis.mrclam_consistency import (
     MAP_TARGETS,
     MRCLAM_CONSISTENT_NOISE,
     mrclam_consistency,
-    plot_mrclam_nees,
     table,
     tune_for_consistency,
     vicon_errors,
 )
 from ekfslam.analysis.mrclam_tuning import score_robots
+from ekfslam.viz.consistency import plot_mrclam_nees
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -19,15 +19,15 @@ from ekfslam.core.noise import NoiseConfig
 from ekfslam.errors import InputError
 from ekfslam.logs.mrclam.defaults import MRCLAM_NOISE
 from ekfslam.logs.runlog import Detections, GroundTruth, RunLog, read_run
+from ekfslam.ui.coalescer import Coalescer
+from ekfslam.ui.latency import benchmark
 from ekfslam.ui.tuning import (
     GATES,
     RUNS_DIR,
     SLIDERS,
-    Coalescer,
     Tuner,
     TunerSettings,
     apply_changes,
-    benchmark,
     seed_runs,
     status_text,
 )

@@ -8,7 +8,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Ellipse
 
 from ekfslam.core.arena import SEED_ARENA
-from ekfslam.teaching.lessons import update_steps
+from ekfslam.core.steps import update_steps
 from ekfslam.viz.plotting import (
     draw_pose_ellipses,
     draw_tags,
@@ -111,7 +111,7 @@ def test_figure2_says_before_alignment_and_draws_the_aligned_map_beside_it() -> 
     run = read_run(Path(__file__).resolve().parents[2] / "data" / "runs" / "octagon-2laps")
     result = replay(run, default_noise(run), default_config(run))
     a = align(result.landmarks, run.meta.tag_map)
-    fig = figure2(run, result, arena_half_size=0.75)
+    fig = figure2(run, result, arena_half_size=0.75, alignment=a)
     before, after = fig.axes
     assert before.get_title().startswith("before alignment")
     assert after.get_title().startswith("after the eq. (17) alignment")

@@ -1,0 +1,99 @@
+"""One EKF correction, eqs. (13)-(16), in block form: the one readable statement of the update.
+
+The filter's compiled kernel (`ekfslam.core.filter.kernels.correct`) and the literal F_x,j
+reference (`ekfslam.teaching.reference`) compute the same numbers; the tests hold both to this
+one (tests/core/test_steps.py). The observation model and its Jacobian blocks are
+`ekfslam.core.models.observation` and `observation_jacobians`, not derived again here.
+
+The block form is Solà's (slamtb): an observation of landmark j sees only the robot's rows
+r = 0:3 and the landmark's rows l = 3+2j : 5+2j, so eq. (14)'s H = [H_r  H_l] F_x,j touches two
+column blocks of Σ, and Σ Hᵀ = Σ[:, r] H_rᵀ + Σ[:, l] H_lᵀ costs O(n) instead of the lift's
+O(n²) products.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ekfslam.core.models import observation, observation_jacobians
+from ekfslam.geometry import wrap_angle
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class UpdateSteps:
+    """Every intermediate of one correction, eqs. (13)-(16), for a state of size d = 3 + 2n.
+
+    z_hat (2,) eq. (13); nu (2,) innovation z - ẑ, bearing wrapped; H (2, d) eq. (14), zero
+    outside the robot's and the landmark's columns; S (2, 2) innovation covariance H Σ Hᵀ + Q;
+    K (d, 2) eq. (15); nis νᵀ S⁻¹ ν; mu_prior / mu_post (d,) eq. (16); Sigma_prior,
+    Sigma_seed = (I - KH) Σ as printed in eq. (16), Sigma_joseph = (I - KH) Σ (I - KH)ᵀ + K Q Kᵀ,
+    all (d, d).
+    """
+
+    j: int
+    z: Array
+    z_hat: Array
+    nu: Array
+    H: Array
+    S: Array
+    K: Array
+    nis: float
+    mu_prior: Array
+    mu_post: Array
+    Sigma_prior: Array
+    Sigma_seed: Array
+    Sigma_joseph: Array
+
+
+def update_steps(
+    mu: ArrayLike, Sigma: ArrayLike, j: int, z: ArrayLike, Q: ArrayLike
+) -> UpdateSteps:
+    """One EKF correction with landmark slot j, eqs. (13)-(16), on the blocks it touches.
+
+    Parameters
+    ----------
+    mu : (d,) prior mean, eq. (1), d = 3 + 2n; Sigma : (d, d) its covariance.
+    j : the landmark's slot (0-based; indices 3+2j, 4+2j).
+    z : (2,) measured range (m) and bearing (rad), eq. (10); Q : (2, 2) eq. (11).
+    """
+    mu = np.array(mu, dtype=float)
+    Sigma = np.array(Sigma, dtype=float)
+    z = np.asarray(z, dtype=float)
+    Q = np.asarray(Q, dtype=float)
+    d = len(mu)
+    if not 0 <= j < (d - 3) // 2:
+        raise ValueError(f"landmark slot {j} is not in a state of {(d - 3) // 2} landmarks")
+    r, l = slice(0, 3), slice(3 + 2 * j, 5 + 2 * j)  # the robot's rows, landmark j's rows
+    z_hat = observation(mu[r], mu[l])  # eq. (13), with atan2
+    H_r, H_l = observation_jacobians(mu[r], mu[l])  # eq. (14)'s two non-zero blocks
+    SigmaHt = Sigma[:, r] @ H_r.T + Sigma[:, l] @ H_l.T  # Σ Hᵀ, (d, 2)
+    S = H_r @ SigmaHt[r] + H_l @ SigmaHt[l] + Q  # H Σ Hᵀ + Q
+    K = SigmaHt @ np.linalg.inv(S)  # eq. (15)
+    nu = z - z_hat
+    nu[1] = wrap_angle(float(nu[1]))
+    mu_post = mu + K @ nu  # eq. (16)
+    mu_post[2] = wrap_angle(float(mu_post[2]))
+    H = np.zeros((2, d))
+    H[:, r], H[:, l] = H_r, H_l
+    KHSigma = K @ SigmaHt.T  # K H Σ, with H Σ = (Σ Hᵀ)ᵀ
+    return UpdateSteps(
+        j=j,
+        z=z.copy(),
+        z_hat=z_hat,
+        nu=nu,
+        H=H,
+        S=S,
+        K=K,
+        nis=float(nu @ np.linalg.solve(S, nu)),
+        mu_prior=mu,
+        mu_post=mu_post,
+        Sigma_prior=Sigma,
+        Sigma_seed=Sigma - KHSigma,
+        # Joseph's form expanded: (I-KH)Σ(I-KH)ᵀ + KQKᵀ = Σ - KHΣ - (KHΣ)ᵀ + K S Kᵀ
+        Sigma_joseph=Sigma - KHSigma - KHSigma.T + K @ S @ K.T,
+    )

@@ -1,0 +1,55 @@
+"""How long the live panel takes from a changed value to an updated figure (`benchmark`).
+
+``python -m ekfslam.ui.widgets --bench`` prints it per seed run; the target is 100 ms.
+"""
+
+from __future__ import annotations
+
+import io
+import time
+from collections.abc import Mapping
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from ekfslam.ui.tuning import DEFAULT_FIGSIZE, RunSource, Tuner, seed_runs
+
+
+def benchmark(runs: Mapping[str, RunSource] | None = None, repeats: int = 15) -> dict[str, dict]:
+    """Time from a changed value to an updated figure, per run, in this process.
+
+    Each sample changes σr (alternating two values) and times what the kernel does for it in the
+    panel: replay, summary (eq. 17), artist updates, then the render ipympl's draw request runs,
+    an Agg render of the whole figure (`DEFAULT_FIGSIZE`, 100 dpi) encoded to PNG. The browser's
+    share (the round trip and the PNG decode) is not in it. Returns, per run, medians in ms:
+    "median_ms" (the whole), "replay_ms", "update_ms" (replay to artists), "draw_ms", and
+    "cpu_ms", the whole in this process's CPU time (steadier than wall time on a busy machine).
+    """
+    # lazy: matplotlib's Agg canvas is only for this measurement, not for the panel's import
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    class _Canvas(FigureCanvasAgg):
+        def draw_idle(self, *args, **kwargs) -> None:  # ipympl's: a message, no drawing
+            pass
+
+    out = {}
+    for name, source in (runs or seed_runs()).items():
+        fig = Figure(figsize=DEFAULT_FIGSIZE, dpi=100)
+        _Canvas(fig)
+        tuner = Tuner({name: source}, fig)
+        tuner.apply()
+        fig.canvas.print_png(io.BytesIO())  # warm the font and text caches
+        samples = []
+        for k in range(repeats):
+            cpu, started = time.process_time(), time.perf_counter()
+            state = tuner.apply(sigma_range=(0.02, 0.04)[k % 2])
+            updated = time.perf_counter()
+            fig.canvas.print_png(io.BytesIO())
+            done = time.perf_counter()
+            samples.append((done - started, state.replay_seconds, updated - started,
+                            done - updated, time.process_time() - cpu))  # fmt: skip
+        medians = (np.median(np.array(samples), axis=0) * 1e3).tolist()
+        out[name] = dict(zip(("median_ms", "replay_ms", "update_ms", "draw_ms", "cpu_ms"),
+                             medians, strict=True))  # fmt: skip
+        out[name]["samples"] = repeats
+    return out
