@@ -14,9 +14,9 @@ Monte Carlo runs are simulated with *correctly specified noise*: `noise_for_simu
 filter the simulator's own R (eq. 9) and Q (eq. 11). The filter starts at the robot's TRUE start
 with zero covariance, and the scenarios set the placement error to zero too, so estimate and truth
 share one frame and no alignment (eq. 17) hides anything. The scenarios are in
-`ekfslam.sim.scenarios`; the outlier study and the long run (`ekfslam.analysis.robustness`) and the
-pose NEES against MRCLAM's Vicon (`ekfslam.analysis.mrclam_consistency`, ``--mrclam``) share this
-module's command.
+`ekfslam.sim.scenarios`. The outlier study and the long run (`ekfslam.analysis.robustness`) and
+the pose NEES against MRCLAM's Vicon (`ekfslam.analysis.mrclam_consistency`) are the other
+subcommands of ``python -m ekfslam consistency`` (`ekfslam.cli.consistency`).
 """
 
 from __future__ import annotations

@@ -224,7 +224,7 @@ class MrclamConsistency:
         return {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
 
     def as_dict(self) -> dict:
-        """JSON-ready; the keys are listed in the ``--mrclam`` help (`add_arguments`)."""
+        """JSON-ready; the keys are listed in the ``consistency mrclam --json`` help."""
         return {
             "dataset_dir": self.dataset_dir,
             "noise_name": self.noise_name,
