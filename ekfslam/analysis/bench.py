@@ -19,7 +19,6 @@ of them alike. Machines are shared and noisy: compare figures from one run. The 
 
 from __future__ import annotations
 
-import argparse
 import datetime
 import json
 import math
@@ -35,6 +34,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ekfslam.analysis.startup import startup_lines, startup_times
 from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.models import observation_noise
 from ekfslam.core.noise import default_noise
@@ -59,6 +59,10 @@ RUNS = {"octagon": "octagon-2laps", "square": "square-2laps"}
 MRCLAM_ROBOT = 1
 
 
+#: The repeat counts of `BenchConfig` (``--repeats`` sets them all).
+REPEATS = ("replay_repeats", "step_repeats", "literal_repeats", "mrclam_repeats", "startup_repeats")
+
+
 @dataclass(frozen=True)
 class BenchConfig:
     """What to measure and how often (`quick` is the ``--quick`` preset)."""
@@ -68,6 +72,8 @@ class BenchConfig:
     step_repeats: int = 41
     literal_repeats: int = 3
     mrclam_repeats: int = 3
+    #: whole-process runs of ``--help`` and ``run`` (`ekfslam.analysis.startup`)
+    startup_repeats: int = 5
     #: the seed's runs (default: the source checkout's data/runs; None when installed)
     runs_dir: Path | None = field(default_factory=seed_runs_dir)
     mrclam_dir: Path | None = None
@@ -80,14 +86,17 @@ class BenchConfig:
             raise ConfigError(f"BenchConfig.sizes must be whole numbers, got {sizes!r}")
         if not all(1 <= n <= MAX_SIZE for n in sizes):
             raise ConfigError(f"BenchConfig.sizes must be in 1..{MAX_SIZE}, got {sizes!r}")
-        for name in ("replay_repeats", "step_repeats", "literal_repeats", "mrclam_repeats"):
+        for name in REPEATS:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ConfigError(f"BenchConfig.{name} must be a whole number >= 1, got {value!r}")
 
     @classmethod
     def quick(cls, **kwargs) -> BenchConfig:
-        base = dict(replay_repeats=7, step_repeats=15, literal_repeats=1, mrclam_repeats=1)
+        base = dict(
+            replay_repeats=7, step_repeats=15, literal_repeats=1, mrclam_repeats=1,
+            startup_repeats=3,
+        )  # fmt: skip
         return cls(**{**base, **kwargs})
 
 
@@ -340,6 +349,7 @@ def run_benchmarks(config: BenchConfig, command: str = "python -m ekfslam bench"
     result.update(bench_sizes(config))
     result["peak_mb_1000"] = peak_memory_mb(result["floor_n"])
     result["peak_memory_method"] = "tracemalloc"
+    result.update(startup_times(config.startup_repeats, config.runs_dir))
     return result
 
 
@@ -399,6 +409,8 @@ def markdown_table(r: dict) -> str:
         f"predict {_fmt(fej.get('predict'), digits=2)}x and update "
         f"{_fmt(fej.get('update'), digits=2)}x at n = {fej.get('update_n')}",
     ]
+    if "startup_s" in r:  # results written before the startup section have none
+        lines += startup_lines(r)
     return "\n".join(lines)
 
 
@@ -407,61 +419,3 @@ def write_outputs(r: dict, out: Path) -> None:
     # the figure is the caller's to draw (`ekfslam.viz.bench.plot_costs`): analysis draws none
     atomic_write_text(out / "bench.md", markdown_table(r) + "\n")
     atomic_write_text(out / "bench.json", json.dumps(r, indent=2, allow_nan=False) + "\n")
-
-
-def add_cli(subparsers) -> None:
-    """``python -m ekfslam bench [--quick] [--json] [--out DIR]``."""
-    from ekfslam.cli import args as ca
-
-    p = subparsers.add_parser("bench", help="time replays and per-step costs against map size")
-    p.add_argument("--quick", action="store_true", help="fewer repeats (about a minute)")
-    p.add_argument("--json", action="store_true", help="print the results as JSON")
-    p.add_argument("--out", type=ca.output_folder, default=Path("out/bench"),
-                   help="where to write the table, the JSON and the plot (default: %(default)s; "
-                   "created if missing)")  # fmt: skip
-    p.add_argument("--sizes", type=ca.whole(1, MAX_SIZE, why="Σ would not fit in memory"),
-                   nargs="+", help=f"map sizes n, 1 to {MAX_SIZE} (default: {SIZES})")  # fmt: skip
-    p.add_argument("--repeats", type=ca.whole(1, 1000),
-                   help="repeats of every measurement, >= 1 (a smoke run: 1; default: the "
-                   "config's, fewer with --quick)")  # fmt: skip
-    p.add_argument("--mrclam", type=ca.input_path,
-                   help="MRCLAM Dataset 7 folder (default: shared data)")  # fmt: skip
-    p.add_argument("--no-mrclam", action="store_true", help="skip the MRCLAM replay")
-    p.set_defaults(func=_cmd_bench)
-
-
-def _cmd_bench(args: argparse.Namespace) -> int:
-    kwargs: dict = {"mrclam_dir": None if args.no_mrclam else args.mrclam or default_mrclam_dir()}
-    if args.no_mrclam:
-        kwargs["mrclam_note"] = MRCLAM_SKIPPED
-    if args.sizes:
-        kwargs["sizes"] = tuple(sorted(set(args.sizes)))
-    if args.repeats is not None:
-        kwargs.update(dict.fromkeys(
-            ("replay_repeats", "step_repeats", "literal_repeats", "mrclam_repeats"), args.repeats
-        ))  # fmt: skip
-    config = BenchConfig.quick(**kwargs) if args.quick else BenchConfig(**kwargs)
-    r = run_benchmarks(config, command=_command(args))
-    write_outputs(r, args.out)
-    from ekfslam.viz.bench import plot_costs  # F2 moves this command to cli/
-
-    plot_costs(r, args.out / "cost_vs_n.png")
-    if args.json:
-        print(json.dumps(r, indent=2, allow_nan=False))
-    else:
-        print(markdown_table(r))
-        print(f"\nwritten: {args.out / 'bench.md'}, bench.json, cost_vs_n.png")
-    return 0
-
-
-def _command(args: argparse.Namespace) -> str:
-    """The command line that reproduces this run."""
-    flags = [("--quick", args.quick), ("--json", args.json), ("--no-mrclam", args.no_mrclam)]
-    options = [
-        ("--out", None if args.out == Path("out/bench") else args.out),
-        ("--sizes", " ".join(map(str, args.sizes)) if args.sizes else None),
-        ("--repeats", args.repeats),
-        ("--mrclam", None if args.no_mrclam else args.mrclam),
-    ]
-    parts = [flag for flag, on in flags if on] + [f"{o} {v}" for o, v in options if v is not None]
-    return " ".join(["python -m ekfslam bench", *parts])

@@ -14,16 +14,14 @@ Monte Carlo runs are simulated with *correctly specified noise*: `noise_for_simu
 filter the simulator's own R (eq. 9) and Q (eq. 11). The filter starts at the robot's TRUE start
 with zero covariance, and the scenarios set the placement error to zero too, so estimate and truth
 share one frame and no alignment (eq. 17) hides anything. The scenarios are in
-`ekfslam.sim.scenarios`; the outlier study and the long run (`ekfslam.analysis.robustness`) and the
-pose NEES against MRCLAM's Vicon (`ekfslam.analysis.mrclam_consistency`, ``--mrclam``) share this
-module's command.
+`ekfslam.sim.scenarios`. The outlier study and the long run (`ekfslam.analysis.robustness`) and
+the pose NEES against MRCLAM's Vicon (`ekfslam.analysis.mrclam_consistency`) are the other
+subcommands of ``python -m ekfslam consistency`` (`ekfslam.cli.consistency`).
 """
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
-import json
 import math
 import time
 from dataclasses import dataclass, fields
@@ -35,11 +33,10 @@ from scipy.special import gammaincinv
 from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig, FilterCounts
 from ekfslam.core.filter.history import OUTCOMES
 from ekfslam.core.noise import NoiseConfig
-from ekfslam.files import save_figure
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runlog import RunLog
 from ekfslam.pipeline import ReplayResult, replay
-from ekfslam.sim.scenarios import SCENARIOS, noise_for_simulation, scenario
+from ekfslam.sim.scenarios import noise_for_simulation, scenario
 from ekfslam.sim.simulation import simulate
 
 Array = NDArray[np.float64]
@@ -310,113 +307,6 @@ def _average(name, errors, config, counts, noise, seconds) -> Consistency:
     )
 
 
-# ---------------------------------------------------------------------------------- command line
-def add_cli(subparsers) -> None:
-    """``python -m ekfslam consistency``: NEES/NIS over runs; --outliers, --long-run, --mrclam."""
-    from ekfslam.cli import args as ca
-    from ekfslam.cli.main import add_plot_argument
-
-    p = subparsers.add_parser(
-        "consistency", help="NEES/NIS over Monte Carlo runs; outlier gating; a long Σ run"
-    )
-    p.add_argument("--runs", type=ca.whole(1, 10_000), default=50,
-                   help="Monte Carlo runs, 1 to 10000 (default 50)")  # fmt: skip
-    p.add_argument("--trajectory", choices=SCENARIOS, default="octagon", help="the scenario")
-    p.add_argument(
-        "--linearization", choices=["standard", "fej", "both"],
-        help="default: standard for simulated runs, both with --mrclam",
-    )  # fmt: skip
-    p.add_argument("--seed", type=ca.seed(), default=0,
-                   help="seed of the first run (then +1, +2...)")  # fmt: skip
-    p.add_argument(
-        "--gate", type=ca.non_negative(1e6), default=CHI2_2DOF_99,
-        help="NIS gate; 0 turns it off (%(default).2f)",
-    )  # fmt: skip
-    p.add_argument("--wheel-noise", type=ca.non_negative(10.0, why="rad/s"),
-                   help="override the scenario's wheel noise, rad/s")  # fmt: skip
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    add_plot_argument(p, "draw the averages and their bands to FILE")
-    mode = p.add_mutually_exclusive_group()
-    mode.add_argument(
-        "--outliers",
-        type=ca.probability(),
-        metavar="RATE",
-        help="outlier study at this rate, in [0, 1] (e.g. 0.05)",
-    )
-    mode.add_argument(
-        "--long-run", type=ca.whole(1, 10**7), nargs="?", const=100_000, metavar="STEPS",
-        help="drive STEPS steps (default 10^5) and check Σ's smallest eigenvalue",
-    )  # fmt: skip
-    p.add_argument(
-        "--gate-after", type=ca.whole(1, 10**6), default=FilterConfig.gate_after,
-        help="outlier study: gate_after (default: the filter's, %(default)s)",
-    )  # fmt: skip
-    from ekfslam.analysis import mrclam_consistency  # here: that module imports this one
-
-    mrclam_consistency.add_arguments(p)
-    p.set_defaults(func=_cmd_consistency)
-
-
-def _cmd_consistency(args: argparse.Namespace) -> int:
-    from ekfslam.analysis import mrclam_consistency, robustness
-
-    if args.mrclam is not None:
-        return mrclam_consistency.run_cli(args)
-    lin = args.linearization or "standard"
-    lins = ("standard", "fej") if lin == "both" else (lin,)
-    if args.long_run is not None:
-        found = [robustness.long_run(args.long_run, lin, seed=args.seed) for lin in lins]
-        out = {r.linearization: dataclasses.asdict(r) | {"passed": r.passed} for r in found}
-        for r in found:
-            out[r.linearization]["counts"] = dataclasses.asdict(r.counts)
-        text = "\n".join(
-            f"{r.linearization}: {r.steps} steps, {r.landmarks} landmarks: smallest eigenvalue / "
-            f"trace >= {r.min_eigenvalue_ratio:.3e} (step {r.worst_step}), asymmetry "
-            f"{r.max_asymmetry:.1e}, finite {r.finite}: {'PASS' if r.passed else 'FAIL'} "
-            f"({r.seconds:.1f} s)"
-            for r in found
-        )
-        _emit(args, out if len(found) > 1 else out[lins[0]], text)
-        return 0 if all(r.passed for r in found) else 1
-    gate = None if args.gate == 0 else args.gate
-    if args.outliers is not None:
-        study = robustness.outlier_study(
-            args.trajectory, args.runs, args.outliers, gate=gate or CHI2_2DOF_99,
-            gate_after=args.gate_after, first_seed=args.seed,
-        )  # fmt: skip
-        lines = [
-            f"outliers at {study.rate:.0%} on {study.scenario}, {study.runs} runs: aligned map "
-            "error (eq. 17), mean over runs",
-            f"{'case':<10}{'gate':>6}{'error (m)':>11}{'median':>9}{'x clean':>9}"
-            f"{'injected':>10}{'rejected':>10}{'accepted':>10}",
-        ]
-        for c in study.cases:
-            lines.append(
-                f"{c.label:<10}{'on' if c.gate else 'off':>6}{c.map_error:>11.4f}"
-                f"{c.map_error_median:>9.4f}{c.ratio:>9.2f}{c.injected:>10}{c.rejected:>10}"
-                f"{c.accepted:>10}"
-            )
-        _emit(args, study.as_dict(), "\n".join(lines))
-        return 0
-    results = compare(
-        args.trajectory, args.runs, lins, gate=gate, first_seed=args.seed,
-        wheel_noise_sigma=args.wheel_noise,
-    )  # fmt: skip
-    out = {r.linearization: r.as_dict() for r in results}
-    if args.plot is not None:
-        from ekfslam.viz.consistency import plot_consistency  # F2 moves this command to cli/
-
-        save_figure(plot_consistency(results), args.plot)
-        for d in out.values():
-            d["plot"] = str(args.plot)
-    _emit(args, out if len(out) > 1 else out[lins[0]], "\n\n".join(map(_table, results)))
-    return 0
-
-
-def _emit(args: argparse.Namespace, data: dict, text: str) -> None:
-    print(json.dumps(data, indent=2, allow_nan=False) if args.json else text)
-
-
 def counts_line(counts: FilterCounts) -> str:
     """The filters' counts over all runs, each number after its own label."""
     c = counts
@@ -425,30 +315,3 @@ def counts_line(counts: FilterCounts) -> str:
         f"{c.rejected} rejected, {c.refused} refused; landmarks {c.initialised} initialised, "
         f"{c.reinitialised} re-initialised"
     )
-
-
-def _table(r: Consistency) -> str:
-    d = r.as_dict()
-    lines = [
-        f"{r.scenario}, {r.runs} runs, {r.linearization} linearization, "
-        f"gate {'off' if r.gate is None else f'{r.gate:.2f}'}: "
-        f"averages over the runs and the {CONFIDENCE:.0%} chi-square band",
-        f"{'':<16}{'mean':>8}{'max':>8}   {'band (median)':<16}{'steps in band':>14}",
-    ]
-    for key, label in (("nees_pose", "pose NEES"), ("nees_heading", "heading NEES"),
-                       ("nees_landmark", "landmark NEES"), ("nis", "NIS")):  # fmt: skip
-        q = d[key]
-        band = f"[{q['band'][0]:.2f}, {q['band'][1]:.2f}]"
-        lines.append(
-            f"{label:<16}{q['mean']:>8.2f}{q['max']:>8.2f}   {band:<16}"
-            f"{q['fraction_in_band']:>13.1%}"
-        )
-    m = d["map_nees_final"]
-    lines.append(
-        f"final map NEES {m['mean']:.1f} ({m['dof']} dof, band [{m['band'][0]:.1f}, "
-        f"{m['band'][1]:.1f}])"
-    )
-    lines.append(counts_line(r.counts))
-    if "plot" in d:
-        lines.append(f"figure written to {d['plot']}")
-    return "\n".join(lines)

@@ -22,10 +22,8 @@ strongly correlated, so the time average is not a chi-square(3K) variable and ge
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import itertools
-import json
 import math
 import time
 from dataclasses import dataclass
@@ -239,7 +237,7 @@ class MrclamConsistency:
         return {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
 
     def as_dict(self) -> dict:
-        """JSON-ready; the keys are listed in the ``--mrclam`` help (`add_arguments`)."""
+        """JSON-ready; the keys are listed in the ``consistency mrclam --json`` help."""
         return {
             "dataset_dir": self.dataset_dir,
             "noise_name": self.noise_name,
@@ -347,49 +345,6 @@ def tune_for_consistency(
         rows.append(ConsistencyRow(point, nees_means, tuple(f.aligned_error for f in found)))
     return sorted(rows, key=lambda r: (map_targets is not None and not r.meets(map_targets),
                                        r.distance))  # fmt: skip
-
-
-# -------------------------------------------------------------------------------- command line
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    """The ``--mrclam`` options of ``python -m ekfslam consistency`` (see `run_cli`)."""
-    g = p.add_argument_group("real data: pose NEES against MRCLAM's Vicon")
-    g.add_argument(
-        "--mrclam", nargs="?", const="", metavar="DATASET_DIR",
-        help="replay every robot of a MRCLAM dataset (default: find_dataset(7)) with standard and "
-        "FEJ and print its pose NEES; --json keys: robots.<N>.<linearization>.{mean, median, "
-        "fraction_in_interval, heading_mean, aligned_error, rejected, rows}, "
-        "average.<linearization>.{same}, interval, ideal, confidence, noise_name, noise, "
-        "dataset_dir, rows_used, plot",
-    )  # fmt: skip
-    g.add_argument(
-        "--noise", choices=sorted(NOISE_SETTINGS), default="map",
-        help="with --mrclam: noise tuned for the map (MRCLAM_NOISE) or for consistency",
-    )  # fmt: skip
-    g.add_argument(
-        "--robots", type=int, nargs="+", choices=ROBOTS, default=list(ROBOTS),
-        help="with --mrclam: which robots (default all five)",
-    )  # fmt: skip
-
-
-def run_cli(args: argparse.Namespace) -> int:
-    """``consistency --mrclam``: the robot x linearization table, --json, --plot."""
-    from ekfslam.logs.mrclam.load import find_dataset
-
-    folder = Path(args.mrclam) if args.mrclam else find_dataset(7)
-    lins = LINEARIZATIONS if args.linearization in (None, "both") else (args.linearization,)
-    config = dataclasses.replace(MRCLAM_CONFIG, gate=None if args.gate == 0 else args.gate)
-    study = mrclam_consistency(folder, args.noise, tuple(args.robots), lins, config)
-    out = study.as_dict()
-    if args.plot is not None:
-        from ekfslam.files import save_figure
-        from ekfslam.viz.consistency import plot_mrclam_nees  # F2 moves this command to cli/
-
-        save_figure(plot_mrclam_nees(study), args.plot)
-        out["plot"] = str(args.plot)
-    print(
-        json.dumps(out, indent=2, allow_nan=False) if args.json else table(study, out.get("plot"))
-    )
-    return 0
 
 
 def table(study: MrclamConsistency, plot: str | None = None) -> str:

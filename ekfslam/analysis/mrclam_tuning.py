@@ -88,24 +88,6 @@ def score_robots(
     return scores
 
 
-def add_score_cli(subparsers) -> None:
-    """``python -m ekfslam score-mrclam [N]``: the README's MRCLAM table, measured here."""
-    p = subparsers.add_parser(
-        "score-mrclam",
-        help="replay every robot of a MRCLAM dataset with one noise setting; print the scores",
-    )
-    p.add_argument("number", type=int, nargs="?", default=7, help="dataset number (default: 7)")
-    p.set_defaults(func=_cmd_score_mrclam)
-
-
-def _cmd_score_mrclam(args) -> int:
-    from ekfslam.logs.mrclam.load import find_dataset
-
-    # not found: one line saying how to fetch it (an InputError), not a traceback
-    print(scores_table(score_robots(find_dataset(args.number))))
-    return 0
-
-
 def scores_table(scores: list[RobotScore]) -> str:
     """The results table as Markdown, with the five-robot average as its last row."""
     lines = [

@@ -1,4 +1,4 @@
-"""What the command line accepts: the parser, and option types with their ranges.
+"""What the command line accepts: the parser, option types with their ranges, shared options.
 
 Every bad option value is refused while the command line is parsed, before any work, with ONE
 line on stderr and exit status 2::
@@ -22,8 +22,15 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any, NoReturn
 
+from ekfslam.core.filter.config import CHI2_2DOF_99
+
 #: What ``--plot`` writes (matplotlib infers the format from the suffix; these need no extras).
 PLOT_FORMATS: tuple[str, ...] = (".png", ".pdf", ".svg")
+#: Upper bounds of the noise options: beyond them σ² dt, and Σ, lose every digit of the poses.
+MAX_MOTION_SIGMA = 10.0  # m/√s and rad/√s
+MAX_RANGE_SIGMA = 100.0  # m
+#: MRCLAM's robots, the values of ``--robot``.
+ROBOTS = range(1, 6)
 
 Check = Callable[[argparse.Namespace], str | None]
 
@@ -267,6 +274,80 @@ def new_run_folder(option: str = "--out") -> Check:
             return None
         if path.is_dir() and any(path.iterdir()):
             return f"argument {option}: {path} is not empty; pass --overwrite to replace its run"
+        return None
+
+    return check
+
+
+# ---------------------------------------------------------------- options several commands share
+def add_json_argument(p: argparse.ArgumentParser, what: str = "print one JSON object") -> None:
+    """``--json``: the result as one JSON object on stdout instead of the text table."""
+    p.add_argument("--json", action="store_true", help=what)
+
+
+def add_robot_argument(p: argparse.ArgumentParser) -> None:
+    """``--robot N`` for commands that read MRCLAM datasets (their robots are 1-5)."""
+    p.add_argument(
+        "--robot", type=one_of(ROBOTS, "MRCLAM robots"), help="MRCLAM only: which robot (1-5)"
+    )
+
+
+def add_plot_argument(p: argparse.ArgumentParser, what: str) -> None:
+    """``--plot FILE``: checked before the work; the suffix names the format and is required."""
+    p.add_argument(
+        "--plot", type=output_file(PLOT_FORMATS), metavar="FILE",
+        help=f"{what}; FILE must end in {', '.join(PLOT_FORMATS)} (no extension is added); "
+        "missing folders are created",
+    )  # fmt: skip
+
+
+def add_run_folder_arguments(p: Parser, required: bool = True) -> None:
+    """``--out DIR --overwrite`` for commands that write a run folder, checked before the work."""
+    p.add_argument("--out", type=output_folder, required=required, metavar="DIR",
+                   help="the run folder to write (created if missing)")  # fmt: skip
+    p.add_argument("--overwrite", action="store_true", help="replace an existing run folder")
+    p.add_check(new_run_folder("--out"))
+
+
+def add_noise_arguments(p: argparse.ArgumentParser) -> None:
+    """R (eq. 9), Q (eq. 11) and the filter's choices, for the commands that replay a run."""
+    g = p.add_argument_group("noise (R, eq. 9, and Q, eq. 11) and filter options")
+    motion = non_negative(MAX_MOTION_SIGMA, why="larger noise swamps every pose")
+    g.add_argument("--sigma-x", type=motion, help="motion noise along the body x axis, m/√s")
+    g.add_argument("--sigma-y", type=motion, help="motion noise along the body y axis, m/√s")
+    g.add_argument("--sigma-theta", type=motion, help="heading noise, rad/√s")
+    g.add_argument(
+        "--sigma-range", type=positive(MAX_RANGE_SIGMA, why="m"), help="range noise σ_r, m"
+    )
+    g.add_argument(
+        "--sigma-bearing", type=positive(math.pi, why="π rad"), help="bearing noise σ_φ, rad"
+    )
+    g.add_argument(
+        "--init", choices=["inverse", "seed"], default="inverse",
+        help="landmark initialisation: inverse observation (default) or the seed's eq. (3)",
+    )  # fmt: skip
+    g.add_argument(
+        "--gate", type=non_negative(1e6), default=CHI2_2DOF_99,
+        help="NIS gate (chi-square, 2 dof); 0 turns gating off (default: %(default).2f)",
+    )  # fmt: skip
+    g.add_argument(
+        "--reinit-after", type=whole(2, 10**6, also=(0,)),
+        help="re-initialise a landmark after this many agreeing rejected sightings; 0: never "
+        "(default: 3, but never for MRCLAM)",
+    )  # fmt: skip
+
+
+def triple_check(option: str, bounds: tuple[float, float, float], names: tuple[str, ...]) -> Check:
+    """A parser check: each of the 3 values of `option` lies within ±its bound."""
+    dest = option.lstrip("-").replace("-", "_")
+
+    def check(args: argparse.Namespace) -> str | None:
+        values = getattr(args, dest, None)
+        if values is None:
+            return None
+        for name, value, bound in zip(names, values, bounds, strict=True):
+            if abs(value) > bound:
+                return f"argument {option}: {name} must be within ±{bound:.4g}, got {value:g}"
         return None
 
     return check

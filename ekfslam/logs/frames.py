@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from ekfslam.errors import InputError
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runjson import FramesSpec, RunMeta, read_meta
-from ekfslam.logs.runlog import DETECTIONS_CSV, RUN_JSON, read_columns, read_run, write_detections
+from ekfslam.logs.runlog import DETECTIONS_CSV, RUN_JSON, read_columns
 
 Array = NDArray[np.float64]
 
@@ -197,93 +197,3 @@ def has_frames_only(folder: str | Path) -> bool:
     if (folder / DETECTIONS_CSV).exists() or not (folder / RUN_JSON).is_file():
         return False
     return read_meta(folder / RUN_JSON).frames is not None
-
-
-def _detect_out(text: str) -> Path:
-    """``detect --out``: a FILE.csv to write, or a new run folder."""
-    from ekfslam.cli import args as ca
-
-    if Path(text).suffix.lower() == ".csv":
-        return ca.output_file((".csv",))(text)
-    return ca.output_folder(text)
-
-
-def add_cli(subparsers) -> None:
-    """Two commands: ``detect RUN ...`` and ``render-frames RUN --out DIR ...``."""
-    from ekfslam.cli import args as ca
-    from ekfslam.cli.main import add_run_folder_arguments, triple_check
-
-    p = subparsers.add_parser(
-        "render-frames",
-        help="render the camera frames of a simulated run (a run of frames, no detections)",
-    )
-    p.add_argument("run", type=Path, help="a run folder with ground truth (e.g. from simulate)")
-    add_run_folder_arguments(p)
-    p.add_argument("--name", type=ca.non_empty, help="the new run's name (default: the run's)")
-    p.add_argument(
-        "--mounting", type=ca.finite(), nargs=3, metavar=("X", "Y", "YAW"),
-        help="camera position (m, within ±0.5) and yaw (rad, within ±π) in the robot frame "
-        "(default: the run's)",
-    )  # fmt: skip
-    p.add_check(triple_check("--mounting", (0.5, 0.5, math.pi), ("X", "Y", "YAW")))
-    p.add_argument("--images", action="store_true", help="PNG images instead of an mp4v video")
-    p.add_argument("--keep-detections", action="store_true", help="write detections.csv too")
-    p.add_argument("--seed", type=ca.seed(), default=0, help="texture and sensor-noise seed")
-    p.set_defaults(func=_cmd_render_frames)
-
-    p = subparsers.add_parser(
-        "detect", help="detect the AprilTags in a run's camera frames -> detections.csv"
-    )
-    p.add_argument("run", type=Path, help="a run folder with frames (run.json, frames.csv, ...)")
-    p.add_argument(
-        "--out", type=_detect_out, metavar="DIR|FILE.csv",
-        help="a new run folder (the run copied, with detections.csv) or a FILE.csv to write; "
-        "missing folders are created",
-    )  # fmt: skip
-    p.add_argument(
-        "--in-place", action="store_true",
-        help="write RUN/detections.csv instead; `run RUN` then uses it, not the frames",
-    )  # fmt: skip
-    p.add_argument("--overwrite", action="store_true", help="replace an existing file")
-    p.add_argument("--detector", choices=["opencv", "opencv-subpix", "apriltag"], default="opencv")
-    p.add_argument(
-        "--max-incidence", type=ca.real(0.0, 90.0, lo_open=True), default=75.0,
-        help="refuse tags seen more edge-on than this, degrees in (0, 90] (default: %(default)s)",
-    )  # fmt: skip
-    p.set_defaults(func=_cmd_detect)
-
-
-def _cmd_render_frames(args) -> int:
-    # inside: the commands move to ekfslam.cli (F2), which imports vision at its top
-    from ekfslam.vision.frames_run import with_camera, write_frames_run
-    from ekfslam.vision.render import RenderConfig
-
-    source = read_run(args.run)
-    kind = "images" if args.images else "video"
-    run = with_camera(source, mounting=args.mounting, kind=kind, name=args.name)
-    index = write_frames_run(
-        run, args.out, render=RenderConfig(seed=args.seed), overwrite=args.overwrite
-    )
-    if args.keep_detections:
-        write_detections(source.detections, args.out / DETECTIONS_CSV, run.meta.tag_map)
-    size = sum(f.stat().st_size for f in args.out.rglob("*") if f.is_file())
-    print(f"wrote {args.out}: {len(index.t)} frames, {size / 1e6:.1f} MB")
-    return 0
-
-
-def _cmd_detect(args) -> int:
-    # inside: the commands move to ekfslam.cli (F2), which imports vision at its top
-    from ekfslam.vision.detect import VisionConfig
-    from ekfslam.vision.frames_run import detect_run
-
-    config = VisionConfig(detector=args.detector, max_incidence=math.radians(args.max_incidence))
-    path, counts = detect_run(
-        args.run, args.out, config, overwrite=args.overwrite, in_place=args.in_place
-    )
-    c = counts.as_dict()
-    refused = ", ".join(f"{k.removeprefix('refused_')} {v}" for k, v in c.items() if "refused" in k)
-    print(
-        f"wrote {path}: {c['accepted']} detections from {c['frames']} frames "
-        f"({c['found']} tags found; refused: {refused})"
-    )
-    return 0

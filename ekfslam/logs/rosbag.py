@@ -29,8 +29,6 @@ bag recorded them. ROS ``Twist`` has no header, so its times are the bag's.
 
 from __future__ import annotations
 
-import argparse
-import math
 import os
 import re
 import re._constants as _re_constants  # the parsed form of a pattern, to check its group 1
@@ -432,82 +430,3 @@ def camera_to_robot(
     mx, my, yaw = (float(v) for v in mounting)
     c, s = np.cos(yaw), np.sin(yaw)
     return mx + c * level - s * left, my + s * level + c * left
-
-
-# ---------------------------------------------------------------------------------------------
-# Command line: python -m ekfslam convert rosbag BAG... --out DIR ...
-
-
-def add_cli(subparsers: argparse._SubParsersAction) -> None:
-    """Register ``convert rosbag`` under the shared ``convert`` command."""
-    from ekfslam.cli import args as ca
-    from ekfslam.cli.main import add_run_folder_arguments, triple_check
-    from ekfslam.logs.mrclam.load import convert_formats
-
-    p = convert_formats(subparsers).add_parser(
-        "rosbag",
-        help="a ROS 1 .bag or ROS 2 bag folder -> a run folder",
-        description=__doc__.split("\n\n")[0],
-    )
-    p.add_argument("bag", type=Path, nargs="+", help="ROS 2 bag folder, or ROS 1 .bag file(s)")
-    add_run_folder_arguments(p)
-    p.add_argument("--detections-topic", required=True, type=ca.non_empty,
-                   help="TFMessage or AprilTag detections")  # fmt: skip
-    motion = p.add_mutually_exclusive_group(required=True)
-    motion.add_argument("--twist-topic", type=ca.non_empty, help="Twist, TwistStamped or Odometry")
-    motion.add_argument("--wheels-topic", type=ca.non_empty,
-                        help="JointState with four wheel speeds (rad/s)")  # fmt: skip
-    p.add_argument("--wheel-joints", nargs=4, type=ca.non_empty, metavar=("FL", "FR", "RL", "RR"))
-    p.add_argument("--wheel-geometry", nargs=3, type=ca.positive(1.0, why="m"),
-                   metavar=("RADIUS", "LX", "LY"),
-                   help="mecanum wheel radius, lx, ly in m, each in (0, 1] "
-                   "(with --wheels-topic)")  # fmt: skip
-    p.add_argument("--camera-mounting", nargs=3, type=ca.finite(), default=(0.0, 0.0, 0.0),
-                   metavar=("X", "Y", "YAW"),
-                   help="camera on the robot, m, m, rad (within ±1 m, ±π)")  # fmt: skip
-    p.add_argument("--camera-pitch", type=ca.real(-math.pi / 2, math.pi / 2), default=0.0,
-                   help="rad, positive looks down, within ±π/2")  # fmt: skip
-    p.add_argument("--camera-axes", choices=["optical", "body"], default="optical")
-    p.add_argument("--camera-frame", type=ca.non_empty,
-                   help="keep only TF transforms from this parent frame")  # fmt: skip
-    p.add_argument("--tag-frame-pattern", type=ca.regex, default=RosbagSpec.tag_frame_pattern,
-                   help="regex on TF child frames; group 1 is the tag id")  # fmt: skip
-    p.add_argument("--start", nargs=3, type=ca.finite(), default=(0.0, 0.0, 0.0),
-                   metavar=("X", "Y", "THETA"),
-                   help="nominal start pose, m, m, rad (within ±1000 m, ±π)")  # fmt: skip
-    p.add_argument("--name", type=ca.non_empty, help="the run's name (default: the bag's name)")
-    p.add_check(triple_check("--camera-mounting", (1.0, 1.0, math.pi), ("X", "Y", "YAW")))
-    p.add_check(triple_check("--start", (1000.0, 1000.0, math.pi), ("X", "Y", "THETA")))
-    p.set_defaults(func=_cmd_convert_rosbag)
-
-
-def _cmd_convert_rosbag(args: argparse.Namespace) -> int:
-    from ekfslam.logs.runlog import write_run
-
-    robot = None if args.wheel_geometry is None else MecanumGeometry(*args.wheel_geometry)
-    try:
-        spec = RosbagSpec(
-            detections_topic=args.detections_topic,
-            twist_topic=args.twist_topic,
-            wheels_topic=args.wheels_topic,
-            wheel_joints=None if args.wheel_joints is None else tuple(args.wheel_joints),
-            robot=robot,
-            camera_mounting=tuple(args.camera_mounting),
-            camera_pitch=args.camera_pitch,
-            camera_axes=args.camera_axes,
-            tag_frame_pattern=args.tag_frame_pattern,
-            camera_frame=args.camera_frame,
-            name=args.name or args.bag[0].stem,
-            nominal_start=tuple(args.start),
-        )
-    except (ValueError, re.error) as exc:
-        raise InputError(args.bag[0], None, str(exc)) from None
-    run, report = read_rosbag(args.bag, spec)
-    write_run(run, args.out, overwrite=args.overwrite)
-    span = run.controls.t[-1] - run.controls.t[0]
-    print(
-        f"wrote {args.out}: {report.motion_messages} controls, {report.detections_kept} detections "
-        f"over {span:.1f} s ({report.frames_skipped} TF frames, {report.bundles_skipped} bundles, "
-        f"{report.at_camera_skipped} sightings at the camera skipped)"
-    )
-    return 0

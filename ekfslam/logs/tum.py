@@ -19,7 +19,6 @@ the identity orientation, so that `evo`, which pairs poses by timestamp, pairs l
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 from collections.abc import Mapping
@@ -170,33 +169,3 @@ def export_tum(run: RunLog, result: ReplayResult, folder: str | os.PathLike) -> 
     if run.meta.tag_map:
         written[MAP_TRUTH] = write_tum(folder / MAP_TRUTH, landmarks_to_tum(run.meta.tag_map))
     return written
-
-
-def add_cli(subparsers: argparse._SubParsersAction) -> None:
-    """``python -m ekfslam tum RUN [--robot N] --out DIR``: replay a run and export it."""
-    from ekfslam.cli import args as ca
-    from ekfslam.cli.main import add_noise_arguments, add_robot_argument
-
-    p = subparsers.add_parser(
-        "tum",
-        help="replay a run (ours or MRCLAM) and write trajectory and map as TUM files for evo",
-        description=__doc__.split("\n\n")[0],
-    )
-    p.add_argument("run", type=Path, help="a run folder or a MRCLAM dataset folder")
-    add_robot_argument(p)
-    p.add_argument("--out", type=ca.output_folder, required=True,
-                   help="folder for the .tum files (created if missing)")  # fmt: skip
-    add_noise_arguments(p)
-    p.set_defaults(func=_cmd_tum)
-
-
-def _cmd_tum(args: argparse.Namespace) -> int:
-    from ekfslam.cli.main import load_run, noise_from_args
-    from ekfslam.pipeline import replay
-
-    run, _report = load_run(args)
-    noise, config = noise_from_args(args, run)
-    written = export_tum(run, replay(run, noise, config), args.out)
-    for name in sorted(written):
-        print(written[name])
-    return 0

@@ -17,7 +17,6 @@ from matplotlib.figure import Figure
 
 from ekfslam.analysis.evaluation import SEED_TABLE1, seed_experiment
 from ekfslam.core.noise import default_noise
-from ekfslam.ui.latency import benchmark
 from ekfslam.ui.tuning import (
     DEFAULT_FIGSIZE,
     GATES,
@@ -183,28 +182,3 @@ def tuning_panel(
     tuner = Tuner(runs or seed_runs(), figure, settings=settings)
     tuner.apply()
     return TuningPanel(tuner)
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m ekfslam.ui.widgets --bench``: print the change-to-figure latency per seed run."""
-    import argparse
-
-    parser = argparse.ArgumentParser(prog="python -m ekfslam.ui.widgets", description=main.__doc__)
-    parser.add_argument("--bench", action="store_true", help="time the panel's update")
-    parser.add_argument("--repeats", type=int, default=15)
-    args = parser.parse_args(argv)
-    if not args.bench:
-        parser.print_help()
-        return 0
-    for name, r in benchmark(repeats=args.repeats).items():
-        print(
-            f"{name:<16} median {r['median_ms']:6.1f} ms = replay {r['replay_ms']:.1f} ms "
-            f"+ summary and artists {r['update_ms'] - r['replay_ms']:.1f} ms "
-            f"+ render to PNG {r['draw_ms']:.1f} ms; CPU time {r['cpu_ms']:.1f} ms "
-            f"({r['samples']} samples; target 100 ms)"
-        )
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

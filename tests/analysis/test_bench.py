@@ -10,15 +10,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ekfslam.analysis.bench import add_cli, literal_twin, map_of
-from ekfslam.cli import main as cli
+from ekfslam.analysis.bench import literal_twin, map_of
+from ekfslam.cli import bench as bench_command
+from ekfslam.cli.main import COMMANDS
 from ekfslam.core.models import observation_noise
 
 
 def bench(*args: str) -> int:
     """``python -m ekfslam bench ARGS`` in-process, without importing every other subcommand."""
     parser = argparse.ArgumentParser()
-    add_cli(parser.add_subparsers())
+    bench_command.add_command(parser.add_subparsers(), "bench", COMMANDS["bench"][1])
     parsed = parser.parse_args(["bench", *args])
     return parsed.func(parsed)
 
@@ -30,7 +31,7 @@ def positive(x) -> bool:
 @pytest.mark.slow
 def test_smoke_run_prints_the_issue_keys_and_writes_its_files(tmp_path: Path, capsys):
     out = tmp_path / "bench"
-    assert "ekfslam.analysis.bench" in cli._COMMAND_MODULES  # so `python -m ekfslam bench` exists
+    assert COMMANDS["bench"][0] == "ekfslam.cli.bench"  # so `python -m ekfslam bench` exists
     args = ["--json", "--sizes", "2", "120", "--repeats", "3", "--out", str(out), "--no-mrclam"]
     assert bench(*args) == 0
     r = json.loads(capsys.readouterr().out)
@@ -40,6 +41,7 @@ def test_smoke_run_prints_the_issue_keys_and_writes_its_files(tmp_path: Path, ca
         assert positive(r["replay_events_per_s"][run])
         assert r["replay_events"][run] > 1000  # every prediction and observation of the run
     assert r["mrclam_replay_s"] is None and r["mrclam_note"] == "not run: --no-mrclam"
+    assert all(positive(s) for s in r["startup_s"].values()) and r["startup_repeats"] == 3
     assert set(r["update_ratio_vs_literal"]) == {"2", "120"}
     assert all(positive(v) for v in r["update_ratio_vs_literal"].values())
     for impl in ("efficient", "literal"):
@@ -56,6 +58,7 @@ def test_smoke_run_prints_the_issue_keys_and_writes_its_files(tmp_path: Path, ca
     table = (out / "bench.md").read_text()
     assert "| 120 |" in table and "octagon-2laps" in table
     assert "| MRCLAM Dataset 7, robot 1 (not run: --no-mrclam) | – s |" in table
+    assert "| startup (whole process, median of 3) | wall time | target |" in table
     assert json.loads((out / "bench.json").read_text())["sizes"] == [2, 120]
     assert (out / "cost_vs_n.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -100,7 +103,23 @@ def _table_with(markdown_table, mrclam: dict) -> str:
     from ekfslam.analysis.bench import BenchConfig, run_benchmarks
 
     r = run_benchmarks(
-        BenchConfig(sizes=(2, 4), replay_repeats=1, step_repeats=1, literal_repeats=1),
+        BenchConfig(
+            sizes=(2, 4), replay_repeats=1, step_repeats=1, literal_repeats=1, startup_repeats=1
+        ),
         command="test",
     )
     return markdown_table({**r, **mrclam})
+
+
+def test_bench_reports_the_whole_process_startup_times_with_their_targets():
+    """The "startup" section: medians of ``--help`` and ``run octagon-2laps``; no timing test."""
+    from ekfslam.analysis.startup import TARGETS_S, startup_lines, startup_times
+
+    r = startup_times(1, Path(__file__).resolve().parents[2] / "data" / "runs")
+    assert set(r["startup_s"]) == {"help", "run"}
+    assert all(positive(s) for s in r["startup_s"].values())
+    assert r["startup_target_s"] == TARGETS_S == {"help": 0.3, "run": 0.7}
+    lines = startup_lines(r)
+    assert lines[1].startswith("| startup (whole process, median of 1) |")
+    assert "`python -m ekfslam --help` |" in lines[3] and lines[3].endswith("| 0.3 s |")
+    assert "`python -m ekfslam run octagon-2laps` |" in lines[4] and lines[4].endswith("| 0.7 s |")

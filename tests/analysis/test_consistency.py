@@ -176,8 +176,8 @@ def test_runs_must_be_positive():
 @pytest.mark.slow
 def test_cli_prints_the_issues_keys_and_draws_the_plot(tmp_path):
     plot = tmp_path / "c.png"
-    out = cli("consistency", "--runs", "2", "--trajectory", "square", "--linearization", "fej",
-              "--json", "--plot", str(plot))  # fmt: skip
+    out = cli("consistency", "nees", "--runs", "2", "--trajectory", "square",
+              "--linearization", "fej", "--json", "--plot", str(plot))  # fmt: skip
     assert out.returncode == 0, out.stderr
     d = json.loads(out.stdout)
     assert d["linearization"] == "fej" and d["runs"] == 2
@@ -189,7 +189,7 @@ def test_cli_prints_the_issues_keys_and_draws_the_plot(tmp_path):
 
 
 def test_cli_refuses_zero_runs():
-    out = cli("consistency", "--runs", "0")
+    out = cli("consistency", "nees", "--runs", "0")
     assert out.returncode == 2 and "Traceback" not in out.stderr
 
 
@@ -230,7 +230,7 @@ def test_outlier_study_counts_and_pairs_its_cases():
 def test_five_percent_outliers_cost_the_gated_map_at_most_a_fifth(name):
     """Issue 7's target: with the gate, 5% outliers keep the map within 1.2x of the clean run's.
 
-    Measured over 20 runs (`consistency --outliers 0.05 --runs 20`): 1.01-1.05x gated against
+    Measured over 20 runs (`consistency outliers 0.05 --runs 20`): 1.01-1.05x gated against
     6-80x ungated. The square's wrong ids cost 3.4x while the simulator still counted tags
     half out of the image as seen.
     """
@@ -265,7 +265,9 @@ def test_the_counts_line_puts_each_label_with_its_number():
 
 
 def test_cli_text_prints_the_counts_line():
-    out = cli("consistency", "--runs", "1", "--trajectory", "square", "--linearization", "fej")
+    out = cli(
+        "consistency", "nees", "--runs", "1", "--trajectory", "square", "--linearization", "fej"
+    )
     assert out.returncode == 0, out.stderr
     last = out.stdout.strip().splitlines()[-1]
     assert last.startswith("over all runs: ") and " predictions; updates " in last

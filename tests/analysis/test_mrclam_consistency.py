@@ -1,6 +1,6 @@
 """Pose NEES against MRCLAM's Vicon: matching times, the Dataset 7 figures, tuning, the CLI.
 
-The figures asserted here were measured with ``python -m ekfslam consistency --mrclam`` and
+The figures asserted here were measured with ``python -m ekfslam consistency mrclam`` and
 ``--noise consistent`` (the tables in notebook 09); the tolerance bands leave room for harmless
 changes in the filter's arithmetic, not for a different story.
 """
@@ -184,7 +184,7 @@ def test_tuning_ranks_by_distance_after_the_map_targets(studies: dict, mrclam7: 
 @pytest.mark.slow
 def test_cli_json_keys_values_and_plot(studies: dict, mrclam7: Path, tmp_path: Path) -> None:
     plot = tmp_path / "nees.png"
-    done = cli("--mrclam", str(mrclam7), "--robots", "2", "--json", "--plot", str(plot))
+    done = cli("mrclam", str(mrclam7), "--robots", "2", "--json", "--plot", str(plot))
     assert done.returncode == 0, done.stderr
     out = json.loads(done.stdout)
     assert {"robots", "average", "interval", "ideal", "noise_name", "noise", "plot"} <= set(out)
@@ -205,7 +205,7 @@ def test_cli_json_keys_values_and_plot(studies: dict, mrclam7: Path, tmp_path: P
 @pytest.mark.slow
 def test_cli_finds_dataset_7_and_prints_the_table(studies: dict, mrclam7: Path) -> None:
     env = {"EKFSLAM_SHARED_DATA": str(mrclam7.parents[1])}
-    done = cli("--mrclam", "--noise", "consistent", "--robots", "5", "--linearization", "fej",
+    done = cli("mrclam", "--noise", "consistent", "--robots", "5", "--linearization", "fej",
                env=env)  # fmt: skip
     assert done.returncode == 0, done.stderr
     lines = done.stdout.splitlines()
@@ -218,7 +218,7 @@ def test_cli_finds_dataset_7_and_prints_the_table(studies: dict, mrclam7: Path) 
 
 
 def test_cli_bad_dataset_is_one_line_and_exit_2(tmp_path: Path) -> None:
-    done = cli("--mrclam", str(tmp_path / "nowhere"), "--json")
+    done = cli("mrclam", str(tmp_path / "nowhere"), "--json")
     assert done.returncode == 2
     assert done.stderr.startswith("error:") and len(done.stderr.strip().splitlines()) == 1
     assert "nowhere" in done.stderr and "Traceback" not in done.stderr

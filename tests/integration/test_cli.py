@@ -371,6 +371,7 @@ def test_a_warning_on_the_command_line_is_one_line(monkeypatch, capsys):
     import warnings
 
     from ekfslam.cli import main as cli
+    from ekfslam.cli import run as run_command
 
     def warns(args):
         warnings.warn(
@@ -378,6 +379,6 @@ def test_a_warning_on_the_command_line_is_one_line(monkeypatch, capsys):
         )
         return 0
 
-    monkeypatch.setattr(cli, "cmd_run", warns)
+    monkeypatch.setattr(run_command, "cmd_run", warns)
     assert cli.main(["run", str(REPO / "data/runs/octagon-2laps")]) == 0
     assert capsys.readouterr().err == "warning: S was singular for 3 updates; they were skipped\n"

@@ -243,10 +243,11 @@ def test_help_and_readme_name_the_cache_the_code_uses(monkeypatch, tmp_path: Pat
     """Regression: --help said ~/.cache, the README ~/.cache/ekfslam."""
     import argparse
 
-    from ekfslam.logs.mrclam.fetch import CACHE_DEFAULT_HELP, add_cli
+    from ekfslam.cli import fetch as fetch_command
+    from ekfslam.logs.mrclam.fetch import CACHE_DEFAULT_HELP
 
     parser = argparse.ArgumentParser()
-    add_cli(parser.add_subparsers())
+    fetch_command.add_command(parser.add_subparsers(), "fetch", "download")
     fetch = next(a for a in parser._subparsers._group_actions[0].choices.values())
     cache_help = next(a.help for a in fetch._actions if "--cache" in a.option_strings)
     assert cache_help == f"cache folder (default: {CACHE_DEFAULT_HELP})"

@@ -129,44 +129,6 @@ def fetch_mrclam(
     return final
 
 
-def add_cli(subparsers) -> None:
-    """``python -m ekfslam fetch mrclam N [--cache DIR] [--url URL]``: prints the dataset's path."""
-    from ekfslam.cli import args as ca
-
-    p = subparsers.add_parser("fetch", help="download a public dataset into the cache")
-    p.add_argument("dataset", choices=["mrclam"], help="which dataset family")
-    p.add_argument(
-        "number", type=ca.one_of(DATASETS, "the MRCLAM datasets"), help="MRCLAM dataset number, 1-9"
-    )
-    p.add_argument(
-        "--cache", type=ca.output_folder, help=f"cache folder (default: {CACHE_DEFAULT_HELP})"
-    )
-    p.add_argument(
-        "--url", type=_base_url,
-        help="base URL holding MRCLAM<N>.zip (default: $EKFSLAM_MRCLAM_URL)",
-    )  # fmt: skip
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.set_defaults(func=_cmd_fetch)
-
-
-def _base_url(text: str) -> str:
-    import argparse
-
-    if not text.startswith(("http://", "https://", "file://")):
-        raise argparse.ArgumentTypeError(
-            f"must start with http://, https:// or file://, got {text!r}"
-        )
-    return text
-
-
-def _cmd_fetch(args) -> int:
-    path = fetch_mrclam(
-        args.number, cache_dir=args.cache, base_url=args.url, progress=not args.quiet
-    )
-    print(path)
-    return 0
-
-
 def _check_number(n: int) -> int:
     if isinstance(n, bool) or not isinstance(n, int) or n not in DATASETS:
         raise FetchError(f"MRCLAM datasets are numbered 1 to 9, got {n!r}")

@@ -26,7 +26,6 @@ chose `ekfslam.logs.mrclam.defaults.MRCLAM_NOISE`, one setting for all robots).
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
 import re
@@ -376,62 +375,3 @@ def find_dataset(n: int = 7) -> Path:
     raise InputError(
         mrclam_path(n), None, f"dataset {n} not found; run `python -m ekfslam fetch mrclam {n}`"
     )
-
-
-# ---------------------------------------------------------------------------------------------
-# Command line: python -m ekfslam convert mrclam DATASET --robot N --out DIR
-
-
-def convert_formats(subparsers: argparse._SubParsersAction) -> argparse._SubParsersAction:
-    """The sub-commands of ``convert`` (created on first use), one per input format.
-
-    Several modules add a format (``mrclam`` here, ``rosbag`` in `ekfslam.logs.rosbag`), so the
-    ``convert`` parser is shared: the first caller creates it, later ones find it.
-    """
-    parser = subparsers.choices.get("convert")
-    if parser is None:
-        parser = subparsers.add_parser(
-            "convert", help="convert a recorded log (MRCLAM, ROS bag) to a run folder"
-        )
-        parser.set_defaults(formats=parser.add_subparsers(dest="format", required=True))
-    return parser.get_default("formats")
-
-
-def add_cli(subparsers: argparse._SubParsersAction) -> None:
-    """Register ``convert mrclam``, and ``score-mrclam`` (`ekfslam.analysis.mrclam_tuning`)."""
-    from ekfslam.analysis.mrclam_tuning import add_score_cli
-
-    add_score_cli(subparsers)
-    p = convert_formats(subparsers).add_parser(
-        "mrclam", help="one robot of a MRCLAM dataset -> a run folder (with its Vicon truth)"
-    )
-    from ekfslam.cli import args as ca
-    from ekfslam.cli.main import ROBOTS, add_run_folder_arguments
-
-    p.add_argument("dataset", type=Path, help="a MRCLAM_Dataset<N> folder")
-    p.add_argument("--robot", type=ca.one_of(ROBOTS, "MRCLAM robots"), required=True,
-                   help="which robot (1-5)")  # fmt: skip
-    add_run_folder_arguments(p)
-    p.add_argument(
-        "--calibrate", action="store_true",
-        help="shift and scale the commands by MRCLAM_CALIBRATION (lag 0.25 s, v x0.90, w x0.935)",
-    )  # fmt: skip
-    p.set_defaults(func=_cmd_convert_mrclam)
-
-
-def _cmd_convert_mrclam(args: argparse.Namespace) -> int:
-    from ekfslam.logs.runlog import validate_run, write_run
-
-    run, report = load_mrclam(args.dataset, args.robot)
-    if args.calibrate:
-        from ekfslam.logs.mrclam.calibration import MRCLAM_CALIBRATION, calibrate_commands
-
-        run = calibrate_commands(run, MRCLAM_CALIBRATION)
-    try:  # load_mrclam checks what it reads; name the dataset, not a file the user never gave
-        validate_run(run)
-    except InputError as err:
-        raise InputError(args.dataset, None, f"robot {args.robot}: {err.problem}") from None
-    write_run(run, args.out, overwrite=args.overwrite)
-    print(report.summary())
-    print(f"wrote {args.out}")
-    return 0

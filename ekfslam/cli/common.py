@@ -1,0 +1,83 @@
+"""What the commands that replay a run share: the run from either format, and its noise.
+
+``run`` and ``tum`` take the same RUN argument (our run folder, a run of camera frames, or a
+MRCLAM dataset folder with ``--robot``) and the same noise options (`args.add_noise_arguments`).
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+from pathlib import Path
+
+from ekfslam.core.arena import SEED_ARENA
+from ekfslam.core.filter.config import FilterConfig
+from ekfslam.core.noise import NoiseConfig, default_config, default_noise
+from ekfslam.errors import InputError
+from ekfslam.logs.frames import has_frames_only
+from ekfslam.logs.mrclam.load import BARCODES, MrclamLoadReport, load_mrclam
+from ekfslam.logs.runlog import RunLog, read_run
+from ekfslam.vision.frames_run import FramesReport, read_frames_run
+
+
+def load_run(args: argparse.Namespace) -> tuple[RunLog, FramesReport | MrclamLoadReport | None]:
+    """A RunLog from either format, plus a note on anything the loader dropped.
+
+    The format is what the folder holds: run.json is our run format; Barcodes.dat, or any of
+    MRCLAM's other files (Landmark_Groundtruth.dat, RobotN_*.dat), a MRCLAM dataset.
+    """
+    folder: Path = args.run
+    if not folder.is_dir():
+        problem = "is not a folder" if folder.exists() else "run folder not found"
+        raise InputError(folder, None, f"{problem}; give a run folder or a MRCLAM dataset folder")
+    ours = (folder / "run.json").exists() or (folder / "run.json").is_symlink()
+    mrclam = (folder / "Barcodes.dat").exists() or (
+        not ours
+        and ((folder / "Landmark_Groundtruth.dat").exists() or any(folder.glob("Robot*_*.dat")))
+    )
+    if mrclam:
+        if not (folder / BARCODES).is_file():
+            raise InputError(
+                folder / BARCODES, None, "missing file; this MRCLAM dataset folder needs it"
+            )
+        if args.robot is None:
+            raise InputError(folder, None, "a MRCLAM dataset needs --robot N (1-5)")
+        run, report = load_mrclam(folder, args.robot)
+        return run, report
+    if args.robot is not None:
+        raise InputError(folder, None, "--robot is only for MRCLAM datasets (no Barcodes.dat)")
+    if not ours and not any((folder / name).exists() for name in ("controls.csv", "frames.csv")):
+        raise InputError(
+            folder, None, "no run.json (our run format) and no Barcodes.dat (MRCLAM) in this folder"
+        )
+    # A run logged as camera frames, with no detections.csv yet: detect the tags in its frames.
+    if has_frames_only(folder):
+        return read_frames_run(folder)
+    return read_run(folder), None
+
+
+def noise_from_args(args: argparse.Namespace, run: RunLog) -> tuple[NoiseConfig, FilterConfig]:
+    """The run's default noise and filter choices, with the command line's overrides."""
+    base = default_noise(run)
+    overrides = {
+        name: getattr(args, name)
+        for name in ("sigma_x", "sigma_y", "sigma_theta", "sigma_range", "sigma_bearing")
+        if getattr(args, name) is not None
+    }
+    noise = NoiseConfig(**{**base.__dict__, **overrides})
+    config = replace(
+        default_config(run), init=args.init, gate=None if args.gate == 0 else args.gate
+    )
+    if args.reinit_after is not None:
+        config = replace(config, reinit_after=args.reinit_after or None)
+    return noise, config
+
+
+def arena_half_size(run: RunLog) -> float | None:
+    """The seed's arena walls are drawn when the run's tag map is the seed's (m), else None."""
+    tags = run.meta.tag_map or {}
+    seed = SEED_ARENA.tag_map()
+    same = tags.keys() == seed.keys() and all(
+        abs(tags[i][0] - seed[i][0]) < 1e-9 and abs(tags[i][1] - seed[i][1]) < 1e-9 for i in seed
+    )
+    return SEED_ARENA.half_size if same else None

@@ -1,0 +1,234 @@
+"""``python -m ekfslam consistency nees|outliers|long-run|mrclam ...``: can we trust Σ?
+
+One sub-command per study, each with only its own options:
+
+- ``nees``: NEES/NIS over Monte Carlo runs against chi-square bands
+  (`ekfslam.analysis.consistency`);
+- ``outliers RATE``: the map error with and without the NIS gate when a share of the sightings
+  are outliers (`ekfslam.analysis.robustness.outlier_study`);
+- ``long-run [--steps N]``: drive N steps and check Σ's smallest eigenvalue (`robustness.long_run`);
+- ``mrclam [DATASET_DIR]``: pose NEES of every MRCLAM robot against Vicon
+  (`ekfslam.analysis.mrclam_consistency`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+from pathlib import Path
+
+from ekfslam.analysis import robustness
+from ekfslam.analysis.consistency import (
+    CONFIDENCE,
+    Consistency,
+    compare,
+    counts_line,
+)
+from ekfslam.analysis.mrclam_consistency import (
+    LINEARIZATIONS,
+    NOISE_SETTINGS,
+    mrclam_consistency,
+    table,
+)
+from ekfslam.cli import args as ca
+from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig
+from ekfslam.files import save_figure
+from ekfslam.logs.mrclam.defaults import MRCLAM_CONFIG
+from ekfslam.logs.mrclam.load import ROBOTS, find_dataset
+from ekfslam.sim.scenarios import SCENARIOS
+from ekfslam.viz.consistency import plot_consistency, plot_mrclam_nees
+
+
+def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) -> None:
+    """Register ``consistency`` and its studies (`help`: its line in `ekfslam.cli.main`)."""
+    parser = subparsers.add_parser(name, help=help, description=__doc__.split("\n\n")[0])
+    studies = parser.add_subparsers(dest="study", required=True, parser_class=ca.Parser)
+
+    p = studies.add_parser("nees", help="NEES/NIS over Monte Carlo runs against chi-square bands")
+    _runs_and_trajectory(p)
+    _linearization(p, "standard")
+    _seed(p)
+    _gate(p)
+    p.add_argument("--wheel-noise", type=ca.non_negative(10.0, why="rad/s"),
+                   help="override the scenario's wheel noise, rad/s")  # fmt: skip
+    ca.add_json_argument(p)
+    ca.add_plot_argument(p, "draw the averages and their bands to FILE")
+    p.set_defaults(func=cmd_nees)
+
+    p = studies.add_parser(
+        "outliers", help="outlier gating: the map error with the gate on and off"
+    )
+    p.add_argument("rate", type=ca.probability(), help="the outlier rate, in [0, 1] (e.g. 0.05)")
+    _runs_and_trajectory(p)
+    _seed(p)
+    _gate(p)
+    p.add_argument(
+        "--gate-after", type=ca.whole(1, 10**6), default=FilterConfig.gate_after,
+        help="gate_after (default: the filter's, %(default)s)",
+    )  # fmt: skip
+    ca.add_json_argument(p)
+    p.set_defaults(func=cmd_outliers)
+
+    p = studies.add_parser("long-run", help="a long Σ run: its smallest eigenvalue, its symmetry")
+    p.add_argument("--steps", type=ca.whole(1, 10**7), default=100_000,
+                   help="steps to drive (default: %(default)s)")  # fmt: skip
+    _linearization(p, "standard")
+    _seed(p)
+    ca.add_json_argument(p)
+    p.set_defaults(func=cmd_long_run)
+
+    p = studies.add_parser("mrclam", help="pose NEES of the MRCLAM robots against Vicon")
+    p.add_argument(
+        "dataset", nargs="?", type=Path, metavar="DATASET_DIR",
+        help="a MRCLAM dataset folder (default: find_dataset(7))",
+    )  # fmt: skip
+    p.add_argument(
+        "--noise", choices=sorted(NOISE_SETTINGS), default="map",
+        help="noise tuned for the map (MRCLAM_NOISE) or for consistency",
+    )  # fmt: skip
+    p.add_argument(
+        "--robots", type=int, nargs="+", choices=ROBOTS, default=list(ROBOTS),
+        help="which robots (default all five)",
+    )  # fmt: skip
+    _linearization(p, "both")
+    _gate(p)
+    ca.add_json_argument(
+        p,
+        "print one JSON object; keys: robots.<N>.<linearization>.{mean, median, "
+        "fraction_in_interval, heading_mean, aligned_error, rejected, rows}, "
+        "average.<linearization>.{same}, interval, ideal, confidence, noise_name, noise, "
+        "dataset_dir, rows_used, plot",
+    )
+    ca.add_plot_argument(p, "draw each robot's pose NEES over time to FILE")
+    p.set_defaults(func=cmd_mrclam)
+
+
+def _runs_and_trajectory(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--runs", type=ca.whole(1, 10_000), default=50,
+                   help="Monte Carlo runs, 1 to 10000 (default 50)")  # fmt: skip
+    p.add_argument("--trajectory", choices=SCENARIOS, default="octagon", help="the scenario")
+
+
+def _linearization(p: argparse.ArgumentParser, default: str) -> None:
+    p.add_argument("--linearization", choices=["standard", "fej", "both"], default=default,
+                   help="standard EKF, first-estimates Jacobian, or both "
+                   "(default: %(default)s)")  # fmt: skip
+
+
+def _seed(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--seed", type=ca.seed(), default=0,
+                   help="seed of the first run (then +1, +2...)")  # fmt: skip
+
+
+def _gate(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--gate", type=ca.non_negative(1e6), default=CHI2_2DOF_99,
+        help="NIS gate; 0 turns it off (%(default).2f)",
+    )  # fmt: skip
+
+
+def _linearizations(args: argparse.Namespace) -> tuple[str, ...]:
+    return ("standard", "fej") if args.linearization == "both" else (args.linearization,)
+
+
+def _emit(args: argparse.Namespace, data: dict, text: str) -> None:
+    print(json.dumps(data, indent=2, allow_nan=False) if args.json else text)
+
+
+def cmd_nees(args: argparse.Namespace) -> int:
+    lins = _linearizations(args)
+    results = compare(
+        args.trajectory, args.runs, lins, gate=None if args.gate == 0 else args.gate,
+        first_seed=args.seed, wheel_noise_sigma=args.wheel_noise,
+    )  # fmt: skip
+    out = {r.linearization: r.as_dict() for r in results}
+    if args.plot is not None:
+        save_figure(plot_consistency(results), args.plot)
+        for d in out.values():
+            d["plot"] = str(args.plot)
+    _emit(args, out if len(out) > 1 else out[lins[0]], "\n\n".join(map(nees_table, results)))
+    return 0
+
+
+def cmd_outliers(args: argparse.Namespace) -> int:
+    gate = None if args.gate == 0 else args.gate
+    study = robustness.outlier_study(
+        args.trajectory, args.runs, args.rate, gate=gate or CHI2_2DOF_99,
+        gate_after=args.gate_after, first_seed=args.seed,
+    )  # fmt: skip
+    lines = [
+        f"outliers at {study.rate:.0%} on {study.scenario}, {study.runs} runs: aligned map "
+        "error (eq. 17), mean over runs",
+        f"{'case':<10}{'gate':>6}{'error (m)':>11}{'median':>9}{'x clean':>9}"
+        f"{'injected':>10}{'rejected':>10}{'accepted':>10}",
+    ]
+    for c in study.cases:
+        lines.append(
+            f"{c.label:<10}{'on' if c.gate else 'off':>6}{c.map_error:>11.4f}"
+            f"{c.map_error_median:>9.4f}{c.ratio:>9.2f}{c.injected:>10}{c.rejected:>10}"
+            f"{c.accepted:>10}"
+        )
+    _emit(args, study.as_dict(), "\n".join(lines))
+    return 0
+
+
+def cmd_long_run(args: argparse.Namespace) -> int:
+    lins = _linearizations(args)
+    found = [robustness.long_run(args.steps, lin, seed=args.seed) for lin in lins]
+    out = {r.linearization: dataclasses.asdict(r) | {"passed": r.passed} for r in found}
+    for r in found:
+        out[r.linearization]["counts"] = dataclasses.asdict(r.counts)
+    text = "\n".join(
+        f"{r.linearization}: {r.steps} steps, {r.landmarks} landmarks: smallest eigenvalue / "
+        f"trace >= {r.min_eigenvalue_ratio:.3e} (step {r.worst_step}), asymmetry "
+        f"{r.max_asymmetry:.1e}, finite {r.finite}: {'PASS' if r.passed else 'FAIL'} "
+        f"({r.seconds:.1f} s)"
+        for r in found
+    )
+    _emit(args, out if len(found) > 1 else out[lins[0]], text)
+    return 0 if all(r.passed for r in found) else 1
+
+
+def cmd_mrclam(args: argparse.Namespace) -> int:
+    """The robot x linearization table, --json, --plot."""
+    folder = args.dataset if args.dataset is not None else find_dataset(7)
+    lins = LINEARIZATIONS if args.linearization == "both" else (args.linearization,)
+    config = dataclasses.replace(MRCLAM_CONFIG, gate=None if args.gate == 0 else args.gate)
+    study = mrclam_consistency(folder, args.noise, tuple(args.robots), lins, config)
+    out = study.as_dict()
+    if args.plot is not None:
+        save_figure(plot_mrclam_nees(study), args.plot)
+        out["plot"] = str(args.plot)
+    print(
+        json.dumps(out, indent=2, allow_nan=False) if args.json else table(study, out.get("plot"))
+    )
+    return 0
+
+
+def nees_table(r: Consistency) -> str:
+    """The text of ``consistency nees`` for one linearization: averages against their bands."""
+    d = r.as_dict()
+    lines = [
+        f"{r.scenario}, {r.runs} runs, {r.linearization} linearization, "
+        f"gate {'off' if r.gate is None else f'{r.gate:.2f}'}: "
+        f"averages over the runs and the {CONFIDENCE:.0%} chi-square band",
+        f"{'':<16}{'mean':>8}{'max':>8}   {'band (median)':<16}{'steps in band':>14}",
+    ]
+    for key, label in (("nees_pose", "pose NEES"), ("nees_heading", "heading NEES"),
+                       ("nees_landmark", "landmark NEES"), ("nis", "NIS")):  # fmt: skip
+        q = d[key]
+        band = f"[{q['band'][0]:.2f}, {q['band'][1]:.2f}]"
+        lines.append(
+            f"{label:<16}{q['mean']:>8.2f}{q['max']:>8.2f}   {band:<16}"
+            f"{q['fraction_in_band']:>13.1%}"
+        )
+    m = d["map_nees_final"]
+    lines.append(
+        f"final map NEES {m['mean']:.1f} ({m['dof']} dof, band [{m['band'][0]:.1f}, "
+        f"{m['band'][1]:.1f}])"
+    )
+    lines.append(counts_line(r.counts))
+    if "plot" in d:
+        lines.append(f"figure written to {d['plot']}")
+    return "\n".join(lines)

@@ -1,0 +1,123 @@
+"""``python -m ekfslam run RUN``: replay a run and print its Table 1 row (eq. 17), or --json."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+from pathlib import Path
+
+from ekfslam import pipeline
+from ekfslam.analysis.evaluation import SEED_TABLE1, RunSummary, seed_experiment, summarize
+from ekfslam.cli import args as ca
+from ekfslam.cli.common import arena_half_size, load_run, noise_from_args
+from ekfslam.files import save_figure
+from ekfslam.logs.mrclam.load import MrclamLoadReport
+from ekfslam.logs.runlog import RunLog
+from ekfslam.vision.frames_run import FramesReport
+from ekfslam.viz.tables import table1_lines
+
+
+def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) -> None:
+    """Register ``run`` (`help` is the one line of `ekfslam.cli.main.COMMANDS`)."""
+    run = subparsers.add_parser(name, help=help)
+    run.add_argument(
+        "run", type=Path, help="a run folder (run.json ...) or a MRCLAM dataset folder"
+    )
+    ca.add_robot_argument(run)
+    ca.add_plot_argument(run, "write the seed's Figure 2 for the run to FILE")
+    ca.add_json_argument(run)
+    run.add_argument(
+        "--align", choices=["mean_distance", "least_squares"], default="mean_distance",
+        help="eq. (17) objective: mean distance (the seed's) or least squares",
+    )  # fmt: skip
+    ca.add_noise_arguments(run)
+    run.set_defaults(func=cmd_run)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    run, report = load_run(args)
+    noise, config = noise_from_args(args, run)
+    result = pipeline.replay(run, noise, config)  # looked up here: tests may replace it
+    summary = summarize(run, result, method=args.align)
+    out = summary.as_dict()
+    out["seed_report"] = _seed_report(run)
+    out["detections"] = _detections_source(run, report)
+    if report is not None:
+        loading = report.as_dict()
+        out["loaded"], out["dropped"] = loading["loaded"], loading["dropped"]
+    if args.plot is not None:
+        # matplotlib (about 0.3 s) only for a figure: a plain replay stays fast to start
+        plotting = importlib.import_module("ekfslam.viz.plotting")
+        fig = plotting.figure2(
+            run, result, arena_half_size=arena_half_size(run), alignment=summary.alignment,
+            alignment_note=summary.alignment_note,
+        )  # fmt: skip
+        out["plot"] = str(save_figure(fig, args.plot))
+    if args.json:
+        print(json.dumps(out, indent=2, allow_nan=False))
+    else:
+        print(_table(summary, out, report))
+    return 0
+
+
+def _seed_report(run: RunLog) -> dict | None:
+    """The seed's Table 1 row (real robot) when `run` is the seed's experiment, else None.
+
+    Judged by run.json's ``simulation`` block (`ekfslam.analysis.evaluation.seed_experiment`), not
+    by the run's name: a square of another seed or size is not the run the seed measured.
+    """
+    trajectory = seed_experiment(run.meta.simulation)
+    if trajectory is None:
+        return None
+    x0, y0, theta0, mean_error = SEED_TABLE1[trajectory]
+    return {
+        "trajectory": trajectory,
+        "x0": x0,
+        "y0": y0,
+        "theta0": theta0,
+        "mean_error": mean_error,
+    }
+
+
+def _detections_source(run: RunLog, report: FramesReport | MrclamLoadReport | None) -> str:
+    """Which detections a replay used: detected from frames now, or read from which file."""
+    if isinstance(report, FramesReport):
+        return "frames (detected now)"
+    if isinstance(report, MrclamLoadReport):
+        return f"Robot{report.robot}_Measurement.dat"
+    if run.meta.frames is not None:  # `detect --in-place` wrote it: the frames are not looked at
+        return "detections.csv (not the run's frames; delete it to detect from them)"
+    return "detections.csv"
+
+
+def _table(summary: RunSummary, out: dict, report=None) -> str:
+    a = summary.alignment
+    seed = out.get("seed_report")  # only for a replay of the seed's own experiment (cmd_run)
+    row = None
+    if seed is not None and a is not None:
+        row = (seed["x0"], seed["y0"], seed["theta0"], seed["mean_error"])
+    lines = table1_lines(summary, row)
+    if a is not None:
+        sp = summary.start_pose
+        lines.append(f"recovered start pose: ({sp[0]:.3f}, {sp[1]:.3f}, {sp[2]:.3f})")
+    if summary.true_start is not None:
+        ts = summary.true_start
+        lines.append(f"true start pose:      ({ts[0]:.3f}, {ts[1]:.3f}, {ts[2]:.3f})")
+    lines.append(
+        f"landmarks {summary.landmarks_count}, predictions {summary.predictions}, "
+        f"updates accepted {summary.accepted}, rejected {summary.rejected}, "
+        f"refused {summary.refused}, initialised {summary.initialised}, "
+        f"re-initialised {summary.reinitialised}"
+        + (f", singular S {summary.singular}" if summary.singular else "")
+    )
+    if summary.ate_rmse is not None:
+        lines.append(f"trajectory ATE RMSE (no alignment) {summary.ate_rmse:.3f} m")
+    if "detections" in out:
+        lines.append(f"detections: {out['detections']}")
+    if report is not None:  # a loader's report: what it read, and what it dropped and why
+        lines += report.lines()
+    lines.append(f"replay {summary.seconds * 1e3:.1f} ms")
+    if "plot" in out:
+        lines.append(f"figure written to {out['plot']}")
+    return "\n".join(lines)

@@ -1,0 +1,36 @@
+"""``python -m ekfslam score-mrclam [N] [--json]``: the README's MRCLAM table, measured here."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+
+from ekfslam.analysis.mrclam_tuning import score_robots, scores_table
+from ekfslam.cli import args as ca
+from ekfslam.logs.mrclam.load import find_dataset
+
+
+def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) -> None:
+    """Register ``score-mrclam`` (`help` is the one line of `ekfslam.cli.main.COMMANDS`)."""
+    p = subparsers.add_parser(name, help=help)
+    p.add_argument("number", type=int, nargs="?", default=7, help="dataset number (default: 7)")
+    ca.add_json_argument(p, "print one JSON object: {robots: [{robot, landmarks, ...}, ...]}")
+    p.set_defaults(func=cmd_score_mrclam)
+
+
+def cmd_score_mrclam(args: argparse.Namespace) -> int:
+    # not found: one line saying how to fetch it (an InputError), not a traceback
+    scores = score_robots(find_dataset(args.number))
+    if args.json:
+        # JSON has no NaN: a robot without Vicon has no unaligned error or ATE
+        robots = [
+            {k: None if isinstance(v, float) and not math.isfinite(v) else v
+             for k, v in dataclasses.asdict(s).items()}
+            for s in scores
+        ]  # fmt: skip
+        print(json.dumps({"dataset": args.number, "robots": robots}, indent=2, allow_nan=False))
+    else:
+        print(scores_table(scores))
+    return 0
