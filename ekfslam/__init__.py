@@ -17,7 +17,14 @@ The names below are the public API the notebooks use. They are loaded on first u
 from __future__ import annotations
 
 import importlib
+import os
 from typing import TYPE_CHECKING, Any
+
+# OpenCV, its FFmpeg and its codecs print their own warnings on stderr (a damaged mp4 printed
+# 5,174 FFmpeg lines before our one-line error). They read these variables once, when cv2 is
+# first imported, and every cv2 import in ekfslam comes after this package's __init__.
+os.environ.setdefault("OPENCV_LOG_LEVEL", "OFF")
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
 
 if TYPE_CHECKING:
     from ekfslam.analysis.alignment import (
