@@ -30,7 +30,6 @@ import tracemalloc
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -45,9 +44,7 @@ from ekfslam.logs.mrclam.load import load_mrclam
 from ekfslam.logs.runlog import read_run
 from ekfslam.pipeline import replay
 from ekfslam.places import seed_runs_dir, shared_data_dir
-
-if TYPE_CHECKING:  # the literal filter pulls in sympy: import it only when benchmarking
-    from ekfslam.teaching.reference import LiteralEKFSLAM
+from ekfslam.teaching.reference import LiteralEKFSLAM
 
 SIZES = (10, 50, 100, 200, 400, 800, 1000)
 #: Largest map size: Σ of a 2000-landmark map is 4003² float64, 128 MB, and one literal step
@@ -209,8 +206,6 @@ def literal_twin(f: EKFSLAM) -> LiteralEKFSLAM:
     """
     # inside: the literal filter loads sympy (0.18 s), and the command table still imports this
     # module for --help; at the top once the table is lazy (F2)
-    from ekfslam.teaching.reference import LiteralEKFSLAM
-
     lit = LiteralEKFSLAM(f.pose, f.pose_covariance, f.config)
     lit.mu, lit.Sigma, lit.slot = f.mu.copy(), f.Sigma.copy(), dict(f.slot)
     lit._sightings = [2] * f.n_landmarks

@@ -23,14 +23,26 @@ import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam.core.filter.history import History
 from ekfslam.errors import InputError
+from ekfslam.files import atomic_write_text
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runlog import GroundTruth, RunLog
-from ekfslam.pipeline import ReplayResult
+
+
+class ReplayLike(Protocol):
+    """What `export_tum` reads of a replay (`ekfslam.pipeline.ReplayResult` has it): the history
+    of estimates and the final map. A protocol, so that a log format does not depend on the
+    filter that produced the estimate."""
+
+    history: History
+    landmarks: Mapping[int, Any]
+
 
 Array = NDArray[np.float64]
 
@@ -100,8 +112,6 @@ def write_tum(path: str | os.PathLike, rows: ArrayLike) -> Path:
     if not np.isfinite(rows).all():
         raise ValueError(f"{path}: non-finite values cannot be written in the TUM format")
     lines = [" ".join(repr(v) for v in row) for row in rows.tolist()]
-    from ekfslam.files import atomic_write_text
-
     return atomic_write_text(path, "".join(line + "\n" for line in lines))
 
 
@@ -146,7 +156,7 @@ def read_tum(path: str | os.PathLike) -> tuple[Array, Array]:
     return table[:, 0].copy(), poses
 
 
-def export_tum(run: RunLog, result: ReplayResult, folder: str | os.PathLike) -> dict[str, Path]:
+def export_tum(run: RunLog, result: ReplayLike, folder: str | os.PathLike) -> dict[str, Path]:
     """Write a replay's trajectory and map, and the run's truth where it has one, as TUM files.
 
     Files (in `folder`, created if needed): ``trajectory.tum`` (the estimate after every event,
