@@ -31,6 +31,8 @@ MAX_MOTION_SIGMA = 10.0  # m/√s and rad/√s
 MAX_RANGE_SIGMA = 100.0  # m
 #: MRCLAM's robots, the values of ``--robot``.
 ROBOTS = range(1, 6)
+#: MRCLAM's nine datasets; a command names one by its folder or by its number
+MRCLAM_DATASETS = range(1, 10)
 
 Check = Callable[[argparse.Namespace], str | None]
 
@@ -283,6 +285,24 @@ def new_run_folder(option: str = "--out") -> Check:
 def add_json_argument(p: argparse.ArgumentParser, what: str = "print one JSON object") -> None:
     """``--json``: the result as one JSON object on stdout instead of the text table."""
     p.add_argument("--json", action="store_true", help=what)
+
+
+def mrclam_dataset(text: str) -> Path | int:
+    """A MRCLAM dataset, named one way by every command: its folder, or its number 1-9.
+
+    A number is returned as an int, found later by `ekfslam.logs.mrclam.load.find_dataset`
+    (the shared data, then the download cache), so parsing stays free of numpy.
+    """
+    path = Path(text).expanduser()
+    if path.is_dir():
+        return path
+    if text.strip().isdigit():
+        n = int(text)
+        if n in MRCLAM_DATASETS:
+            return n
+        raise argparse.ArgumentTypeError(f"the MRCLAM datasets are 1 to 9; got {text!r}")
+    problem = "is not a folder" if path.exists() else "does not exist"
+    raise argparse.ArgumentTypeError(f"{text} {problem}; give a MRCLAM dataset folder or 1-9")
 
 
 def add_robot_argument(p: argparse.ArgumentParser) -> None:

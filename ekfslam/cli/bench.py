@@ -18,6 +18,7 @@ from ekfslam.analysis.bench import (
     write_outputs,
 )
 from ekfslam.cli import args as ca
+from ekfslam.cli.common import mrclam_folder
 from ekfslam.viz.bench import plot_costs
 
 DEFAULT_OUT = Path("out/bench")
@@ -36,14 +37,19 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     p.add_argument("--repeats", type=ca.whole(1, 1000),
                    help="repeats of every measurement, >= 1 (a smoke run: 1; default: the "
                    "config's, fewer with --quick)")  # fmt: skip
-    p.add_argument("--mrclam", type=ca.input_path,
-                   help="MRCLAM Dataset 7 folder (default: shared data)")  # fmt: skip
+    p.add_argument("--mrclam", type=ca.mrclam_dataset, metavar="DATASET",
+                   help="the MRCLAM dataset to replay robot 1 of: its folder or its number "
+                   "1-9 (default: 7, from the shared data or the download cache)")  # fmt: skip
     p.add_argument("--no-mrclam", action="store_true", help="skip the MRCLAM replay")
     p.set_defaults(func=cmd_bench)
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    kwargs: dict = {"mrclam_dir": None if args.no_mrclam else args.mrclam or default_mrclam_dir()}
+    kwargs: dict = {
+        "mrclam_dir": None
+        if args.no_mrclam
+        else (mrclam_folder(args.mrclam) if args.mrclam else default_mrclam_dir())
+    }
     if args.no_mrclam:
         kwargs["mrclam_note"] = MRCLAM_SKIPPED
     if args.sizes:

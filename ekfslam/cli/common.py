@@ -10,14 +10,20 @@ import argparse
 from dataclasses import replace
 from pathlib import Path
 
+from ekfslam.cli import args as ca
 from ekfslam.core.arena import SEED_ARENA
 from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.noise import NoiseConfig, default_config, default_noise
 from ekfslam.errors import InputError
 from ekfslam.logs.frames import has_frames_only
-from ekfslam.logs.mrclam.load import BARCODES, MrclamLoadReport, load_mrclam
+from ekfslam.logs.mrclam.load import BARCODES, MrclamLoadReport, find_dataset, load_mrclam
 from ekfslam.logs.runlog import RunLog, read_run
 from ekfslam.vision.frames_run import FramesReport, read_frames_run
+
+
+def mrclam_folder(dataset: Path | int) -> Path:
+    """The folder of a dataset named by `ekfslam.cli.args.mrclam_dataset` (a folder or 1-9)."""
+    return find_dataset(dataset) if isinstance(dataset, int) else dataset
 
 
 def load_run(args: argparse.Namespace) -> tuple[RunLog, FramesReport | MrclamLoadReport | None]:
@@ -27,6 +33,8 @@ def load_run(args: argparse.Namespace) -> tuple[RunLog, FramesReport | MrclamLoa
     MRCLAM's other files (Landmark_Groundtruth.dat, RobotN_*.dat), a MRCLAM dataset.
     """
     folder: Path = args.run
+    if not folder.exists() and str(folder).isdigit() and int(str(folder)) in ca.MRCLAM_DATASETS:
+        folder = find_dataset(int(str(folder)))  # `run 7 --robot 1`: MRCLAM Dataset 7
     if not folder.is_dir():
         problem = "is not a folder" if folder.exists() else "run folder not found"
         raise InputError(folder, None, f"{problem}; give a run folder or a MRCLAM dataset folder")

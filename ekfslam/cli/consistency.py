@@ -7,7 +7,7 @@ One sub-command per study, each with only its own options:
 - ``outliers RATE``: the map error with and without the NIS gate when a share of the sightings
   are outliers (`ekfslam.analysis.robustness.outlier_study`);
 - ``long-run [--steps N]``: drive N steps and check Σ's smallest eigenvalue (`robustness.long_run`);
-- ``mrclam [DATASET_DIR]``: pose NEES of every MRCLAM robot against Vicon
+- ``mrclam [DATASET]``: pose NEES of every MRCLAM robot against Vicon
   (`ekfslam.analysis.mrclam_consistency`).
 """
 
@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-from pathlib import Path
 
 from ekfslam.analysis import robustness
 from ekfslam.analysis.consistency import (
@@ -32,10 +31,11 @@ from ekfslam.analysis.mrclam_consistency import (
     table,
 )
 from ekfslam.cli import args as ca
+from ekfslam.cli.common import mrclam_folder
 from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig
 from ekfslam.files import save_figure
 from ekfslam.logs.mrclam.defaults import MRCLAM_CONFIG
-from ekfslam.logs.mrclam.load import ROBOTS, find_dataset
+from ekfslam.logs.mrclam.load import ROBOTS
 from ekfslam.sim.scenarios import SCENARIOS
 from ekfslam.viz.consistency import plot_consistency, plot_mrclam_nees
 
@@ -80,8 +80,8 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
 
     p = studies.add_parser("mrclam", help="pose NEES of the MRCLAM robots against Vicon")
     p.add_argument(
-        "dataset", nargs="?", type=Path, metavar="DATASET_DIR",
-        help="a MRCLAM dataset folder (default: find_dataset(7))",
+        "dataset", nargs="?", type=ca.mrclam_dataset, default=7, metavar="DATASET",
+        help="a MRCLAM dataset: its folder or its number 1-9 (default: 7)",
     )  # fmt: skip
     p.add_argument(
         "--noise", choices=sorted(NOISE_SETTINGS), default="map",
@@ -192,7 +192,7 @@ def cmd_long_run(args: argparse.Namespace) -> int:
 
 def cmd_mrclam(args: argparse.Namespace) -> int:
     """The robot x linearization table, --json, --plot."""
-    folder = args.dataset if args.dataset is not None else find_dataset(7)
+    folder = mrclam_folder(args.dataset)
     lins = LINEARIZATIONS if args.linearization == "both" else (args.linearization,)
     config = dataclasses.replace(MRCLAM_CONFIG, gate=None if args.gate == 0 else args.gate)
     study = mrclam_consistency(folder, args.noise, tuple(args.robots), lins, config)

@@ -11,6 +11,7 @@ import re
 from pathlib import Path
 
 from ekfslam.cli import args as ca
+from ekfslam.cli.common import mrclam_folder
 from ekfslam.core.kinematics import MecanumGeometry
 from ekfslam.errors import InputError
 from ekfslam.logs import rosbag
@@ -32,7 +33,8 @@ def _add_mrclam(formats: argparse._SubParsersAction) -> None:
     p = formats.add_parser(
         "mrclam", help="one robot of a MRCLAM dataset -> a run folder (with its Vicon truth)"
     )
-    p.add_argument("dataset", type=Path, help="a MRCLAM_Dataset<N> folder")
+    p.add_argument("dataset", type=ca.mrclam_dataset,
+                   help="a MRCLAM dataset: its folder or its number 1-9")  # fmt: skip
     p.add_argument("--robot", type=ca.one_of(ca.ROBOTS, "MRCLAM robots"), required=True,
                    help="which robot (1-5)")  # fmt: skip
     ca.add_run_folder_arguments(p)
@@ -44,13 +46,14 @@ def _add_mrclam(formats: argparse._SubParsersAction) -> None:
 
 
 def cmd_convert_mrclam(args: argparse.Namespace) -> int:
-    run, report = load_mrclam(args.dataset, args.robot)
+    folder = mrclam_folder(args.dataset)
+    run, report = load_mrclam(folder, args.robot)
     if args.calibrate:
         run = calibrate_commands(run, MRCLAM_CALIBRATION)
     try:  # load_mrclam checks what it reads; name the dataset, not a file the user never gave
         validate_run(run)
     except InputError as err:
-        raise InputError(args.dataset, None, f"robot {args.robot}: {err.problem}") from None
+        raise InputError(folder, None, f"robot {args.robot}: {err.problem}") from None
     write_run(run, args.out, overwrite=args.overwrite)
     print(report.summary())
     print(f"wrote {args.out}")

@@ -92,11 +92,11 @@ CASES: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "fetch cache is a file": ("fetch mrclam 7 --cache {file}", "--cache", ()),
     "fetch url scheme": ("fetch mrclam 7 --url ftp://example.org", "--url", ()),
     # convert mrclam
-    "convert mrclam robot zero": ("convert mrclam {tmp}/m --robot 0 --out {tmp}/mr", "--robot",
+    "convert mrclam robot zero": ("convert mrclam {tmp} --robot 0 --out {tmp}/mr", "--robot",
                                   ("mr",)),
-    "convert mrclam robot text": ("convert mrclam {tmp}/m --robot x --out {tmp}/mr", "--robot",
+    "convert mrclam robot text": ("convert mrclam {tmp} --robot x --out {tmp}/mr", "--robot",
                                   ("mr",)),
-    "convert mrclam out is a file": ("convert mrclam {tmp}/m --robot 1 --out {file}", "--out", ()),
+    "convert mrclam out is a file": ("convert mrclam {tmp} --robot 1 --out {file}", "--out", ()),
     "convert unknown format": ("convert kitti x --out {tmp}/mr", "format", ("mr",)),
     # convert rosbag
     "rosbag pitch over 90 degrees": (f"{BAG} --camera-pitch 2", "--camera-pitch", ("bagrun",)),
@@ -151,6 +151,13 @@ CASES: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "consistency long-run zero": ("consistency long-run --steps 0", "--steps", ()),
     "consistency gate-after zero": ("consistency outliers 0.1 --gate-after 0", "--gate-after", ()),
     "consistency robot nine": ("consistency mrclam --robots 9", "--robots", ()),
+    # a MRCLAM dataset is named one way everywhere: its folder or its number 1-9
+    "consistency mrclam dataset ten": ("consistency mrclam 10", "DATASET", ()),
+    "score-mrclam dataset zero": ("score-mrclam 0", "DATASET", ()),
+    "score-mrclam dataset missing folder": ("score-mrclam {tmp}/nowhere", "DATASET", ()),
+    "bench mrclam dataset twelve": ("bench --mrclam 12", "--mrclam", ()),
+    "convert mrclam dataset ninety-nine": ("convert mrclam 99 --robot 1 --out {tmp}/mr99",
+                                           "dataset", ("{tmp}/mr99",)),
     "consistency two modes": ("consistency outliers 0.1 --steps 5", "--steps", ()),
     # bench
     "bench sizes negative": ("bench --sizes -5 --out {tmp}/bench", "--sizes", ("bench",)),

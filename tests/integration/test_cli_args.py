@@ -227,3 +227,14 @@ def test_detect_out_into_a_missing_folder_writes_there(tmp_path, capsys):
     assert main(["detect", str(run), "--out", str(out)]) == 0
     assert out.read_text().startswith("t,tag_id,range,bearing\n")
     assert f"wrote {out}:" in capsys.readouterr().out
+
+
+def test_a_mrclam_dataset_is_a_folder_or_a_number(tmp_path):
+    assert ca.mrclam_dataset(str(tmp_path)) == tmp_path
+    assert ca.mrclam_dataset("7") == 7 and ca.mrclam_dataset("1") == 1
+    for bad, says in [("0", "1 to 9"), ("10", "1 to 9"), (str(tmp_path / "no"), "does not exist")]:
+        with pytest.raises(argparse.ArgumentTypeError, match=says):
+            ca.mrclam_dataset(bad)
+    (tmp_path / "f.txt").write_text("x")
+    with pytest.raises(argparse.ArgumentTypeError, match="is not a folder"):
+        ca.mrclam_dataset(str(tmp_path / "f.txt"))
