@@ -14,13 +14,13 @@
 
 Every figure is a median over repeats; replays are interleaved so that a busy machine slows all
 of them alike. Machines are shared and noisy: compare figures from one run. The results go to
-``DIR/bench.md`` (the table), ``DIR/bench.json`` and ``DIR/cost_vs_n.png`` (log-log plot).
+``DIR/bench.md`` (the table, `ekfslam.analysis.bench_report`), ``DIR/bench.json`` and
+``DIR/cost_vs_n.png`` (log-log plot, `ekfslam.viz.bench`).
 """
 
 from __future__ import annotations
 
 import datetime
-import json
 import math
 import os
 import platform
@@ -33,12 +33,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ekfslam.analysis.startup import startup_lines, startup_times
+from ekfslam.analysis.startup import startup_times
 from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.models import observation_noise
 from ekfslam.core.noise import default_noise
 from ekfslam.errors import ConfigError
-from ekfslam.files import atomic_write_text
 from ekfslam.logs.mrclam.fetch import mrclam_path
 from ekfslam.logs.mrclam.load import load_mrclam
 from ekfslam.logs.runlog import read_run
@@ -204,8 +203,6 @@ def literal_twin(f: EKFSLAM) -> LiteralEKFSLAM:
     Set directly: growing it one landmark at a time is itself O(n^3). Its per-landmark
     bookkeeping (sightings, first estimates) has no public setter, so it is filled here.
     """
-    # inside: the literal filter loads sympy (0.18 s), and the command table still imports this
-    # module for --help; at the top once the table is lazy (F2)
     lit = LiteralEKFSLAM(f.pose, f.pose_covariance, f.config)
     lit.mu, lit.Sigma, lit.slot = f.mu.copy(), f.Sigma.copy(), dict(f.slot)
     lit._sightings = [2] * f.n_landmarks
@@ -325,7 +322,7 @@ def peak_memory_mb(n: int, steps: int = 50) -> float:
         tracemalloc.stop()
 
 
-# ------------------------------------------------------------------------------- the report
+# ------------------------------------------------------------------------------- the results
 def run_benchmarks(config: BenchConfig, command: str = "python -m ekfslam bench") -> dict:
     """Everything above, with the date, the machine and the command: a JSON-ready dict."""
     result = {
@@ -346,71 +343,3 @@ def run_benchmarks(config: BenchConfig, command: str = "python -m ekfslam bench"
     result["peak_memory_method"] = "tracemalloc"
     result.update(startup_times(config.startup_repeats, config.runs_dir))
     return result
-
-
-def _fmt(value: float | None, scale: float = 1.0, digits: int = 1) -> str:
-    return "–" if value is None else f"{value * scale:,.{digits}f}"
-
-
-def markdown_table(r: dict) -> str:
-    """The results as markdown: replays, then per-step costs against n, then the summary."""
-    m = r["machine"]
-    lines = [
-        f"ekfslam benchmark, {r['date']}, {m['cores']} cores (load {_fmt(m['load_average_1min'])}),"
-        f" Python {m['python']}, numpy {m['numpy']}. Command: `{r['command']}`. Medians.",
-        "",
-        "| replay | median | events | events/s |",
-        "|---|---:|---:|---:|",
-    ]
-    for key, name in RUNS.items():
-        ms, eps = r["replay_ms"][key], r["replay_events_per_s"][key]
-        events = r.get("replay_events", {}).get(key)
-        lines.append(
-            f"| {name} | {_fmt(ms)} ms | {_fmt(events, digits=0)} | {_fmt(eps, digits=0)} |"
-        )
-    note = r.get("mrclam_note")
-    lines.append(
-        f"| MRCLAM Dataset 7, robot {MRCLAM_ROBOT}{f' ({note})' if note else ''} | "
-        f"{_fmt(r['mrclam_replay_s'], digits=3)} s | "
-        f"{_fmt(r['mrclam_events'], digits=0)} | {_fmt(r['mrclam_events_per_s'], digits=0)} |"
-    )
-    lines += [
-        "",
-        "| n | predict (µs) | update (µs) | literal predict (ms) | literal update (ms) "
-        "| update ratio |",
-        "|---:|---:|---:|---:|---:|---:|",
-    ]
-    eff, lit = r["cost_s"]["efficient"], r["cost_s"]["literal"]
-    for n in r["sizes"]:
-        ratio = r["update_ratio_vs_literal"][n]
-        lines.append(
-            f"| {n} | {_fmt(eff['predict'][n], 1e6)} | {_fmt(eff['update'][n], 1e6)} | "
-            f"{_fmt(lit['predict'][n], 1e3, 2)} | {_fmt(lit['update'][n], 1e3, 2)} | "
-            f"{'–' if ratio is None else f'{ratio:,.0f}x'} |"
-        )
-    lo, hi = r["update_slope_between"]
-    fej = r["fej_step"]
-    lines += [
-        "",
-        f"- efficient update, log-log slope n = {lo} to {hi}: "
-        f"{_fmt(r['update_slope_100_1000'], digits=2)}",
-        f"- update at n = {hi} / floor (one in-place `Sigma -= A @ B`, rank 2, same size, "
-        f"{_fmt(r['floor_s'], 1e3, 2)} ms): {_fmt(r['update_vs_floor_1000'], digits=2)}x; "
-        f"one pass `Sigma *= 1.0` takes {_fmt(r['inplace_pass_s'], 1e3, 2)} ms",
-        f"- peak memory of the n = {hi} run ({r['peak_memory_method']}): "
-        f"{_fmt(r['peak_mb_1000'])} MB",
-        f"- FEJ / standard: octagon replay "
-        f"{_fmt(r['fej_vs_standard']['replay_octagon'], digits=2)}x, "
-        f"predict {_fmt(fej.get('predict'), digits=2)}x and update "
-        f"{_fmt(fej.get('update'), digits=2)}x at n = {fej.get('update_n')}",
-    ]
-    if "startup_s" in r:  # results written before the startup section have none
-        lines += startup_lines(r)
-    return "\n".join(lines)
-
-
-def write_outputs(r: dict, out: Path) -> None:
-    # each file is renamed into place when complete: a failed run keeps the previous outputs;
-    # the figure is the caller's to draw (`ekfslam.viz.bench.plot_costs`): analysis draws none
-    atomic_write_text(out / "bench.md", markdown_table(r) + "\n")
-    atomic_write_text(out / "bench.json", json.dumps(r, indent=2, allow_nan=False) + "\n")

@@ -13,10 +13,9 @@ from ekfslam.analysis.bench import (
     SIZES,
     BenchConfig,
     default_mrclam_dir,
-    markdown_table,
     run_benchmarks,
-    write_outputs,
 )
+from ekfslam.analysis.bench_report import markdown_table, write_outputs
 from ekfslam.cli import args as ca
 from ekfslam.cli.common import mrclam_folder
 from ekfslam.viz.bench import plot_costs

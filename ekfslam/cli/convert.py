@@ -17,7 +17,8 @@ from ekfslam.errors import InputError
 from ekfslam.logs import rosbag
 from ekfslam.logs.mrclam.calibration import MRCLAM_CALIBRATION, calibrate_commands
 from ekfslam.logs.mrclam.load import load_mrclam
-from ekfslam.logs.rosbag import RosbagSpec, read_rosbag
+from ekfslam.logs.rosbag import read_rosbag
+from ekfslam.logs.rosbag_spec import RosbagSpec
 from ekfslam.logs.runlog import validate_run, write_run
 
 

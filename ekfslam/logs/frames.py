@@ -25,8 +25,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.errors import InputError
 from ekfslam.geometry import wrap_angle
+from ekfslam.logs.csvtable import read_columns
 from ekfslam.logs.runjson import FramesSpec, RunMeta, read_meta
-from ekfslam.logs.runlog import DETECTIONS_CSV, RUN_JSON, read_columns
+from ekfslam.logs.runlog import DETECTIONS_CSV, RUN_JSON
 
 Array = NDArray[np.float64]
 

@@ -1,10 +1,12 @@
 """run.json: the metadata of a run (format, robot, camera, tag map, frames), read and written.
 
 `ekfslam.logs.runlog` reads and writes the whole run folder; this module holds the one JSON file's
-part: the `RunMeta` dataclass (with the camera intrinsics, the printed tag size and the frames of
-a run logged as camera frames), its strict reader (one `InputError` naming the line of the first
-problem), its checks, and its deterministic writer. The keys are documented in
-``data/README.md``; all the camera keys are optional, so ``format_version`` stays 1.
+schema: the `RunMeta` dataclass (with the camera intrinsics, the printed tag size and the frames of
+a run logged as camera frames), its reader (one `InputError` naming the line of the first
+problem), its checks, and its deterministic writer. The JSON text itself (no duplicate keys, no
+NaN, bounded integers and nesting, line numbers, sorted keys) is `ekfslam.logs.jsonsafe`'s. The
+keys are documented in ``data/README.md``; all the camera keys are optional, so
+``format_version`` stays 1.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from ekfslam.core.kinematics import MecanumGeometry
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.errors import InputError
 from ekfslam.logs.csvtable import read_lines
+from ekfslam.logs.jsonsafe import dump_json, is_number, line_of, load_json, shown
 from ekfslam.logs.mrclam import defaults as mrclam_defaults
 from ekfslam.plausibility import implausible_pose as _implausible
 
@@ -158,7 +161,7 @@ def check_meta(meta: RunMeta, path: Path) -> None:
         problem = _implausible(xy, f"tag_map[{tag}]", pose=False)
         require(problem is None, str(problem))
     try:
-        _dump_json(meta.simulation, indent=2)
+        dump_json(meta.simulation, indent=2)
     except (TypeError, ValueError) as err:
         raise InputError(path, None, f"simulation is not plain JSON data: {err}") from None
     require(meta.camera is None or isinstance(meta.camera, Camera), "camera must be a Camera")
@@ -184,76 +187,14 @@ _CAMERA_KEYS = ("image_size", "fx", "fy", "cx", "cy", "distortion", "mount_heigh
 _CAMERA_REQUIRED = ("image_size", "fx", "fy", "cx", "cy")
 
 
-class _JsonProblem(Exception):
-    def __init__(self, token: str, problem: str, occurrence: int = 0) -> None:
-        super().__init__(problem)
-        self.token, self.problem, self.occurrence = token, problem, occurrence
-
-
-def _no_duplicate_keys(pairs: list[tuple[str, Any]]) -> dict:
-    seen: dict[str, Any] = {}
-    for key, value in pairs:
-        if key in seen:
-            raise _JsonProblem(f'"{key}"', f"key {key!r} appears twice", occurrence=1)
-        seen[key] = value
-    return seen
-
-
-def _no_constants(name: str) -> float:
-    raise _JsonProblem(name, f"{name} is not allowed: every number must be finite")
-
-
-#: The most digits an integer in run.json may have (Python refuses to parse more than 4,300;
-#: beyond 309 it is no float either, which the checks of each key report).
-_MAX_DIGITS = 1000
-
-
-def _int_of(text: str) -> int:
-    # json would hand a 5,000-digit integer to int(), which refuses it with a bare ValueError
-    if len(text.lstrip("-")) > _MAX_DIGITS:
-        raise _JsonProblem(text[:40], f"an integer of {len(text)} digits is too large a number")
-    return int(text)
-
-
-def _deepest_line(text: str, limit: int = 100) -> int | None:
-    """1-based line where brackets first nest deeper than `limit` (strings are not skipped)."""
-    depth = 0
-    for i, ch in enumerate(text):
-        depth += (ch in "[{") - (ch in "]}")
-        if depth > limit:
-            return text.count("\n", 0, i) + 1
-    return None
-
-
-def _line_of(text: str, token: str, occurrence: int = 0) -> int | None:
-    """1-based line of the `occurrence`-th appearance of `token` (a best effort for messages)."""
-    hits = [m.start() for m in re.finditer(re.escape(token), text)]
-    return text.count("\n", 0, hits[occurrence]) + 1 if len(hits) > occurrence else None
-
-
 def read_meta(path: str | os.PathLike) -> RunMeta:
     """Read and check run.json at `path`; `InputError` names the line of the first problem."""
     path = Path(path)
     text = "\n".join(read_lines(path))
-    try:
-        doc = json.loads(
-            text,
-            object_pairs_hook=_no_duplicate_keys,
-            parse_constant=_no_constants,
-            parse_int=_int_of,
-        )
-    except RecursionError:
-        line = _deepest_line(text)
-        raise InputError(path, line, "nested too deeply to be run metadata") from None
-    except json.JSONDecodeError as err:
-        raise InputError(
-            path, err.lineno, f"invalid JSON: {err.msg} (column {err.colno})"
-        ) from None
-    except _JsonProblem as err:
-        raise InputError(path, _line_of(text, err.token, err.occurrence), err.problem) from None
+    doc = load_json(text, path, "run metadata")
 
     def fail(key: str | None, problem: str) -> NoReturn:
-        raise InputError(path, _line_of(text, f'"{key}"') if key else None, problem)
+        raise InputError(path, line_of(text, f'"{key}"') if key else None, problem)
 
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         found = repr(doc.get("format")) if isinstance(doc, dict) else "not a JSON object"
@@ -288,9 +229,9 @@ def read_meta(path: str | os.PathLike) -> RunMeta:
         fail("source", f'"source" is {doc["source"]!r}, expected "simulated" or "recorded"')
 
     def numbers(key: str, value: Any, n: int, what: str, pose: bool = False) -> Array:
-        ok = isinstance(value, list) and len(value) == n and all(_is_number(v) for v in value)
+        ok = isinstance(value, list) and len(value) == n and all(is_number(v) for v in value)
         if not ok:
-            fail(key, f"{what} must be {n} finite numbers, got {_shown(value)}")
+            fail(key, f"{what} must be {n} finite numbers, got {shown(value)}")
         array = np.array(value, dtype=np.float64)
         problem = _implausible(array, what, pose)
         if problem:
@@ -298,7 +239,7 @@ def read_meta(path: str | os.PathLike) -> RunMeta:
         return array
 
     def number(key: str, value: Any, what: str) -> float:
-        if not _is_number(value):
+        if not is_number(value):
             fail(key, f"{what} must be a finite number, got {json.dumps(value)}")
         return float(value)
 
@@ -314,7 +255,7 @@ def read_meta(path: str | os.PathLike) -> RunMeta:
     def positive(key: str, value: Any, what: str, nullable: bool) -> float | None:
         if value is None and nullable:
             return None
-        if not _is_number(value) or value <= 0:
+        if not is_number(value) or value <= 0:
             fail(key, f"{what} must be a positive number{' or null' if nullable else ''}")
         return float(value)
 
@@ -354,7 +295,7 @@ def read_meta(path: str | os.PathLike) -> RunMeta:
         if not (isinstance(size, list) and len(size) == 2 and all(_is_count(v) for v in size)):
             fail("image_size", '"image_size" must be [width, height] in whole pixels')
         dist = spec.get("distortion", [0.0] * 5)
-        if not (isinstance(dist, list) and len(dist) in (4, 5) and all(map(_is_number, dist))):
+        if not (isinstance(dist, list) and len(dist) in (4, 5) and all(map(is_number, dist))):
             fail("distortion", '"distortion" must be [k1, k2, p1, p2] or [k1, k2, p1, p2, k3]')
         camera = Camera(
             *size,
@@ -381,7 +322,7 @@ def read_meta(path: str | os.PathLike) -> RunMeta:
             fail("frames", 'a run with "frames" needs "camera" (intrinsics) and "tags" (size)')
     defaults = doc.get("defaults")
     if defaults is not None and (not isinstance(defaults, str) or defaults not in TUNED_DEFAULTS):
-        fail("defaults", f'"defaults" is {_shown(defaults)}: {_DEFAULTS_PROBLEM}')
+        fail("defaults", f'"defaults" is {shown(defaults)}: {_DEFAULTS_PROBLEM}')
     return RunMeta(
         name=doc["name"],
         source=doc["source"],
@@ -411,41 +352,6 @@ def _is_count(value: Any) -> bool:
     return isinstance(value, int) and not isinstance(value, bool) and value > 0
 
 
-def _is_number(value: Any) -> bool:
-    if not isinstance(value, int | float) or isinstance(value, bool):
-        return False
-    try:
-        return math.isfinite(value)
-    except OverflowError:  # an integer beyond the largest float
-        return False
-
-
-def _shown(value: Any) -> str:
-    """`value` as JSON for a message, cut to 60 characters (a huge integer stays readable)."""
-    text = json.dumps(value)
-    return text if len(text) <= 60 else text[:57] + "..."
-
-
-def _plain(value: Any) -> Any:
-    """json.dumps hook: numpy scalars and arrays become plain numbers and lists."""
-    if isinstance(value, np.generic | np.ndarray):
-        return value.tolist()
-    raise TypeError(f"{type(value).__name__} is not JSON data")
-
-
-def _dump_json(value: Any, indent: int | None = None) -> str:
-    separators = (",", ": ") if indent else (", ", ": ")
-    return json.dumps(
-        value,
-        sort_keys=True,
-        allow_nan=False,
-        default=_plain,
-        indent=indent,
-        separators=separators,
-        ensure_ascii=False,
-    )
-
-
 def meta_json(meta: RunMeta) -> str:
     """run.json text: fixed key order, one key per line, tag_map sorted by id, floats by repr."""
     robot = None
@@ -464,33 +370,27 @@ def meta_json(meta: RunMeta) -> str:
         "camera_mounting": {"x": x, "y": y, "yaw": yaw},
         "nominal_start": np.asarray(meta.nominal_start, dtype=np.float64).tolist(),
     }
-    lines = [f'  "{key}": {_dump_json(value)}' for key, value in entries.items()]
+    lines = [f'  "{key}": {dump_json(value)}' for key, value in entries.items()]
     if meta.tag_map is None:
         lines.append('  "tag_map": null')
     else:
         tags = [
-            f'    "{int(k)}": {_dump_json(np.asarray(meta.tag_map[k], dtype=np.float64))}'
+            f'    "{int(k)}": {dump_json(np.asarray(meta.tag_map[k], dtype=np.float64))}'
             for k in sorted(meta.tag_map)
         ]
         lines.append('  "tag_map": {' + ("\n" + ",\n".join(tags) + "\n  " if tags else "") + "}")
-    simulation = _dump_json(meta.simulation, indent=2).replace("\n", "\n  ")
+    simulation = dump_json(meta.simulation, indent=2).replace("\n", "\n  ")
     lines.append(f'  "simulation": {simulation}')
-    # the camera extension is written only when present: older runs keep their exact bytes
-    if meta.camera is not None:
-        c = meta.camera
-        camera = {
+    c, tags, frames = meta.camera, meta.tags, meta.frames
+    # the camera extension and defaults are written only when present: older runs keep their bytes
+    optional = {
+        "camera": None if c is None else {
             "image_size": [c.width, c.height], "fx": c.fx, "fy": c.fy, "cx": c.cx, "cy": c.cy,
             "distortion": list(c.distortion), "mount_height": c.mount_height, "pitch": c.pitch,
-        }  # fmt: skip
-        lines.append(f'  "camera": {_dump_json(camera)}')
-    if meta.tags is not None:
-        lines.append(
-            f'  "tags": {_dump_json({"family": meta.tags.family, "size": meta.tags.size})}'
-        )
-    if meta.frames is not None:
-        lines.append(
-            f'  "frames": {_dump_json({"kind": meta.frames.kind, "file": meta.frames.file})}'
-        )
-    if meta.defaults is not None:  # like the camera: absent from runs without tuned defaults
-        lines.append(f'  "defaults": {_dump_json(meta.defaults)}')
+        },
+        "tags": None if tags is None else {"family": tags.family, "size": tags.size},
+        "frames": None if frames is None else {"kind": frames.kind, "file": frames.file},
+        "defaults": meta.defaults,
+    }  # fmt: skip
+    lines += [f'  "{k}": {dump_json(v)}' for k, v in optional.items() if v is not None]
     return "{\n" + ",\n".join(lines) + "\n}\n"

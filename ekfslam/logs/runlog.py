@@ -12,10 +12,10 @@ A run is a folder::
 
 The format is specified, with units and an example, in ``data/README.md``. The reader validates
 strictly and raises `ekfslam.errors.InputError` naming the file, the line and the problem.
-run.json has its own module, `ekfslam.logs.runjson`, and the CSV text rules theirs,
-`ekfslam.logs.csvtable`; their public names (`RunMeta`, `read_columns`, ...) are re-exported
-here. The writer prints every float with ``repr`` (shortest round-trip), so ``read_run`` gives back
-the very same bits that ``write_run`` was given. Asked for ``decimals`` (simulated runs use
+run.json has its own module, `ekfslam.logs.runjson` (`RunMeta`, also importable from here, as
+the type of `RunLog.meta`), and the CSV text rules theirs, `ekfslam.logs.csvtable`. The writer
+prints every float with ``repr`` (shortest round-trip), so ``read_run`` gives back the very same
+bits that ``write_run`` was given. Asked for ``decimals`` (simulated runs use
 `SIMULATED_DECIMALS`), it first rounds every float to that many decimals: the last bits of a
 simulated value depend on the CPU's vector unit (numpy's SIMD paths), the rounded text does not,
 and what was written still reads back exactly.
@@ -35,19 +35,9 @@ from numpy.typing import NDArray
 
 from ekfslam.core.kinematics import MecanumGeometry, wheels_to_twist
 from ekfslam.errors import InputError
-from ekfslam.logs.csvtable import csv_text, read_columns, read_lines, read_table  # noqa: F401
-from ekfslam.logs.runjson import (  # noqa: F401  (FORMAT... re-exported: the public API of runlog)
-    FORMAT,
-    FORMAT_VERSION,
-    SUPPORTED_VERSIONS,
-    UNITS,
-    FramesSpec,
-    RunMeta,
-    check_meta,
-    check_shape,
-    meta_json,
-    read_meta,
-)
+from ekfslam.files import atomic_write_text
+from ekfslam.logs.csvtable import csv_text, read_table
+from ekfslam.logs.runjson import RunMeta, check_meta, check_shape, meta_json, read_meta
 from ekfslam.plausibility import check_clocks
 
 RUN_JSON, CONTROLS_CSV = "run.json", "controls.csv"
@@ -148,7 +138,6 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
     for name in (RUN_JSON, CONTROLS_CSV):
         require_file(folder / name, f"a run folder holds {_FILES_HINT}")
     meta = read_meta(folder / RUN_JSON)
-    path = folder / DETECTIONS_CSV
     if detections is None:
         hint = f"a run folder holds {_FILES_HINT}"
         if meta.frames is not None:
@@ -158,7 +147,7 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
                 "with "
                 f"`python -m ekfslam run {folder}`"
             )
-        require_file(path, hint)
+        require_file(folder / DETECTIONS_CSV, hint)
 
     path = folder / CONTROLS_CSV
     kind, columns = read_table(path, CONTROL_COLUMNS)
@@ -383,9 +372,7 @@ def write_run(
     folder.mkdir(parents=True, exist_ok=True)
     for name, text in texts.items():
         # write-then-rename, so an interrupted write never leaves half a file under the real name
-        temporary = folder / f".{name}.partial"
-        temporary.write_text(text, encoding="utf-8", newline="\n")
-        os.replace(temporary, folder / name)
+        atomic_write_text(folder / name, text)
     if g is None:
         (folder / GROUNDTRUTH_CSV).unlink(missing_ok=True)
     if not with_detections:
@@ -401,7 +388,4 @@ def write_detections(
     _check_detections(detections, path, tag_map)
     d = detections
     text = csv_text(DETECTION_COLUMNS, [d.t, d.tag_id, d.range, d.bearing])
-    temporary = path.with_name(f".{path.name}.partial")
-    temporary.write_text(text, encoding="utf-8", newline="\n")
-    os.replace(temporary, path)
-    return path
+    return atomic_write_text(path, text)

@@ -81,7 +81,8 @@ def test_literal_twin_starts_in_the_same_state_and_stays_there():
 
 
 def test_without_the_data_the_mrclam_row_says_why_and_how_to_fetch_it(tmp_path, monkeypatch):
-    from ekfslam.analysis.bench import BenchConfig, bench_mrclam, default_mrclam_dir, markdown_table
+    from ekfslam.analysis.bench import BenchConfig, bench_mrclam, default_mrclam_dir
+    from ekfslam.analysis.bench_report import markdown_table
 
     monkeypatch.setenv("EKFSLAM_SHARED_DATA", str(tmp_path / "shared"))
     monkeypatch.setenv("EKFSLAM_CACHE", str(tmp_path / "cache"))

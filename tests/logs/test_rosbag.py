@@ -19,7 +19,8 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from ekfslam.cli.main import main
 from ekfslam.core.kinematics import MecanumGeometry, twist_to_wheels
 from ekfslam.errors import InputError
-from ekfslam.logs.rosbag import RosbagSpec, read_rosbag
+from ekfslam.logs.rosbag import read_rosbag
+from ekfslam.logs.rosbag_spec import RosbagSpec
 from ekfslam.logs.runlog import read_run
 from ekfslam.pipeline import replay
 

@@ -12,15 +12,13 @@ from ekfslam.core.arena import SEED_ARENA
 from ekfslam.core.camera import TagSpec, pinhole_camera
 from ekfslam.vision.corners import Undistorter, distort, refine_corners, undistort
 from ekfslam.vision.detect import (
-    OpenCVDetector,
     TagObserver,
-    TagQuad,
     VisionConfig,
-    make_detector,
     observations_table,
     tag_object_points,
     tag_pose,
 )
+from ekfslam.vision.detectors import OpenCVDetector, TagQuad, make_detector
 from ekfslam.vision.render import ArenaRenderer, RenderConfig
 
 TAGS = TagSpec(0.16)
