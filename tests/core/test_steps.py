@@ -10,6 +10,7 @@ import pytest
 
 from ekfslam import EKFSLAM, FilterConfig
 from ekfslam.core.filter import kernels
+from ekfslam.core.filter.history import Outcome
 from ekfslam.core.models import observation
 from ekfslam.core.steps import update_steps
 from ekfslam.geometry import wrap_angle
@@ -117,7 +118,7 @@ def test_the_literal_reference_correction_is_the_block_form(seed: int) -> None:
     literal._sightings = [1] * n
     literal._first = [mu[3 + 2 * k : 5 + 2 * k].copy() for k in range(n)]
     literal._rejected = [[] for _ in range(n)]
-    assert literal.update(10 + j, z, Q) == "accepted"
+    assert literal.update(10 + j, z, Q) == Outcome.ACCEPTED
     np.testing.assert_allclose(literal.mu, steps.mu_post, rtol=0, atol=1e-9)
     np.testing.assert_allclose(literal.Sigma, steps.Sigma_joseph, rtol=0, atol=1e-9)
     # the seed's printed (I - KH) Σ is Joseph's form for the optimal gain

@@ -21,6 +21,9 @@ Speed: the arithmetic of a step lives in `ekfslam.core.filter.kernels`, compiled
 numpy calls on the seed's small map, per-call overhead cost ten times the arithmetic. This module
 keeps the decisions (slots, gating, re-initialisation, counting). `python -m ekfslam bench` measures
 it.
+
+Over 400 lines because it is one class: the decisions share the slot bookkeeping and the
+pre-allocated storage, and split across modules they would each need all of it.
 """
 
 from __future__ import annotations
@@ -34,18 +37,7 @@ from numpy.typing import ArrayLike, NDArray
 from ekfslam.core.filter import kernels
 from ekfslam.core.filter.config import CHI2_2DOF_99 as CHI2_2DOF_99
 from ekfslam.core.filter.config import FilterConfig, FilterCounts
-from ekfslam.core.filter.history import (
-    ACCEPTED,
-    INITIALISED,
-    OBSERVE,
-    OUTCOMES,
-    PREDICT,
-    REFUSED,
-    REINITIALISED,
-    REJECTED,
-    History,
-    Recorder,
-)
+from ekfslam.core.filter.history import OBSERVE, PREDICT, History, Outcome, Recorder
 from ekfslam.core.models import (
     MIN_RANGE_SQUARED,
     inverse_observation,
@@ -69,6 +61,9 @@ def _matrix(values: ArrayLike) -> Array:
 
 
 _wrap = kernels.wrap
+# Per observation, by code: `Outcome(code)` and `.label` cost 0.3 and 0.15 µs, a tenth of a step.
+_OUTCOME = tuple(Outcome)  # the codes are 0, 1, ...: _OUTCOME[code] is Outcome(code)
+_LABEL = tuple(o.label for o in Outcome)
 
 
 class EKFSLAM:
@@ -115,7 +110,7 @@ class EKFSLAM:
         self._rejected: list[list[Array]] = []  # per slot: where the rejected sightings put it
         # scratch for the kernels (filled in place: no per-step allocation)
         self._work = np.zeros((2, cap))  # H Σ, then W = L⁻¹ H Σ
-        self._out = np.full(8, math.nan)  # ẑ, ν, S, NIS of the last observation
+        self._out = np.full(kernels.OUT_SIZE, math.nan)  # ẑ, ν, S, NIS of the last observation
         self._no_rows = np.zeros((1, 10))  # where nothing is recorded
 
     # ------------------------------------------------------------------ views
@@ -242,16 +237,20 @@ class EKFSLAM:
             r0 = rec.reserve(PREDICT, len(us))
             rows = rec.rows
         use_dts = dts is not None  # without, ts stands in for dts: the kernel's types are fixed
+        px, py = self._prior_xy
         self._prior_xy = kernels.propagate(
-            self._mu, self._Sigma, self._dim, us, dts if use_dts else ts, use_dts, N,
-            self._fej, *self._prior_xy, ts, rows, r0, rec is not None,
+            mu=self._mu, S=self._Sigma, d=self._dim, us=us, dts=dts if use_dts else ts,
+            use_dts=use_dts, N=N, fej=self._fej, px=px, py=py, ts=ts, rows=rows, r0=r0,
+            record=rec is not None,
         )  # fmt: skip
         self._counts["predictions"] += len(us)
         if len(ts):
             self._t = float(ts[-1])
 
     # -------------------------------------------------------------- correction
-    def update(self, landmark_id: int, z: ArrayLike, Q: ArrayLike, t: float | None = None) -> str:
+    def update(
+        self, landmark_id: int, z: ArrayLike, Q: ArrayLike, t: float | None = None
+    ) -> Outcome:
         """Use one range-bearing observation z = (r, φ) of a landmark, eqs. (10)-(16).
 
         A landmark seen for the first time is added to the state (eq. 12, see `FilterConfig.init`).
@@ -267,11 +266,12 @@ class EKFSLAM:
 
         Returns
         -------
-        str
-            "initialised", "accepted", "rejected" (failed the gate), "reinitialised" (see
-            `FilterConfig.reinit_after`), "refused" (cannot be linearised: the landmark, or
-            the observation, sits on the robot) or "singular" (the innovation covariance S is
-            singular or not finite: the noise is too small or too large). Each is counted.
+        Outcome
+            INITIALISED, ACCEPTED, REJECTED (failed the gate), REINITIALISED (see
+            `FilterConfig.reinit_after`), REFUSED (cannot be linearised: the landmark, or
+            the observation, sits on the robot) or SINGULAR (the innovation covariance S is
+            singular or not finite: the noise is too small or too large). Each is counted
+            (`counts`, under its `Outcome.label`).
         """
         if t is not None:
             self._t = t
@@ -283,12 +283,12 @@ class EKFSLAM:
         j = self.slot.get(landmark_id)
         if j is None:
             if z0 * z0 <= MIN_RANGE_SQUARED:
-                return self._finish(landmark_id, z, REFUSED, -1, computed=False)
+                return self._finish(landmark_id, z, Outcome.REFUSED, -1, computed=False)
             j = self._add_landmark(landmark_id, np.array(z), np.asarray(Q, dtype=float))
             if self.config.init == "inverse":
-                return self._finish(landmark_id, z, INITIALISED, 3 + 2 * j, computed=False)
+                return self._finish(landmark_id, z, Outcome.INITIALISED, 3 + 2 * j, computed=False)
             return self._correct(
-                landmark_id, j, z, Qf, gated=False, fresh=True, accepted_as=INITIALISED
+                landmark_id, j, z, Qf, gated=False, fresh=True, accepted_as=Outcome.INITIALISED
             )
         gated = self.config.gate is not None and self._sightings[j] >= self.config.gate_after
         return self._correct(landmark_id, j, z, Qf, gated=gated, fresh=False)
@@ -302,8 +302,8 @@ class EKFSLAM:
         *,
         gated: bool,
         fresh: bool,
-        accepted_as: int = ACCEPTED,
-    ) -> str:
+        accepted_as: Outcome = Outcome.ACCEPTED,
+    ) -> Outcome:
         """`ekfslam.core.filter.kernels.correct`, then the bookkeeping of its outcome."""
         mu, l = self._mu, 3 + 2 * j
         if self._fej:  # Jacobian at p̂(k|k-1) and the landmark's first estimate
@@ -312,12 +312,13 @@ class EKFSLAM:
         else:
             jx, jy = mu.item(l) - mu.item(0), mu.item(l + 1) - mu.item(1)
         outcome = kernels.correct(
-            mu, self._Sigma, self._dim, l, z[0], z[1], Q[0][0], Q[0][1], Q[1][1], jx, jy,
-            self.config.gate if gated else math.inf, self._work, self._out,
+            mu=mu, S=self._Sigma, d=self._dim, l=l, z0=z[0], z1=z[1],
+            q00=Q[0][0], q01=Q[0][1], q11=Q[1][1], jx=jx, jy=jy,
+            gate=self.config.gate if gated else math.inf, work=self._work, out=self._out,
         )  # fmt: skip
-        if outcome == REJECTED and self._should_reinitialise(j, z):
+        if outcome == Outcome.REJECTED and self._should_reinitialise(j, z):
             return self._reinitialise(landmark_id, j, z, Q)
-        if outcome == ACCEPTED:
+        if outcome == Outcome.ACCEPTED:
             outcome = accepted_as
             if not fresh:
                 self._sightings[j] += 1
@@ -377,7 +378,7 @@ class EKFSLAM:
             seen, self._mu[3 : self._dim].reshape(-1, 2), j, self.config.reinit_radius
         )
 
-    def _reinitialise(self, landmark_id: int, j: int, z: tuple[float, float], Q: Array) -> str:
+    def _reinitialise(self, landmark_id: int, j: int, z: tuple[float, float], Q: Array) -> Outcome:
         self._place(j, np.array(z), np.asarray(Q, dtype=float))
         l = 3 + 2 * j
         self._first[j] = (float(self._mu[l]), float(self._mu[l + 1]))
@@ -385,9 +386,9 @@ class EKFSLAM:
         self._rejected[j].clear()
         if self.config.init == "seed":  # eq. (3), then the update with this sighting
             return self._correct(
-                landmark_id, j, z, Q, gated=False, fresh=True, accepted_as=REINITIALISED
+                landmark_id, j, z, Q, gated=False, fresh=True, accepted_as=Outcome.REINITIALISED
             )
-        return self._finish(landmark_id, z, REINITIALISED, l, computed=False)
+        return self._finish(landmark_id, z, Outcome.REINITIALISED, l, computed=False)
 
     def _grow(self) -> None:
         d = self._dim
@@ -401,25 +402,28 @@ class EKFSLAM:
 
     def _finish(
         self, landmark_id: int, z: tuple[float, float], outcome: int, l: int, computed=True
-    ) -> str:
+    ) -> Outcome:
         """Count the outcome and record the state after it (l < 0: the landmark has no slot).
+
+        outcome: an `Outcome`, or the plain int code `kernels.correct` returned.
 
         computed: whether `kernels.correct` produced this outcome's ẑ, ν, S and NIS (in
         `_out`); otherwise they are recorded as NaN.
         """
         if not computed:
             self._out[:] = math.nan
-        name = OUTCOMES[outcome]
-        self._counts[name] += 1
+        outcome = _OUTCOME[outcome]
+        self._counts[_LABEL[outcome]] += 1
         rec = self._recorder
         if rec is not None:
             n = rec.reserve(OBSERVE, 1)
             m = rec.reserve_observation()
             kernels.record(
-                self._mu, self._Sigma, l, self._t, landmark_id, z[0], z[1], self._out, outcome,
-                rec.rows, n, rec.obs, m,
+                mu=self._mu, S=self._Sigma, l=l, t=self._t, landmark_id=landmark_id,
+                z0=z[0], z1=z[1], out=self._out, outcome=int(outcome),
+                rows=rec.rows, n=n, obs=rec.obs, m=m,
             )  # fmt: skip
-        return name
+        return outcome
 
 
 def _new_place(seen: list, landmarks: Array, j: int, radius: float) -> bool:
