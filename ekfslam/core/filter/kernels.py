@@ -208,11 +208,12 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out):
 
 
 @njit(cache=True)
-def record(mu, S, l, t, landmark_id, z0, z1, out, outcome, rows, n, obs, m):
+def record(mu, S, l, t, landmark_id, z0, z1, out, code, rows, n, obs, m):
     """Write the state after an observation to rows[n] (`ROW`) and the observation to obs[m].
 
     l < 0: no landmark slot (a refused first sighting); its estimate is then NaN. out: what
-    `correct` wrote (ẑ, ν, S, NIS), NaN where there was none.
+    `correct` wrote (ẑ, ν, S, NIS), NaN where there was none. code: the `history.Outcome`, as an
+    int.
     """
     row = rows[n]
     row[0], row[1], row[2], row[3] = t, mu[0], mu[1], mu[2]
@@ -226,7 +227,7 @@ def record(mu, S, l, t, landmark_id, z0, z1, out, outcome, rows, n, obs, m):
     s00, s01, s11 = out[OUT_S], out[OUT_S + 1], out[OUT_S + 2]
     o[OBS_S], o[OBS_S + 1], o[OBS_S + 2], o[OBS_S + 3] = s00, s01, s01, s11
     o[OBS_NIS] = out[OUT_NIS]
-    o[OBS_OUTCOME] = outcome
+    o[OBS_OUTCOME] = code
     if l < 0:
         o[OBS_LANDMARK:OBS_SIZE] = np.nan
     else:
