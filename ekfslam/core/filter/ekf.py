@@ -117,7 +117,7 @@ class EKFSLAM:
         # scratch for the kernels (filled in place: no per-step allocation)
         self._work = np.zeros((2, cap))  # H Σ, then W = L⁻¹ H Σ
         self._out = np.full(kernels.OUT_SIZE, math.nan)  # ẑ, ν, S, NIS of the last observation
-        self._no_rows = np.zeros((1, 10))  # where nothing is recorded
+        self._no_rows = np.zeros((1, kernels.ROW_SIZE))  # where nothing is recorded
 
     # ------------------------------------------------------------------ views
     @property

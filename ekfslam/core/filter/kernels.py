@@ -36,12 +36,16 @@ ACCEPTED, REJECTED, REFUSED, SINGULAR = 1, 2, 3, 5  # the outcome codes `correct
 MIN_RANGE_SQUARED = 1e-12  # m²: closer than this, a landmark cannot be linearised
 # `correct`'s `out`: ẑ (2), ν (2), S's (s00, s01, s11), the NIS; OUT_SIZE entries in all
 OUT_Z_HAT, OUT_NU, OUT_S, OUT_NIS, OUT_SIZE = 0, 2, 4, 7, 8
+# where `propagate` and `record` write in an event row (`history.ROW_COLUMNS`): t, pose, cov
+ROW_T, ROW_POSE, ROW_COV, ROW_SIZE = 0, 1, 4, 10
 # where `record` writes in an observation row (`history.OBS_COLUMNS`)
 OBS_T, OBS_EVENT, OBS_ID, OBS_Z, OBS_Z_HAT, OBS_NU, OBS_S, OBS_NIS = 0, 1, 2, 3, 5, 7, 9, 13
 OBS_OUTCOME, OBS_LANDMARK, OBS_LANDMARK_COV, OBS_SIZE = 14, 15, 17, 21
-_o, _O = history.OBS_COLUMNS, history.Outcome
+_r, _o, _O = history.ROW_COLUMNS, history.OBS_COLUMNS, history.Outcome
 if (ACCEPTED, REJECTED, REFUSED, SINGULAR, MIN_RANGE_SQUARED) != (
     _O.ACCEPTED, _O.REJECTED, _O.REFUSED, _O.SINGULAR, models.MIN_RANGE_SQUARED,
+) or (ROW_T, ROW_POSE, ROW_COV, ROW_SIZE) != (
+    _r.t, _r.pose.start, _r.cov.start, len(history.ROW)
 ) or (
     OBS_T, OBS_EVENT, OBS_ID, OBS_Z, OBS_Z_HAT, OBS_NU, OBS_S, OBS_NIS, OBS_OUTCOME,
     OBS_LANDMARK, OBS_LANDMARK_COV, OBS_SIZE,
@@ -52,7 +56,7 @@ if (ACCEPTED, REJECTED, REFUSED, SINGULAR, MIN_RANGE_SQUARED) != (
     raise ImportError(
         "ekfslam.core.filter.kernels' constants disagree with ekfslam.core.filter.history or models"
     )
-del _o, _O
+del _r, _o, _O
 
 
 @njit(cache=True)
@@ -116,8 +120,11 @@ def propagate(mu, S, d, us, dts, use_dts, N, fej, px, py, ts, rows, r0, record):
         B += g1
         if record:
             row = rows[r0 + k]
-            row[0], row[1], row[2], row[3] = ts[k], x, y, th
-            row[4], row[5], row[6], row[7], row[8], row[9] = s00, s01, s02, s11, s12, s22
+            p, c = ROW_POSE, ROW_COV
+            row[ROW_T], row[p], row[p + 1], row[p + 2] = ts[k], x, y, th
+            row[c], row[c + 1], row[c + 2], row[c + 3], row[c + 4], row[c + 5] = (
+                s00, s01, s02, s11, s12, s22
+            )  # fmt: skip
         px, py = x, y
     mu[0], mu[1], mu[2] = x, y, th
     for i in range(3, d):  # Σ_rm <- (Π G) Σ_rm: only x and y change (columns, in the lower half)
@@ -216,8 +223,9 @@ def record(mu, S, l, t, landmark_id, z0, z1, out, code, rows, n, obs, m):
     int.
     """
     row = rows[n]
-    row[0], row[1], row[2], row[3] = t, mu[0], mu[1], mu[2]
-    row[4], row[5], row[6], row[7], row[8], row[9] = (
+    p, c = ROW_POSE, ROW_COV
+    row[ROW_T], row[p], row[p + 1], row[p + 2] = t, mu[0], mu[1], mu[2]
+    row[c], row[c + 1], row[c + 2], row[c + 3], row[c + 4], row[c + 5] = (
         S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]
     )  # fmt: skip
     o = obs[m]
