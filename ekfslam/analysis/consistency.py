@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 from scipy.special import gammaincinv
 
 from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig, FilterCounts
-from ekfslam.core.filter.history import OUTCOMES
+from ekfslam.core.filter.history import Outcome
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runlog import RunLog
@@ -114,7 +114,7 @@ def run_errors(run: RunLog, result: ReplayResult) -> RunErrors:
     seen = np.isfinite(h.obs_landmark[:, 0]) & np.isin(h.obs_id, list(tags))
     truth = np.array([tags[i] for i in h.obs_id[seen].tolist()]).reshape(-1, 2)
     lm = nees(h.obs_landmark[seen] - truth, h.obs_landmark_cov[seen])
-    computed = np.isin(h.obs_outcome, [OUTCOMES.index("accepted"), OUTCOMES.index("rejected")])
+    computed = h.outcome_mask(Outcome.ACCEPTED, Outcome.REJECTED)
     ids = list(result.landmarks)  # slot order: slot j is state rows 3 + 2j, 4 + 2j
     js = [j for j, i in enumerate(ids) if i in tags]
     rows = np.array([[3 + 2 * j, 4 + 2 * j] for j in js], dtype=np.int64).ravel()

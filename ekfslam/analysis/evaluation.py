@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ekfslam.analysis.alignment import Alignment, align
+from ekfslam.core.filter.history import Outcome
 from ekfslam.errors import AlignmentError
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runlog import GroundTruth, RunLog
@@ -29,6 +30,11 @@ Array = NDArray[np.float64]
 
 #: The seed's Table 1, from the real robot: (x0, y0, θ0, average error) in m, m, rad, m.
 SEED_TABLE1 = {"square": (-0.020, 0.056, 0.142, 0.153), "octagon": (-0.040, 0.043, 0.137, 0.130)}
+#: The order of the outcome counts under "updates" in `RunSummary.as_dict` (the JSON keeps it).
+UPDATES_ORDER = (
+    Outcome.ACCEPTED, Outcome.REJECTED, Outcome.REFUSED,
+    Outcome.INITIALISED, Outcome.REINITIALISED, Outcome.SINGULAR,
+)  # fmt: skip
 
 
 def interpolate_poses(groundtruth: GroundTruth, t: Array) -> tuple[Array, NDArray[np.bool_]]:
@@ -64,7 +70,10 @@ def ate_rmse(result: ReplayResult, groundtruth: GroundTruth) -> float:
 
 @dataclass(frozen=True, eq=False)
 class RunSummary:
-    """Everything the command line reports about one replay."""
+    """Everything the command line reports about one replay.
+
+    accepted ... singular: how many sightings had each `Outcome` (fields named by its `label`).
+    """
 
     name: str
     alignment: Alignment | None
@@ -83,7 +92,7 @@ class RunSummary:
     seconds: float
     alignment_note: str | None = None
     singular: int = (
-        0  # updates skipped: S singular or not finite (`ekfslam.core.filter.history.OUTCOMES`)
+        0  # updates skipped: S singular or not finite (`ekfslam.core.filter.history.Outcome`)
     )
 
     def as_dict(self) -> dict:
@@ -112,14 +121,7 @@ class RunSummary:
                 "count": self.landmarks_count,
                 "error_unaligned_mean": opt(self.error_unaligned_mean),
             },
-            "updates": {
-                "accepted": self.accepted,
-                "rejected": self.rejected,
-                "refused": self.refused,
-                "initialised": self.initialised,
-                "reinitialised": self.reinitialised,
-                "singular": self.singular,
-            },
+            "updates": {o.label: getattr(self, o.label) for o in UPDATES_ORDER},
             "predictions": self.predictions,
             "trajectory": {"ate_rmse": opt(self.ate_rmse)},
             "consistency": {"nis_mean": opt(self.nis_mean)},
@@ -165,12 +167,7 @@ def summarize(run: RunLog, result: ReplayResult, method: str = "mean_distance") 
         error_unaligned_mean=unaligned,
         ate_rmse=ate,
         predictions=c.predictions,
-        accepted=c.accepted,
-        rejected=c.rejected,
-        refused=c.refused,
-        initialised=c.initialised,
-        reinitialised=c.reinitialised,
-        singular=c.singular,
+        **{o.label: c.of(o) for o in Outcome},
         nis_mean=float(np.mean(nis)) if len(nis) else None,
         seconds=result.seconds,
         alignment_note=note,

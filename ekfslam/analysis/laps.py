@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from ekfslam.analysis.alignment import align
 from ekfslam.analysis.frames_of_reference import position_errors, tags_in_filter_frame
 from ekfslam.core.filter.config import FilterConfig
-from ekfslam.core.filter.history import History
+from ekfslam.core.filter.history import History, Outcome
 from ekfslam.errors import AlignmentError, EkfSlamError
 from ekfslam.logs.runlog import RunLog
 from ekfslam.pipeline import NoiseConfig, replay, replay_until_each
@@ -105,7 +105,7 @@ def revisits(history: History, gap: float = 10.0) -> tuple[Array, NDArray[np.int
 
     These are the seed's "sees landmarks it has seen before": the moments the uncertainty drops.
     """
-    accepted = history.outcome_mask("accepted") | history.outcome_mask("initialised")
+    accepted = history.outcome_mask(Outcome.ACCEPTED, Outcome.INITIALISED)
     last: dict[int, float] = {}
     times, ids = [], []
     for t, i, ok in zip(history.obs_t.tolist(), history.obs_id.tolist(), accepted, strict=True):

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -69,7 +69,7 @@ class OutlierStudy:
             "runs": self.runs,
             "rate": self.rate,
             "gate_after": self.gate_after,
-            "cases": [c.__dict__ for c in self.cases],
+            "cases": [{f.name: getattr(c, f.name) for f in fields(c)} for c in self.cases],
         }
 
 

@@ -72,7 +72,7 @@ def noise_from_args(args: argparse.Namespace, run: RunLog) -> tuple[NoiseConfig,
         for name in ("sigma_x", "sigma_y", "sigma_theta", "sigma_range", "sigma_bearing")
         if getattr(args, name) is not None
     }
-    noise = NoiseConfig(**{**base.__dict__, **overrides})
+    noise = replace(base, **overrides)  # validated again, as a new NoiseConfig
     config = replace(
         default_config(run), init=args.init, gate=None if args.gate == 0 else args.gate
     )

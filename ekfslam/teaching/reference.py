@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ekfslam.core.filter.config import FilterConfig, FilterCounts
+from ekfslam.core.filter.history import Outcome
 from ekfslam.core.models import (
     MIN_RANGE_SQUARED,
     inverse_observation,
@@ -85,18 +86,20 @@ class LiteralEKFSLAM:
         self.Sigma = G @ self.Sigma @ G.T + F_x.T @ np.asarray(R, dtype=float) @ F_x
         self._counts["predictions"] += 1
 
-    def update(self, landmark_id: int, z: ArrayLike, Q: ArrayLike, t: float | None = None) -> str:
+    def update(
+        self, landmark_id: int, z: ArrayLike, Q: ArrayLike, t: float | None = None
+    ) -> Outcome:
         """Eqs. (12)-(16) with F_x,j (eq. 14) and full-width H."""
         z = np.asarray(z, dtype=float)
         Q = np.asarray(Q, dtype=float)
         j = self.slot.get(landmark_id)
         if j is None:
             if z[0] * z[0] <= MIN_RANGE_SQUARED:
-                return self._count("refused")
+                return self._count(Outcome.REFUSED)
             j = self._augment(landmark_id, z, Q)
             if self.config.init == "inverse":
-                return self._count("initialised")
-            return self._correct(j, z, Q, gated=False, fresh=True, accepted_as="initialised")
+                return self._count(Outcome.INITIALISED)
+            return self._correct(j, z, Q, gated=False, fresh=True, accepted_as=Outcome.INITIALISED)
         gated = self.config.gate is not None and self._sightings[j] >= self.config.gate_after
         return self._correct(j, z, Q, gated=gated, fresh=False)
 
@@ -121,7 +124,7 @@ class LiteralEKFSLAM:
         self._rejected.append([])
         return n
 
-    def _reinitialise(self, j: int, z: np.ndarray, Q: np.ndarray) -> str:
+    def _reinitialise(self, j: int, z: np.ndarray, Q: np.ndarray) -> Outcome:
         """Slot j from this sighting alone: eq. (12) again, its old rows and columns replaced."""
         n = self.n_landmarks
         pose = self.mu[:3]
@@ -143,8 +146,10 @@ class LiteralEKFSLAM:
         self._sightings[j] = 1
         self._rejected[j] = []
         if self.config.init == "seed":
-            return self._correct(j, z, Q, gated=False, fresh=True, accepted_as="reinitialised")
-        return self._count("reinitialised")
+            return self._correct(
+                j, z, Q, gated=False, fresh=True, accepted_as=Outcome.REINITIALISED
+            )
+        return self._count(Outcome.REINITIALISED)
 
     def _correct(
         self,
@@ -153,8 +158,8 @@ class LiteralEKFSLAM:
         Q: np.ndarray,
         gated: bool,
         fresh: bool,
-        accepted_as: str = "accepted",
-    ) -> str:
+        accepted_as: Outcome = Outcome.ACCEPTED,
+    ) -> Outcome:
         n = self.n_landmarks
         pose = self.mu[:3]
         landmark = self.mu[3 + 2 * j : 5 + 2 * j]
@@ -165,7 +170,7 @@ class LiteralEKFSLAM:
         for p, m in ((pose, landmark), (at_pose, at_landmark)):
             d = m - p[:2]
             if not float(d @ d) > MIN_RANGE_SQUARED:
-                return self._count("refused")
+                return self._count(Outcome.REFUSED)
         z_hat = observation(pose, landmark)
         H_p, H_l = observation_jacobians(at_pose, at_landmark)
         H = np.hstack([H_p, H_l]) @ landmark_lift_matrix_numeric(n, j)  # eq. (14)
@@ -173,7 +178,7 @@ class LiteralEKFSLAM:
         nu = z - z_hat
         nu[1] = wrap_angle(float(nu[1]))
         if not np.all(np.linalg.eigvalsh(S) > 0):
-            return self._count("refused")
+            return self._count(Outcome.REFUSED)
         nis = float(nu @ np.linalg.solve(S, nu))
         if gated and nis > self.config.gate:
             k = self.config.reinit_after
@@ -190,7 +195,7 @@ class LiteralEKFSLAM:
                     and all(np.linalg.norm(m - centre) > radius for m in others)
                 ):
                     return self._reinitialise(j, z, Q)
-            return self._count("rejected")
+            return self._count(Outcome.REJECTED)
         K = self.Sigma @ H.T @ np.linalg.inv(S)  # eq. (15)
         self.mu = self.mu + K @ nu  # eq. (16)
         self.mu[2] = wrap_angle(float(self.mu[2]))
@@ -201,6 +206,6 @@ class LiteralEKFSLAM:
         self._rejected[j] = []
         return self._count(accepted_as)
 
-    def _count(self, name: str) -> str:
-        self._counts[name] += 1
-        return name
+    def _count(self, outcome: Outcome) -> Outcome:
+        self._counts[outcome.label] += 1
+        return outcome

@@ -29,7 +29,7 @@ from matplotlib.patches import Ellipse
 
 from ekfslam.analysis.evaluation import RunSummary, replay_and_summarize
 from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig, chi2_2dof_quantile
-from ekfslam.core.filter.history import OUTCOMES
+from ekfslam.core.filter.history import Outcome
 from ekfslam.core.noise import NoiseConfig, default_noise
 from ekfslam.errors import InputError
 from ekfslam.logs.runlog import RunLog, read_run
@@ -237,8 +237,8 @@ class TuningView:
 
     def _show_nis(self, result: ReplayResult) -> None:
         h = result.history
-        for line, outcome in ((self.accepted, "accepted"), (self.rejected, "rejected")):
-            mask = h.obs_outcome == OUTCOMES.index(outcome)
+        for line, outcome in ((self.accepted, Outcome.ACCEPTED), (self.rejected, Outcome.REJECTED)):
+            mask = h.outcome_mask(outcome)
             line.set_data(h.obs_t[mask], np.log10(np.maximum(h.obs_nis[mask], NIS_FLOOR)))
         gate = result.config.gate
         self.gate_line.set_visible(gate is not None)

@@ -13,6 +13,7 @@ import pytest
 from ekfslam.analysis.bench import literal_twin, map_of
 from ekfslam.cli import bench as bench_command
 from ekfslam.cli.main import COMMANDS
+from ekfslam.core.filter.history import Outcome
 from ekfslam.core.models import observation_noise
 
 
@@ -72,7 +73,7 @@ def test_literal_twin_starts_in_the_same_state_and_stays_there():
     Q = observation_noise(0.05, 0.03)
     j, (r, phi) = zs[3]
     z = (r + 0.02, phi - 0.01)
-    assert f.update(j, z, Q) == lit.update(j, z, Q) == "accepted"
+    assert f.update(j, z, Q) == lit.update(j, z, Q) == Outcome.ACCEPTED
     f.predict((0.05, 0.01, 0.1), np.diag([1e-4, 1e-4, 1e-5]))
     lit.predict((0.05, 0.01, 0.1), np.diag([1e-4, 1e-4, 1e-5]))
     np.testing.assert_allclose(lit.mu, f.mu, rtol=0, atol=1e-12)

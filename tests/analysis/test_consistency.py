@@ -7,6 +7,7 @@ import math
 import os
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,7 @@ from ekfslam.analysis.consistency import (
 )
 from ekfslam.analysis.evaluation import interpolate_poses
 from ekfslam.analysis.robustness import long_run, outlier_study
-from ekfslam.core.noise import NoiseConfig, default_noise
+from ekfslam.core.noise import default_noise
 from ekfslam.geometry import wrap_angle
 from ekfslam.sim.scenarios import noise_for_simulation, ring_arena, scenario
 from ekfslam.viz.consistency import plot_consistency
@@ -124,7 +125,7 @@ def test_nis_exposes_an_overconfident_observation_noise():
     sim, arena = scenario("octagon", seed=5, laps=1)
     run = simulate(sim, arena)
     right = noise_for_simulation(sim)
-    tight = NoiseConfig(**{**right.__dict__, "sigma_range": right.sigma_range / 3})
+    tight = replace(right, sigma_range=right.sigma_range / 3)
     nis = []
     for noise in (right, tight):
         e = run_errors(

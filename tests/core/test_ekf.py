@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ekfslam.core.filter.ekf import CHI2_2DOF_99, EKFSLAM, FilterConfig
-from ekfslam.core.filter.history import OUTCOMES
+from ekfslam.core.filter.history import Outcome
 from ekfslam.core.models import motion, observation, observation_noise
 from ekfslam.teaching.reference import LiteralEKFSLAM
 
@@ -86,8 +86,8 @@ def test_efficient_filter_agrees_with_literal_reference(init, seed, linearizatio
     np.testing.assert_allclose(fast.mu, slow.mu, rtol=0, atol=1e-9)
     np.testing.assert_allclose(fast.Sigma, slow.Sigma, rtol=0, atol=1e-9)
     # the run exercised every path the oracle checks
-    assert outcomes.count("accepted") > 50
-    assert outcomes.count("rejected") > 0
+    assert outcomes.count(Outcome.ACCEPTED) > 50
+    assert outcomes.count(Outcome.REJECTED) > 0
     assert fast.counts == slow.counts
 
 
@@ -160,7 +160,7 @@ def test_update_equals_josephs_form():
     mu0, S0 = f.mu.copy(), f.Sigma.copy()
     Q = observation_noise(0.05, 0.03)
     z = observation(mu0[:3], mu0[3 + 2 * j : 5 + 2 * j]) + np.array([0.03, -0.02])
-    assert f.update(lid, z, Q) == "accepted"
+    assert f.update(lid, z, Q) == Outcome.ACCEPTED
     # Joseph's form with a dense H, computed independently
     from ekfslam.core.models import observation_jacobians
 
@@ -176,13 +176,17 @@ def test_update_equals_josephs_form():
 def test_gate_rejects_outliers_and_counts_them():
     f = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(gate_after=1))
     Q = observation_noise(0.02, 0.01)
-    assert f.update(5, [1.0, 0.0], Q) == "initialised"
-    assert f.update(5, [1.01, 0.005], Q) == "accepted"
-    assert f.update(5, [1.6, 0.0], Q) == "rejected"  # 0.6 m off, ~30 sigma
+    assert f.update(5, [1.0, 0.0], Q) == Outcome.INITIALISED
+    assert f.update(5, [1.01, 0.005], Q) == Outcome.ACCEPTED
+    assert f.update(5, [1.6, 0.0], Q) == Outcome.REJECTED  # 0.6 m off, ~30 sigma
     counts = f.counts
     assert (counts.initialised, counts.accepted, counts.rejected) == (1, 1, 1)
     h = f.history()
-    assert [OUTCOMES[k] for k in h.obs_outcome] == ["initialised", "accepted", "rejected"]
+    assert [Outcome(k) for k in h.obs_outcome] == [
+        Outcome.INITIALISED,
+        Outcome.ACCEPTED,
+        Outcome.REJECTED,
+    ]
     assert h.obs_nis[2] > CHI2_2DOF_99
     # a rejected observation leaves the state alone
     assert h.obs_landmark[2].tolist() == h.obs_landmark[1].tolist()
@@ -192,20 +196,20 @@ def test_gate_waits_until_landmark_is_established():
     Q = observation_noise(0.02, 0.01)
     f = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(gate_after=2))
     f.update(5, [1.0, 0.0], Q)
-    assert f.update(5, [1.6, 0.0], Q) == "accepted"  # only one sighting so far: no gate
+    assert f.update(5, [1.6, 0.0], Q) == Outcome.ACCEPTED  # only one sighting so far: no gate
     g = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(gate=None, gate_after=1))
     g.update(5, [1.0, 0.0], Q)
-    assert g.update(5, [1.6, 0.0], Q) == "accepted"  # gate off
+    assert g.update(5, [1.6, 0.0], Q) == Outcome.ACCEPTED  # gate off
 
 
 def test_degenerate_geometry_is_refused_and_counted_never_nan():
     Q = observation_noise(0.02, 0.01)
     f = EKFSLAM([0.0, 0.0, 0.0])
-    assert f.update(1, [0.0, 0.3], Q) == "refused"  # zero range: no landmark to place
+    assert f.update(1, [0.0, 0.3], Q) == Outcome.REFUSED  # zero range: no landmark to place
     assert f.n_landmarks == 0
     f.update(2, [0.5, 0.0], Q)
     f.predict([0.5, 0.0, 0.0], np.zeros((3, 3)))  # drive onto the landmark
-    assert f.update(2, [0.3, 0.0], Q) == "refused"
+    assert f.update(2, [0.3, 0.0], Q) == Outcome.REFUSED
     assert f.counts.refused == 2
     assert np.isfinite(f.mu).all() and np.isfinite(f.Sigma).all()
     with pytest.raises(ValueError, match="non-finite"):
@@ -217,7 +221,7 @@ def test_bearing_innovation_is_wrapped_across_pi():
     f = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(gate_after=1))
     f.update(3, [1.0, math.pi - 0.01], Q)  # landmark behind the robot
     # the same landmark measured just across the ±π seam: a small innovation, not 2π
-    assert f.update(3, [1.0, -math.pi + 0.01], Q) == "accepted"
+    assert f.update(3, [1.0, -math.pi + 0.01], Q) == Outcome.ACCEPTED
     h = f.history()
     assert abs(h.obs_innovation[1, 1]) < 0.03
     assert -math.pi <= f.mu[2] < math.pi
@@ -232,7 +236,7 @@ def test_seed_initialisation_approaches_inverse_initialisation():
     inv.update(9, z, Q)
     seed = EKFSLAM([0.2, 0.1, 0.4], P0, FilterConfig(init="seed", seed_init_variance=1e6))
     # regression: the seed's initialisation once counted as an accepted update
-    assert seed.update(9, z, Q) == "initialised"
+    assert seed.update(9, z, Q) == Outcome.INITIALISED
     assert (seed.counts.initialised, seed.counts.accepted) == (1, 0)
     np.testing.assert_allclose(seed.mu, inv.mu, atol=1e-9)
     np.testing.assert_allclose(seed.Sigma, inv.Sigma, rtol=1e-4, atol=1e-8)
@@ -249,9 +253,9 @@ def test_history_records_every_event_without_n_squared_copies():
     assert h.pose_cov.shape == (len(h.t), 3, 3)
     assert len(h.obs_id) == n_obs
     np.testing.assert_array_equal(h.pose[-1], f.mu[:3])
-    accepted = h.outcome_mask("accepted")
+    accepted = h.outcome_mask(Outcome.ACCEPTED)
     assert np.isfinite(h.obs_nis[accepted]).all()
-    assert np.isnan(h.obs_nis[h.outcome_mask("initialised")]).all()
+    assert np.isnan(h.obs_nis[h.outcome_mask(Outcome.INITIALISED)]).all()
 
 
 @pytest.mark.parametrize("linearization", ["standard", "fej"])
@@ -318,7 +322,7 @@ def test_predict_many_equals_stepping_predict_one_row_at_a_time(linearization, p
                 stepped.predict(u, M, tk)
         lid = int(rng.integers(0, 6))
         z = observation(batched.mu[:3], batched.landmark(lid)[0]) + rng.normal(0, [0.05, 0.03])
-        assert batched.update(lid, z, Q, t) == stepped.update(lid, z, Q, t) == "accepted"
+        assert batched.update(lid, z, Q, t) == stepped.update(lid, z, Q, t) == Outcome.ACCEPTED
     np.testing.assert_allclose(batched.mu, stepped.mu, rtol=0, atol=1e-9)
     np.testing.assert_allclose(batched.Sigma, stepped.Sigma, rtol=0, atol=1e-9)
     a, b = batched.history(), stepped.history()
@@ -395,14 +399,14 @@ def test_large_map_update_agrees_with_literal_reference():
     n = 30
     zs = np.column_stack([rng.uniform(1.0, 4.0, n), rng.uniform(-math.pi, math.pi, n)])
     for k in range(n):
-        assert fast.update(k, zs[k], Q) == slow.update(k, zs[k], Q) == "initialised"
+        assert fast.update(k, zs[k], Q) == slow.update(k, zs[k], Q) == Outcome.INITIALISED
     for _ in range(30):
         u, R = [0.02, 0.005, 0.02], np.diag([1e-4, 1e-4, 1e-5])
         fast.predict(u, R)
         slow.predict(u, R)
         j = int(rng.integers(0, n))
         z = observation(fast.mu[:3], fast.landmark(j)[0]) + rng.normal(0, [0.05, 0.03])
-        assert fast.update(j, z, Q) == slow.update(j, z, Q) == "accepted"
+        assert fast.update(j, z, Q) == slow.update(j, z, Q) == Outcome.ACCEPTED
     assert fast.Sigma.shape[0] == 3 + 2 * n
     np.testing.assert_allclose(fast.mu, slow.mu, rtol=0, atol=1e-9)
     np.testing.assert_allclose(fast.Sigma, slow.Sigma, rtol=0, atol=1e-9)
@@ -427,8 +431,13 @@ def test_a_landmark_initialised_from_an_outlier_is_initialised_again(init):
         outcomes.append(a)
         fast.predict([0.0, 0.0, 0.0], np.diag([1e-6, 1e-6, 1e-7]))
         slow.predict([0.0, 0.0, 0.0], np.diag([1e-6, 1e-6, 1e-7]))
-    assert outcomes[:4] == ["initialised", "rejected", "rejected", "reinitialised"]
-    assert set(outcomes[4:]) == {"accepted"}
+    assert outcomes[:4] == [
+        Outcome.INITIALISED,
+        Outcome.REJECTED,
+        Outcome.REJECTED,
+        Outcome.REINITIALISED,
+    ]
+    assert set(outcomes[4:]) == {Outcome.ACCEPTED}
     np.testing.assert_allclose(fast.landmark(7)[0], truth, atol=0.01)
     np.testing.assert_allclose(fast.mu, slow.mu, rtol=0, atol=1e-9)
     np.testing.assert_allclose(fast.Sigma, slow.Sigma, rtol=0, atol=1e-9)
@@ -442,9 +451,9 @@ def test_scattered_rejections_do_not_move_a_landmark():
     f = EKFSLAM([0.0, 0.0, 0.0])
     f.update(7, [1.0, 0.3], Q)
     for extra in (0.5, 1.2, 0.8, 1.6, 0.6):  # gross range errors, each elsewhere
-        assert f.update(7, [1.0 + extra, 0.3], Q) == "rejected"
+        assert f.update(7, [1.0 + extra, 0.3], Q) == Outcome.REJECTED
     assert f.counts.reinitialised == 0
-    assert f.update(7, [1.0, 0.3], Q) == "accepted"
+    assert f.update(7, [1.0, 0.3], Q) == Outcome.ACCEPTED
 
 
 def test_misread_ids_of_another_landmark_do_not_move_a_landmark():
@@ -455,7 +464,7 @@ def test_misread_ids_of_another_landmark_do_not_move_a_landmark():
     f.update(1, observation(np.zeros(3), a), Q)
     f.update(2, observation(np.zeros(3), b), Q)
     for _ in range(5):
-        assert f.update(2, observation(np.zeros(3), a), Q) == "rejected"
+        assert f.update(2, observation(np.zeros(3), a), Q) == Outcome.REJECTED
     assert f.counts.reinitialised == 0
     np.testing.assert_allclose(f.landmark(2)[0], b, atol=1e-9)
 
@@ -473,11 +482,11 @@ def test_a_well_confirmed_landmark_needs_as_many_agreeing_rejections_to_move():
     truth, moved = np.array([1.0, 0.5]), np.array([1.0, 0.9])
     for k in range(6):  # initialised, then confirmed five times: six accepted sightings
         z = observation(np.zeros(3), truth) + np.array([0.004, -0.002]) * (-1) ** k
-        assert fast.update(7, z, Q) == slow.update(7, z, Q) != "rejected"
+        assert fast.update(7, z, Q) == slow.update(7, z, Q) != Outcome.REJECTED
     assert fast._sightings[0] == 6
     outcomes = [fast.update(7, observation(np.zeros(3), moved), Q) for _ in range(6)]
     slow_outcomes = [slow.update(7, observation(np.zeros(3), moved), Q) for _ in range(6)]
-    assert outcomes == slow_outcomes == ["rejected"] * 5 + ["reinitialised"]
+    assert outcomes == slow_outcomes == [Outcome.REJECTED] * 5 + [Outcome.REINITIALISED]
     np.testing.assert_allclose(fast.landmark(7)[0], moved, atol=1e-9)
     np.testing.assert_allclose(fast.mu, slow.mu, rtol=0, atol=1e-9)
     np.testing.assert_allclose(fast.Sigma, slow.Sigma, rtol=0, atol=1e-9)
@@ -485,10 +494,10 @@ def test_a_well_confirmed_landmark_needs_as_many_agreeing_rejections_to_move():
 
 def test_a_singular_or_overflowing_innovation_covariance_is_its_own_outcome() -> None:
     f = EKFSLAM([0.0, 0.0, 0.0])
-    assert f.update(1, (1.0, 0.2), 1e-4 * np.eye(2)) == "initialised"
-    assert f.update(1, (1.0, 0.2), 1e300 * np.eye(2)) == "singular"  # det S overflows
-    assert f.update(1, (1.0, 0.2), 1e-320 * np.eye(2)) == "accepted"  # Σ_l still 1e-4
+    assert f.update(1, (1.0, 0.2), 1e-4 * np.eye(2)) == Outcome.INITIALISED
+    assert f.update(1, (1.0, 0.2), 1e300 * np.eye(2)) == Outcome.SINGULAR  # det S overflows
+    assert f.update(1, (1.0, 0.2), 1e-320 * np.eye(2)) == Outcome.ACCEPTED  # Σ_l still 1e-4
     c = f.counts
     assert (c.singular, c.refused, c.accepted, c.initialised) == (1, 0, 1, 1)
-    outcomes = [OUTCOMES[k] for k in f.history().obs_outcome]
-    assert outcomes == ["initialised", "singular", "accepted"]
+    outcomes = [Outcome(k) for k in f.history().obs_outcome]
+    assert outcomes == [Outcome.INITIALISED, Outcome.SINGULAR, Outcome.ACCEPTED]

@@ -16,6 +16,7 @@ from hypothesis import HealthCheck, Phase, assume, given, settings
 from hypothesis import strategies as st
 
 from ekfslam import EKFSLAM, FilterConfig
+from ekfslam.core.filter.history import Outcome
 from ekfslam.core.models import MIN_RANGE_SQUARED, motion_noise
 from ekfslam.geometry import wrap_angle
 
@@ -127,7 +128,7 @@ def _adversarial_run(config: FilterConfig, seed: int, n_landmarks: int) -> None:
         for _ in range(rng.integers(0, 3)):
             z = (rng.uniform(1e-3, 5.0), rng.uniform(-math.pi, math.pi))
             assert ekf.update(int(rng.integers(n_landmarks)), z, Q) in {
-                "initialised", "accepted", "rejected", "refused",
+                Outcome.INITIALISED, Outcome.ACCEPTED, Outcome.REJECTED, Outcome.REFUSED,
             }  # fmt: skip
         if k % 500 == 499:
             assert_covariance(ekf, k)
@@ -145,12 +146,12 @@ def _adversarial_run(config: FilterConfig, seed: int, n_landmarks: int) -> None:
 def test_a_zero_range_sighting_is_refused_and_counted(config, pose, r, bearing):
     ekf = EKFSLAM(pose, np.eye(3) * 1e-3, config)
     before = ekf.Sigma.copy()
-    assert ekf.update(7, (r, bearing), np.eye(2) * 1e-4) == "refused"
+    assert ekf.update(7, (r, bearing), np.eye(2) * 1e-4) == Outcome.REFUSED
     assert ekf.counts.refused == 1 and ekf.n_landmarks == 0
     np.testing.assert_array_equal(ekf.Sigma, before)
     assert np.isfinite(ekf.mu).all()
     h = ekf.history()
-    assert h.outcome_mask("refused").sum() == 1  # recorded, not silently dropped
+    assert h.outcome_mask(Outcome.REFUSED).sum() == 1  # recorded, not silently dropped
 
 
 @settings(max_examples=50, deadline=None, database=None)
@@ -172,7 +173,7 @@ def test_driving_onto_a_landmark_is_refused_never_nan(config, heading, r, bearin
     assert np.hypot(*(ekf.pose[:2] - m)) < 1e-9
     refused = ekf.counts.refused
     for bearing_seen in (0.0, 1.0):
-        assert ekf.update(3, (0.3, bearing_seen), Q) == "refused"
+        assert ekf.update(3, (0.3, bearing_seen), Q) == Outcome.REFUSED
     assert ekf.counts.refused == refused + 2
     assert np.isfinite(ekf.mu).all() and np.isfinite(ekf.Sigma).all()
     assert_covariance(ekf, 0)

@@ -10,6 +10,7 @@ import pytest
 
 from ekfslam import EKFSLAM, FilterConfig
 from ekfslam.core.filter import kernels
+from ekfslam.core.filter.history import Outcome
 from ekfslam.core.models import observation
 from ekfslam.core.steps import update_steps
 from ekfslam.geometry import wrap_angle
@@ -90,17 +91,19 @@ def test_the_compiled_correction_is_the_block_form(seed: int) -> None:
     d, l, capacity = len(mu), 3 + 2 * j, len(mu) + 4  # storage larger than the state, as in EKFSLAM
     m, S = np.zeros(capacity), np.zeros((capacity, capacity))
     m[:d], S[:d, :d] = mu, Sigma
-    out = np.full(8, math.nan)
+    out = np.full(kernels.OUT_SIZE, math.nan)
     outcome = kernels.correct(
-        m, S, d, l, z[0], z[1], Q[0, 0], Q[0, 1], Q[1, 1],
-        mu[l] - mu[0], mu[l + 1] - mu[1], math.inf, np.zeros((2, capacity)), out,
+        mu=m, S=S, d=d, l=l, z0=z[0], z1=z[1], q00=Q[0, 0], q01=Q[0, 1], q11=Q[1, 1],
+        jx=mu[l] - mu[0], jy=mu[l + 1] - mu[1], gate=math.inf, work=np.zeros((2, capacity)),
+        out=out,
     )  # fmt: skip
-    assert outcome == kernels.ACCEPTED
+    assert outcome == kernels.ACCEPTED == Outcome.ACCEPTED
     kernels.mirror(S, d)  # the kernel keeps the lower triangle
-    np.testing.assert_allclose(out[:2], steps.z_hat, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(out[2:4], steps.nu, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(out[4:7], steps.S[[0, 0, 1], [0, 1, 1]], rtol=0, atol=1e-9)
-    assert out[7] == pytest.approx(steps.nis, rel=0, abs=1e-9)
+    z_hat, nu, s = kernels.OUT_Z_HAT, kernels.OUT_NU, kernels.OUT_S
+    np.testing.assert_allclose(out[z_hat : z_hat + 2], steps.z_hat, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(out[nu : nu + 2], steps.nu, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(out[s : s + 3], steps.S[[0, 0, 1], [0, 1, 1]], rtol=0, atol=1e-9)
+    assert out[kernels.OUT_NIS] == pytest.approx(steps.nis, rel=0, abs=1e-9)
     np.testing.assert_allclose(m[:d], steps.mu_post, rtol=0, atol=1e-9)
     np.testing.assert_allclose(S[:d, :d], steps.Sigma_joseph, rtol=0, atol=1e-9)
 
@@ -117,7 +120,7 @@ def test_the_literal_reference_correction_is_the_block_form(seed: int) -> None:
     literal._sightings = [1] * n
     literal._first = [mu[3 + 2 * k : 5 + 2 * k].copy() for k in range(n)]
     literal._rejected = [[] for _ in range(n)]
-    assert literal.update(10 + j, z, Q) == "accepted"
+    assert literal.update(10 + j, z, Q) == Outcome.ACCEPTED
     np.testing.assert_allclose(literal.mu, steps.mu_post, rtol=0, atol=1e-9)
     np.testing.assert_allclose(literal.Sigma, steps.Sigma_joseph, rtol=0, atol=1e-9)
     # the seed's printed (I - KH) Σ is Joseph's form for the optimal gain

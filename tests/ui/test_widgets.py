@@ -14,7 +14,7 @@ from matplotlib.backend_bases import FigureCanvasBase
 from matplotlib.figure import Figure
 
 from ekfslam.analysis.alignment import align
-from ekfslam.core.filter.history import OUTCOMES
+from ekfslam.core.filter.history import Outcome
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.errors import InputError
 from ekfslam.logs.mrclam.defaults import MRCLAM_NOISE
@@ -195,13 +195,13 @@ def test_text_shows_the_table1_row_and_the_average_nis(square, octagon):
     result = state.result
     a = align(result.landmarks, square.meta.tag_map)  # eq. (17), computed here independently
     h = result.history
-    nis = h.obs_nis[h.obs_outcome == OUTCOMES.index("accepted")].mean()
+    nis = h.obs_nis[h.obs_outcome == Outcome.ACCEPTED].mean()
     row = state.text.splitlines()[1].split()
     assert row[0] == "square-2laps"
     np.testing.assert_allclose([float(v) for v in row[1:6]], [a.x0, a.y0, a.theta0,
                                a.mean_error, nis], atol=6e-3)  # fmt: skip
     counts = dict(re.findall(r"(\w+) (\d+)", state.text.splitlines()[2]))
-    assert int(counts["accepted"]) == int(np.sum(h.obs_outcome == OUTCOMES.index("accepted")))
+    assert int(counts["accepted"]) == int(np.sum(h.obs_outcome == Outcome.ACCEPTED))
     assert tuner.view.text.get_text().splitlines() == state.text.splitlines()[:2]
 
 
@@ -215,7 +215,7 @@ def test_too_small_q_gets_updates_rejected_and_shows_them(square, octagon):
     assert tight.summary.nis_mean > 2 * fine.summary.nis_mean  # overconfident
     assert len(tuner.view.rejected.get_xdata()) == tight.summary.rejected
     h_tight = tight.result.history
-    nis_rejected = h_tight.obs_nis[h_tight.obs_outcome == OUTCOMES.index("rejected")]
+    nis_rejected = h_tight.obs_nis[h_tight.obs_outcome == Outcome.REJECTED]
     assert np.all(nis_rejected > tight.settings.config.gate)  # the gate did what it says
     np.testing.assert_allclose(tuner.view.rejected.get_ydata(), np.log10(nis_rejected))
     assert tuner.view.gate_line.get_ydata()[0] == pytest.approx(np.log10(CHI2_99))

@@ -8,9 +8,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 from ekfslam.errors import ConfigError
+
+if TYPE_CHECKING:
+    from ekfslam.core.filter.history import Outcome
 
 
 def chi2_2dof_quantile(p: float) -> float:
@@ -88,7 +91,11 @@ class FilterConfig:
 
 @dataclass(frozen=True)
 class FilterCounts:
-    """How many steps of each kind the filter took; nothing is dropped without being counted."""
+    """How many steps of each kind the filter took; nothing is dropped without being counted.
+
+    One field per `ekfslam.core.filter.history.Outcome`, named by its `label`, besides the
+    predictions: the outcome fields add up to the observations the filter was given.
+    """
 
     predictions: int
     initialised: int
@@ -96,4 +103,8 @@ class FilterCounts:
     rejected: int
     refused: int
     reinitialised: int = 0
-    singular: int = 0  # S singular or not finite (see `ekfslam.core.filter.history.OUTCOMES`)
+    singular: int = 0  # S singular or not finite (see `ekfslam.core.filter.history.Outcome`)
+
+    def of(self, outcome: Outcome) -> int:
+        """How many observations had this outcome."""
+        return getattr(self, outcome.label)

@@ -8,6 +8,8 @@ about 100 bytes per event in the finished `History`.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import IntEnum
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -16,12 +18,34 @@ Array = NDArray[np.float64]
 
 #: Event kinds in `History.event`.
 PREDICT, OBSERVE = 0, 1
-#: Observation outcomes in `History.obs_outcome` (index into this tuple). "refused": the
-#: landmark (or the observation) sits on the robot, so there is no bearing to linearise;
-#: "singular": the innovation covariance S of eq. (15) is singular or not finite (noise so
-#: small that S underflows, or so large that it overflows), so there is no gain.
-OUTCOMES = ("initialised", "accepted", "rejected", "refused", "reinitialised", "singular")
-INITIALISED, ACCEPTED, REJECTED, REFUSED, REINITIALISED, SINGULAR = range(6)
+
+
+class Outcome(IntEnum):
+    """What the filter did with one observation: the code in `History.obs_outcome`.
+
+    The compiled kernels (`ekfslam.core.filter.kernels`) write the same codes as plain ints,
+    checked against these when they are imported. `label` is the lower-case name that
+    `FilterCounts` fields, JSON keys and printed counts use.
+
+    INITIALISED: a new landmark entered the map (eq. 12). ACCEPTED: an update (eqs. 13-16).
+    REJECTED: the NIS failed the gate. REFUSED: the landmark, or the observation, sits on the
+    robot, so there is no bearing to linearise. REINITIALISED: a landmark placed again (see
+    `FilterConfig.reinit_after`). SINGULAR: the innovation covariance S of eq. (15) is singular
+    or not finite (noise so small that S underflows, or so large that it overflows), so there is
+    no gain.
+    """
+
+    INITIALISED = 0
+    ACCEPTED = 1
+    REJECTED = 2
+    REFUSED = 3
+    REINITIALISED = 4
+    SINGULAR = 5
+
+    @property
+    def label(self) -> str:
+        """The lower-case name ("accepted", ...): a `FilterCounts` field and a JSON key."""
+        return self.name.lower()
 
 
 @dataclass(frozen=True, eq=False)
@@ -36,7 +60,7 @@ class History:
         obs_z (M, 2) measured (r, φ), obs_z_hat (M, 2) predicted (r, φ) before the update
         (NaN for a new landmark, which has no prediction), obs_innovation (M, 2) z - ẑ with the
         bearing wrapped, obs_S (M, 2, 2) innovation covariance, obs_nis (M,) νᵀ S⁻¹ ν,
-        obs_outcome (M,) index into `OUTCOMES`, obs_landmark (M, 2) and obs_landmark_cov
+        obs_outcome (M,) an `Outcome` code, obs_landmark (M, 2) and obs_landmark_cov
         (M, 2, 2) that landmark's estimate after the event.
     """
 
@@ -56,26 +80,73 @@ class History:
     obs_landmark: Array
     obs_landmark_cov: Array
 
-    def outcome_mask(self, outcome: str) -> NDArray[np.bool_]:
-        """Boolean mask over observations with the given outcome name (see `OUTCOMES`)."""
-        return self.obs_outcome == OUTCOMES.index(outcome)
+    def outcome_mask(self, *outcomes: Outcome) -> NDArray[np.bool_]:
+        """Boolean mask (M,) over the observations with any of the given outcomes."""
+        return np.isin(self.obs_outcome, outcomes)
 
     @property
     def nis_of_updates(self) -> Array:
         """NIS of the observations that were used as updates (accepted ones)."""
-        return self.obs_nis[self.outcome_mask("accepted")]
+        return self.obs_nis[self.outcome_mask(Outcome.ACCEPTED)]
 
 
 #: Columns of one recorded event row: time, pose and the six distinct entries of its covariance.
 ROW = ("t", "x", "y", "theta", "xx", "xy", "xtheta", "yy", "ytheta", "thetatheta")
 #: Columns of one recorded observation row (NaN where a value is absent, such as a new
 #: landmark's ẑ): time, the index of its event, the landmark id, z, ẑ, ν, S (2x2, row-major),
-#: the NIS, the outcome (index into `OUTCOMES`), the landmark's mean and covariance after it.
+#: the NIS, the outcome (an `Outcome` code), the landmark's mean and covariance after it.
 OBS_ROW = (
     "t", "event", "id", "r", "phi", "r_hat", "phi_hat", "nu_r", "nu_phi",
     "S00", "S01", "S10", "S11", "nis", "outcome", "mx", "my", "Mxx", "Mxy", "Myx", "Myy",
 )  # fmt: skip
-#: Where each entry of the 3x3 pose covariance sits in a row's covariance part (ROW[4:]).
+
+
+def _span(names: tuple[str, ...], first: str, last: str) -> slice:
+    """The columns from `first` to `last` (inclusive) of a row laid out as `names`."""
+    return slice(names.index(first), names.index(last) + 1)
+
+
+class RowColumns(NamedTuple):
+    """Where the parts of an event row (`ROW`) sit: a column index or a slice of columns."""
+
+    t: int
+    pose: slice  # x, y, θ
+    cov: slice  # the six distinct entries of the 3x3 pose covariance (`_COV_INDEX`)
+
+
+class ObsColumns(NamedTuple):
+    """Where each `History.obs_*` field sits in an observation row (`OBS_ROW`)."""
+
+    t: int
+    event: int
+    id: int
+    z: slice
+    z_hat: slice
+    innovation: slice
+    S: slice  # 2x2, row-major
+    nis: int
+    outcome: int
+    landmark: slice
+    landmark_cov: slice  # 2x2, row-major
+
+
+ROW_COLUMNS = RowColumns(
+    t=ROW.index("t"), pose=_span(ROW, "x", "theta"), cov=_span(ROW, "xx", "thetatheta")
+)
+OBS_COLUMNS = ObsColumns(
+    t=OBS_ROW.index("t"),
+    event=OBS_ROW.index("event"),
+    id=OBS_ROW.index("id"),
+    z=_span(OBS_ROW, "r", "phi"),
+    z_hat=_span(OBS_ROW, "r_hat", "phi_hat"),
+    innovation=_span(OBS_ROW, "nu_r", "nu_phi"),
+    S=_span(OBS_ROW, "S00", "S11"),
+    nis=OBS_ROW.index("nis"),
+    outcome=OBS_ROW.index("outcome"),
+    landmark=_span(OBS_ROW, "mx", "my"),
+    landmark_cov=_span(OBS_ROW, "Mxx", "Myy"),
+)
+#: Where each entry of the 3x3 pose covariance sits in a row's covariance part (`ROW_COLUMNS.cov`).
 _COV_INDEX = np.array([0, 1, 2, 1, 3, 4, 2, 4, 5])
 
 
@@ -115,22 +186,23 @@ class Recorder:
 
     def finish(self) -> History:
         rows, obs = self.rows[: self.n], self.obs[: self.m]
+        r, o = ROW_COLUMNS, OBS_COLUMNS
         return History(
-            t=rows[:, 0].copy(),
+            t=rows[:, r.t].copy(),
             event=self.kinds[: self.n].copy(),
-            pose=rows[:, 1:4].copy(),
-            pose_cov=rows[:, 4:][:, _COV_INDEX].reshape(-1, 3, 3),
-            obs_t=obs[:, 0].copy(),
-            obs_event=obs[:, 1].astype(np.int64),
-            obs_id=obs[:, 2].astype(np.int64),
-            obs_z=obs[:, 3:5].copy(),
-            obs_z_hat=obs[:, 5:7].copy(),
-            obs_innovation=obs[:, 7:9].copy(),
-            obs_S=obs[:, 9:13].reshape(-1, 2, 2).copy(),
-            obs_nis=obs[:, 13].copy(),
-            obs_outcome=obs[:, 14].astype(np.int8),
-            obs_landmark=obs[:, 15:17].copy(),
-            obs_landmark_cov=obs[:, 17:21].reshape(-1, 2, 2).copy(),
+            pose=rows[:, r.pose].copy(),
+            pose_cov=rows[:, r.cov][:, _COV_INDEX].reshape(-1, 3, 3),
+            obs_t=obs[:, o.t].copy(),
+            obs_event=obs[:, o.event].astype(np.int64),
+            obs_id=obs[:, o.id].astype(np.int64),
+            obs_z=obs[:, o.z].copy(),
+            obs_z_hat=obs[:, o.z_hat].copy(),
+            obs_innovation=obs[:, o.innovation].copy(),
+            obs_S=obs[:, o.S].reshape(-1, 2, 2).copy(),
+            obs_nis=obs[:, o.nis].copy(),
+            obs_outcome=obs[:, o.outcome].astype(np.int8),
+            obs_landmark=obs[:, o.landmark].copy(),
+            obs_landmark_cov=obs[:, o.landmark_cov].reshape(-1, 2, 2).copy(),
         )
 
 

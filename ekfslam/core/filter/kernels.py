@@ -34,13 +34,29 @@ from ekfslam.core.filter import history
 # written here, and checked against the modules that own them when this module is imported.
 ACCEPTED, REJECTED, REFUSED, SINGULAR = 1, 2, 3, 5  # the outcome codes `correct` returns
 MIN_RANGE_SQUARED = 1e-12  # m²: closer than this, a landmark cannot be linearised
+# `correct`'s `out`: ẑ (2), ν (2), S's (s00, s01, s11), the NIS; OUT_SIZE entries in all
+OUT_Z_HAT, OUT_NU, OUT_S, OUT_NIS, OUT_SIZE = 0, 2, 4, 7, 8
+# where `propagate` and `record` write in an event row (`history.ROW_COLUMNS`): t, pose, cov
+ROW_T, ROW_POSE, ROW_COV, ROW_SIZE = 0, 1, 4, 10
+# where `record` writes in an observation row (`history.OBS_COLUMNS`)
+OBS_T, OBS_EVENT, OBS_ID, OBS_Z, OBS_Z_HAT, OBS_NU, OBS_S, OBS_NIS = 0, 1, 2, 3, 5, 7, 9, 13
+OBS_OUTCOME, OBS_LANDMARK, OBS_LANDMARK_COV, OBS_SIZE = 14, 15, 17, 21
+_r, _o, _O = history.ROW_COLUMNS, history.OBS_COLUMNS, history.Outcome
 if (ACCEPTED, REJECTED, REFUSED, SINGULAR, MIN_RANGE_SQUARED) != (
-    history.ACCEPTED, history.REJECTED, history.REFUSED, history.SINGULAR,
-    models.MIN_RANGE_SQUARED,
+    _O.ACCEPTED, _O.REJECTED, _O.REFUSED, _O.SINGULAR, models.MIN_RANGE_SQUARED,
+) or (ROW_T, ROW_POSE, ROW_COV, ROW_SIZE) != (
+    _r.t, _r.pose.start, _r.cov.start, len(history.ROW)
+) or (
+    OBS_T, OBS_EVENT, OBS_ID, OBS_Z, OBS_Z_HAT, OBS_NU, OBS_S, OBS_NIS, OBS_OUTCOME,
+    OBS_LANDMARK, OBS_LANDMARK_COV, OBS_SIZE,
+) != (
+    _o.t, _o.event, _o.id, _o.z.start, _o.z_hat.start, _o.innovation.start, _o.S.start, _o.nis,
+    _o.outcome, _o.landmark.start, _o.landmark_cov.start, len(history.OBS_ROW),
 ):  # fmt: skip
     raise ImportError(
         "ekfslam.core.filter.kernels' constants disagree with ekfslam.core.filter.history or models"
     )
+del _r, _o, _O
 
 
 @njit(cache=True)
@@ -104,8 +120,11 @@ def propagate(mu, S, d, us, dts, use_dts, N, fej, px, py, ts, rows, r0, record):
         B += g1
         if record:
             row = rows[r0 + k]
-            row[0], row[1], row[2], row[3] = ts[k], x, y, th
-            row[4], row[5], row[6], row[7], row[8], row[9] = s00, s01, s02, s11, s12, s22
+            p, c = ROW_POSE, ROW_COV
+            row[ROW_T], row[p], row[p + 1], row[p + 2] = ts[k], x, y, th
+            row[c], row[c + 1], row[c + 2], row[c + 3], row[c + 4], row[c + 5] = (
+                s00, s01, s02, s11, s12, s22
+            )  # fmt: skip
         px, py = x, y
     mu[0], mu[1], mu[2] = x, y, th
     for i in range(3, d):  # Σ_rm <- (Π G) Σ_rm: only x and y change (columns, in the lower half)
@@ -122,11 +141,11 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out):
 
     jx, jy: the landmark relative to the robot where the Jacobian is evaluated (the current
     estimate, or FEJ's first estimates). gate: reject when the NIS exceeds it (inf: never).
-    work: (2, capacity) scratch. out (8,) receives ẑ (2), ν (2), S's (s00, s01, s11) and the NIS,
-    NaN where not reached. Returns ACCEPTED (state updated), REJECTED (NIS above the gate),
-    REFUSED (no linearisation: the landmark, or the observation, sits on the robot) or
-    SINGULAR (S is not positive definite, or not finite: no gain); only ACCEPTED changes mu
-    and S.
+    work: (2, capacity) scratch. out (OUT_SIZE,) receives ẑ (2) at OUT_Z_HAT, ν (2) at OUT_NU,
+    S's (s00, s01, s11) at OUT_S and the NIS at OUT_NIS, NaN where not reached. Returns
+    ACCEPTED (state updated), REJECTED (NIS above the gate), REFUSED (no linearisation: the
+    landmark, or the observation, sits on the robot) or SINGULAR (S is not positive definite,
+    or not finite: no gain); only ACCEPTED changes mu and S.
     """
     out[:] = np.nan
     x, y, th = mu[0], mu[1], mu[2]
@@ -137,7 +156,7 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out):
         return REFUSED
     zh0, zh1 = math.sqrt(q), wrap(math.atan2(dy, dx) - th)
     nu0, nu1 = z0 - zh0, wrap(z1 - zh1)
-    out[0], out[1], out[2], out[3] = zh0, zh1, nu0, nu1
+    out[OUT_Z_HAT], out[OUT_Z_HAT + 1], out[OUT_NU], out[OUT_NU + 1] = zh0, zh1, nu0, nu1
     # eq. (14) on the rows (x, y, θ, mx, my) is H = [-H_l | -e₂ | H_l] with
     # H_l = [[a, b], [-e, f]]: the observation sees only the landmark relative to the robot,
     # so H Σ = H_l (Σ_l - Σ_xy) - e₂ Σ_θ comes from five rows of Σ: O(n), no lift.
@@ -158,7 +177,7 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out):
     s00 = a * (h0[l] - h0[0]) + b * (h0[l + 1] - h0[1]) + q00
     s01 = -e * (h0[l] - h0[0]) + f * (h0[l + 1] - h0[1]) - h0[2] + q01
     s11 = -e * (h1[l] - h1[0]) + f * (h1[l + 1] - h1[1]) - h1[2] + q11
-    out[4], out[5], out[6] = s00, s01, s11
+    out[OUT_S], out[OUT_S + 1], out[OUT_S + 2] = s00, s01, s11
     # S = L Lᵀ (Cholesky, 2x2); w = L⁻¹ ν makes the NIS νᵀ S⁻¹ ν = |w|²
     det = s00 * s11 - s01 * s01
     if not (0.0 < s00 < math.inf and 0.0 < det < math.inf):  # also false for NaN
@@ -169,7 +188,7 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out):
     w0 = nu0 / l00
     w1 = (nu1 - l10 * w0) / l11
     nis = w0 * w0 + w1 * w1
-    out[7] = nis
+    out[OUT_NIS] = nis
     if nis > gate:
         return REJECTED
     # eqs. (15)-(16) with W = L⁻¹ H Σ: K = Σ Hᵀ S⁻¹ = Wᵀ L⁻¹, so K S Kᵀ = Wᵀ W and Σ -= Wᵀ W,
@@ -196,27 +215,33 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out):
 
 
 @njit(cache=True)
-def record(mu, S, l, t, landmark_id, z0, z1, out, outcome, rows, n, obs, m):
+def record(mu, S, l, t, landmark_id, z0, z1, out, code, rows, n, obs, m):
     """Write the state after an observation to rows[n] (`ROW`) and the observation to obs[m].
 
     l < 0: no landmark slot (a refused first sighting); its estimate is then NaN. out: what
-    `correct` wrote (ẑ, ν, S, NIS), NaN where there was none.
+    `correct` wrote (ẑ, ν, S, NIS), NaN where there was none. code: the `history.Outcome`, as an
+    int.
     """
     row = rows[n]
-    row[0], row[1], row[2], row[3] = t, mu[0], mu[1], mu[2]
-    row[4], row[5], row[6], row[7], row[8], row[9] = (
+    p, c = ROW_POSE, ROW_COV
+    row[ROW_T], row[p], row[p + 1], row[p + 2] = t, mu[0], mu[1], mu[2]
+    row[c], row[c + 1], row[c + 2], row[c + 3], row[c + 4], row[c + 5] = (
         S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]
     )  # fmt: skip
     o = obs[m]
-    o[0], o[1], o[2], o[3], o[4] = t, n, landmark_id, z0, z1
-    o[5], o[6], o[7], o[8] = out[0], out[1], out[2], out[3]
-    o[9], o[10], o[11], o[12], o[13] = out[4], out[5], out[5], out[6], out[7]
-    o[14] = outcome
+    o[OBS_T], o[OBS_EVENT], o[OBS_ID], o[OBS_Z], o[OBS_Z + 1] = t, n, landmark_id, z0, z1
+    o[OBS_Z_HAT], o[OBS_Z_HAT + 1] = out[OUT_Z_HAT], out[OUT_Z_HAT + 1]
+    o[OBS_NU], o[OBS_NU + 1] = out[OUT_NU], out[OUT_NU + 1]
+    s00, s01, s11 = out[OUT_S], out[OUT_S + 1], out[OUT_S + 2]
+    o[OBS_S], o[OBS_S + 1], o[OBS_S + 2], o[OBS_S + 3] = s00, s01, s01, s11
+    o[OBS_NIS] = out[OUT_NIS]
+    o[OBS_OUTCOME] = code
     if l < 0:
-        o[15:21] = np.nan
+        o[OBS_LANDMARK:OBS_SIZE] = np.nan
     else:
-        o[15], o[16] = mu[l], mu[l + 1]
-        o[17], o[18], o[19], o[20] = S[l, l], S[l + 1, l], S[l + 1, l], S[l + 1, l + 1]
+        o[OBS_LANDMARK], o[OBS_LANDMARK + 1] = mu[l], mu[l + 1]
+        c = OBS_LANDMARK_COV
+        o[c], o[c + 1], o[c + 2], o[c + 3] = S[l, l], S[l + 1, l], S[l + 1, l], S[l + 1, l + 1]
 
 
 @njit(cache=True)

@@ -1,0 +1,32 @@
+"""Tests of ekfslam.analysis.evaluation: the outcome counts of a replay summary."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ekfslam.analysis.evaluation import UPDATES_ORDER, summarize
+from ekfslam.core.filter.history import Outcome
+from ekfslam.core.noise import default_config, default_noise
+from ekfslam.logs.runlog import read_run
+from ekfslam.pipeline import replay
+
+RUNS = Path(__file__).resolve().parents[2] / "data" / "runs"
+
+
+@pytest.mark.parametrize("name", ["octagon-2laps", "square-2laps"])
+def test_the_outcome_counts_of_a_summary_add_up_to_the_sightings(name: str) -> None:
+    run = read_run(RUNS / name)
+    result = replay(run, default_noise(run), default_config(run))
+    summary = summarize(run, result)
+    updates = summary.as_dict()["updates"]
+    assert list(updates) == [o.label for o in UPDATES_ORDER]
+    assert sorted(UPDATES_ORDER) == list(Outcome)
+    sightings = len(run.detections.t)
+    assert sightings > 300
+    assert sum(updates.values()) == sightings == len(result.history.obs_outcome)
+    for o in Outcome:
+        assert updates[o.label] == int(np.sum(result.history.obs_outcome == o))
+    assert updates["accepted"] > 300  # numbers, not just the keys

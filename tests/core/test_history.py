@@ -1,0 +1,124 @@
+"""Tests of ekfslam.core.filter.history: the outcome codes and the named columns of a row."""
+
+from __future__ import annotations
+
+import ast
+import inspect
+import math
+from dataclasses import fields
+
+import numpy as np
+
+from ekfslam.core.filter import ekf, kernels
+from ekfslam.core.filter.config import FilterCounts
+from ekfslam.core.filter.ekf import EKFSLAM
+from ekfslam.core.filter.history import OBS_COLUMNS, OBS_ROW, ROW, ROW_COLUMNS, Outcome
+
+
+def _returned_names(function) -> set[str]:
+    """The names a function returns (`return NAME`), read from its source."""
+    source = inspect.getsource(function.py_func if hasattr(function, "py_func") else function)
+    tree = ast.parse(source)
+    return {
+        node.value.id
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Return) and isinstance(node.value, ast.Name)
+    }
+
+
+def test_every_code_the_correction_kernel_returns_is_an_outcome_of_that_name() -> None:
+    names = _returned_names(kernels.correct)
+    assert names == {"ACCEPTED", "REJECTED", "REFUSED", "SINGULAR"}
+    for name in names:
+        code = getattr(kernels, name)
+        assert type(code) is int  # a plain int: numba bakes it in
+        assert Outcome(code) is Outcome[name]
+
+
+def test_the_codes_are_0_to_5_so_a_code_indexes_the_members() -> None:
+    assert [int(o) for o in Outcome] == list(range(len(Outcome)))
+    assert [o.label for o in Outcome] == [
+        "initialised", "accepted", "rejected", "refused", "reinitialised", "singular",
+    ]  # fmt: skip
+
+
+def test_filter_counts_has_one_field_per_outcome_label() -> None:
+    assert [f.name for f in fields(FilterCounts)] == ["predictions"] + [o.label for o in Outcome]
+    counts = FilterCounts(predictions=9, **{o.label: 10 + o for o in Outcome})
+    assert [counts.of(o) for o in Outcome] == [10, 11, 12, 13, 14, 15]
+
+
+def test_every_outcome_the_filter_records_is_a_member_and_counted() -> None:
+    f = EKFSLAM([0.0, 0.0, 0.0])
+    Q = np.diag([1e-4, 1e-4])
+    returned = [
+        f.update(1, (0.0, 0.3), Q),  # on the robot: refused
+        f.update(2, (1.0, 0.2), Q),  # initialised
+        f.update(2, (1.0, 0.2), Q),  # accepted
+        f.update(2, (1.6, 0.2), Q),  # rejected by the gate
+        f.update(2, (1.0, 0.2), 1e300 * np.eye(2)),  # S overflows: singular
+    ]
+    assert all(type(o) is Outcome for o in returned)
+    h = f.history()
+    assert [Outcome(k) for k in h.obs_outcome.tolist()] == returned == [
+        Outcome.REFUSED, Outcome.INITIALISED, Outcome.ACCEPTED, Outcome.REJECTED, Outcome.SINGULAR,
+    ]  # fmt: skip
+    for o in Outcome:
+        assert f.counts.of(o) == returned.count(o) == int(h.outcome_mask(o).sum())
+
+
+def test_the_named_columns_cover_each_row_once_in_order() -> None:
+    def covered(columns) -> list[int]:
+        out: list[int] = []
+        for c in columns:
+            out += range(c.start, c.stop) if isinstance(c, slice) else [c]
+        return out
+
+    assert covered(ROW_COLUMNS) == list(range(len(ROW)))
+    assert covered(OBS_COLUMNS) == list(range(len(OBS_ROW)))
+    assert OBS_ROW[OBS_COLUMNS.z_hat] == ("r_hat", "phi_hat")
+    assert OBS_ROW[OBS_COLUMNS.S] == ("S00", "S01", "S10", "S11")
+    assert OBS_ROW[OBS_COLUMNS.outcome] == "outcome"
+
+
+def test_the_recorded_observation_fields_come_from_their_named_columns() -> None:
+    f = EKFSLAM([0.0, 0.0, 0.0])
+    Q = np.diag([1e-4, 4e-4])
+    f.update(3, (1.0, 0.2), Q)
+    f.update(3, (1.02, 0.21), Q, t=0.5)
+    h = f.history()
+    assert h.obs_t.tolist() == [0.0, 0.5] and h.obs_id.tolist() == [3, 3]
+    np.testing.assert_array_equal(h.obs_z[1], [1.02, 0.21])
+    assert np.isnan(h.obs_z_hat[0]).all() and np.isnan(h.obs_nis[0])  # a new landmark
+    np.testing.assert_allclose(h.obs_z_hat[1], [1.0, 0.2], atol=1e-12)
+    np.testing.assert_allclose(h.obs_innovation[1], [0.02, 0.01], atol=1e-12)
+    S = h.obs_S[1]
+    assert S[0, 1] == S[1, 0] and S[0, 0] > Q[0, 0] and S[1, 1] > Q[1, 1]
+    nu = h.obs_innovation[1]
+    assert math.isclose(h.obs_nis[1], float(nu @ np.linalg.solve(S, nu)), rel_tol=1e-12)
+    mean, cov = f.landmark(3)
+    np.testing.assert_array_equal(h.obs_landmark[1], mean)
+    np.testing.assert_array_equal(h.obs_landmark_cov[1], cov)
+
+
+def test_the_filter_names_every_kernel_argument_as_the_kernels_parameter() -> None:
+    # the kernels are called positionally (numba's keyword folding costs 0.4 µs a call), so the
+    # call sites spell each argument with the parameter's name: a swapped pair shows up here
+    tree = ast.parse(inspect.getsource(ekf))
+    calls = [
+        node
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Call)
+        and isinstance(node.func, ast.Attribute)
+        and isinstance(node.func.value, ast.Name)
+        and node.func.value.id == "kernels"
+        and node.func.attr in {"propagate", "correct", "record"}
+    ]
+    assert sorted(c.func.attr for c in calls) == ["correct", "propagate", "record"]
+    for call in calls:
+        kernel = getattr(kernels, call.func.attr)
+        parameters = list(inspect.signature(kernel.py_func).parameters)
+        assert not call.keywords
+        assert [a.id if isinstance(a, ast.Name) else ast.unparse(a) for a in call.args] == (
+            parameters
+        ), call.func.attr
