@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import ast
 import re
+import subprocess
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -405,3 +407,29 @@ def test_the_allow_list_can_only_shrink() -> None:
     known = {"floor: a -> b": "F1", "cycle: a <-> b": "F2", "function-import: c.f -> d": "F3"}
     assert compare(found, known) == ([], ["function-import: c.f -> d"])
     assert compare(found | {"filter: x -> y"}, known)[0] == ["filter: x -> y"]
+
+
+def _loaded_after(code: str) -> set[str]:
+    """The top-level modules a fresh interpreter has loaded after running `code`."""
+    probe = f"{code}\nimport sys\nprint(' '.join(sorted({{m.split('.')[0] for m in sys.modules}})))"
+    out = subprocess.run(
+        [sys.executable, "-c", probe], cwd=REPO, capture_output=True, text=True, check=True
+    )
+    return set(out.stdout.split())
+
+
+def test_importing_the_package_without_filtering_loads_no_numba() -> None:
+    # a notebook's first cell, a log reader, the alignment: none of them needs the compiled filter
+    loaded = _loaded_after(
+        "import ekfslam; ekfslam.SEED_ARENA; import ekfslam.logs.runlog, ekfslam.analysis.alignment"
+    )
+    assert "ekfslam" in loaded
+    assert not loaded & {"numba", "llvmlite"}, sorted(loaded & {"numba", "llvmlite"})
+
+
+def test_the_command_line_help_loads_no_numeric_library() -> None:
+    loaded = _loaded_after(
+        "import contextlib, io\nfrom ekfslam.cli.main import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()): main(['--help'])"
+    )
+    assert not loaded & {"numpy", "numba", "scipy", "cv2", "matplotlib", "sympy"}, loaded
