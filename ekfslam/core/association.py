@@ -214,7 +214,8 @@ def jcbb(
 
     Depth-first over the sightings in order; at sighting i each individually compatible,
     unused landmark is tried in order of increasing NIS, then "no landmark". A branch is cut
-    when even pairing every remaining sighting could not beat the best count (the bound).
+    when even pairing every remaining sighting could not beat the best: fewer pairs, or as many
+    with a joint NIS already larger (the bound).
     Cost: O(m · n) for the individual test, then up to `node_budget` joint tests of O(k³).
     """
     nu, P, Q = (np.asarray(a, dtype=float) for a in (nu, P, Q))
@@ -234,12 +235,21 @@ def jcbb(
         n_best = len(best["pairs"])
         return count > n_best or (count == n_best and value < best["nis"])
 
+    def hopeful(most: int, value: float) -> bool:
+        """Can a branch that pairs at most `most`, its joint NIS already `value`, still win?
+
+        The count bound is Neira & Tardós'; on a tie of counts, adding pairs never lowers a
+        joint NIS, so a branch already above the best one's cannot win the tie either.
+        """
+        n_best = len(best["pairs"])
+        return most > n_best or (most == n_best and value < best["nis"])
+
     def search(i: int, value: float) -> None:
         if i == m:
             if better(len(pairs), value):
                 best["pairs"], best["nis"] = list(pairs), value
             return
-        if len(pairs) + could[i] < len(best["pairs"]):
+        if not hopeful(len(pairs) + could[i], value):
             return
         for j in options[i]:
             if j in used:
@@ -255,8 +265,8 @@ def jcbb(
                 search(i + 1, d2)
                 used.discard(j)
             pairs.pop()
-        if len(pairs) + could[i + 1] >= len(best["pairs"]):  # sighting i paired with nothing
-            search(i + 1, value)
+        if hopeful(len(pairs) + could[i + 1], value):
+            search(i + 1, value)  # sighting i paired with nothing
 
     search(0, 0.0)
     pairing = np.full(m, UNPAIRED)
