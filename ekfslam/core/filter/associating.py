@@ -116,7 +116,7 @@ class AssociatingFilter:
         m = len(zs)
         Qs = np.broadcast_to(Q, (m, 2, 2))
         ids = self.ekf.landmark_ids
-        nu, P = self._predicted(zs)
+        nu, P = self.predicted(zs)
         nis = individual_nis(nu, P, Qs)
         if self.config.method == "nn":
             pairing = nearest_neighbour(nis, self.config.gate)
@@ -148,7 +148,7 @@ class AssociatingFilter:
             self._counts[what] += 1
         return used
 
-    def _predicted(self, zs: Array) -> tuple[Array, Array]:
+    def predicted(self, zs: Array) -> tuple[Array, Array]:
         """Innovations ν (m, n, 2) of every sighting against every landmark, and P = H Σ Hᵀ."""
         ekf = self.ekf
         mu, n = ekf.mu, ekf.n_landmarks
