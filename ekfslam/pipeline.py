@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam.core.association import AssociationConfig
+from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog
 from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.filter.history import History
@@ -42,6 +44,8 @@ class ReplayResult:
     history : every event (see `ekfslam.core.filter.history.History`).
     counts : predictions, initialised, accepted, rejected, refused.
     seconds : wall time of the replay loop.
+    association : with ids hidden (``nn``, ``jcbb``), every sighting's decision, in the order of
+        ``run.detections``; the landmarks are then keyed by estimated id. None for ``known``.
     """
 
     name: str
@@ -54,6 +58,7 @@ class ReplayResult:
     seconds: float
     noise: NoiseConfig = field(default_factory=NoiseConfig)
     config: FilterConfig = field(default_factory=FilterConfig)
+    association: AssociationLog | None = None
 
 
 def replay(
@@ -63,6 +68,7 @@ def replay(
     *,
     start_pose: ArrayLike | None = None,
     start_covariance: ArrayLike | None = None,
+    association: AssociationConfig | None = None,
 ) -> ReplayResult:
     """Run the EKF over a log and return the estimate with its full history.
 
@@ -74,6 +80,9 @@ def replay(
     start_pose : (3,), where the filter starts; the run's nominal start by default (the seed
         starts from its nominal pose and recovers the placement error afterwards, eq. 17).
     start_covariance : (3, 3), Σ0 of eq. (2); zero by default (the seed's choice).
+    association : how sightings are matched to landmarks (`ekfslam.core.association`); with
+        ``known`` (the default) the detections' ids, else the ids are hidden from the filter and
+        the sightings of each time are associated (`ekfslam.core.filter.associating`).
     """
     noise = noise or default_noise(run)
     config = config or default_config(run)
@@ -86,12 +95,18 @@ def replay(
             f"{MAX_POSITION:g} m, |theta| <= 2 pi rad"
         )
     ekf = EKFSLAM(pose0, start_covariance, config)
+    hidden = association is not None and association.method != "known"
     started = time.perf_counter()  # the schedule counts: it is part of the replay's work
     steps = _schedule(run, noise)
     with np.errstate(all="ignore"):  # an overflow is caught below, once, and said where
-        _feed(ekf, *steps)
+        if hidden:
+            associating = AssociatingFilter(ekf, association)
+            _feed_hidden(associating, *steps)
+        else:
+            _feed(ekf, *steps)
     seconds = time.perf_counter() - started
-    if not (np.isfinite(ekf.mu).all() and np.isfinite(ekf.Sigma).all()):
+    log = associating.finish() if hidden else None
+    if not hidden and not (np.isfinite(ekf.mu).all() and np.isfinite(ekf.Sigma).all()):
         # once per replay, O(n²); only on failure is the run fed again, checking every step
         with np.errstate(all="ignore"):
             _feed(EKFSLAM(pose0, start_covariance, config, record=False), *steps, check=True)
@@ -104,7 +119,9 @@ def replay(
             RuntimeWarning,
             stacklevel=2,
         )
-    return _result(run, ekf, seconds, noise, config)
+    if hidden and not (np.isfinite(ekf.mu).all() and np.isfinite(ekf.Sigma).all()):
+        raise NonFiniteStateError(f"run {run.meta.name!r}: the filter state became non-finite")
+    return _result(run, ekf, seconds, noise, config, log)
 
 
 def _schedule(run: RunLog, noise: NoiseConfig) -> tuple:
@@ -138,7 +155,12 @@ def _schedule(run: RunLog, noise: NoiseConfig) -> tuple:
 
 
 def _result(
-    run: RunLog, ekf: EKFSLAM, seconds: float, noise: NoiseConfig, config: FilterConfig
+    run: RunLog,
+    ekf: EKFSLAM,
+    seconds: float,
+    noise: NoiseConfig,
+    config: FilterConfig,
+    association: AssociationLog | None = None,
 ) -> ReplayResult:
     ids = ekf.landmark_ids
     return ReplayResult(
@@ -152,6 +174,7 @@ def _result(
         seconds=seconds,
         noise=noise,
         config=config,
+        association=association,
     )
 
 
@@ -258,6 +281,29 @@ def _feed(
         ekf.predict_many(us[done:], dts[done:], ends[done:], M, R)
         if check:
             _check_finite(ekf, f"t = {ends[-1]:.3f} s (prediction to the end)")
+
+
+def _feed_hidden(
+    associating: AssociatingFilter, upto, us, dts, ends, M, R, det_id, det_time, det_z, Q
+) -> None:
+    """`_feed` without the ids: the detections of one time are associated together.
+
+    det_id is not looked at (the filter must not know it); the replay's pieces are the same.
+    """
+    ekf = associating.ekf
+    done, i, n = 0, 0, len(upto)
+    while i < n:
+        k = i + 1
+        while k < n and det_time[k] == det_time[i]:  # one image's (one time's) sightings
+            k += 1
+        p = upto[i]
+        if p > done:
+            ekf.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
+            done = p
+        associating.observe(det_z[i:k], Q, det_time[i])
+        i = k
+    if done < len(us):
+        ekf.predict_many(us[done:], dts[done:], ends[done:], M, R)
 
 
 def _check_finite(ekf: EKFSLAM, where: str) -> None:

@@ -10,7 +10,9 @@
   efficient update between n = 100 and 1000, and the update at n = 1000 against the memory-bound
   floor: one in-place ``Sigma -= A @ B`` of the same rank (2) on an array of the same size;
 - the peak memory of the n = 1000 run (tracemalloc: numpy buffers and Python objects);
-- a full replay of one MRCLAM Dataset 7 robot, when the shared data folder has it.
+- a full replay of one MRCLAM Dataset 7 robot, when the shared data folder has it;
+- association with the ids hidden: the octagon with nn and jcbb against known, and one decision
+  against the number of sightings at one time (`ekfslam.analysis.association_bench`).
 
 Every figure is a median over repeats; replays are interleaved so that a busy machine slows all
 of them alike. Machines are shared and noisy: compare figures from one run. The results go to
@@ -33,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ekfslam.analysis.association_bench import bench_association
 from ekfslam.analysis.startup import startup_times
 from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.models import observation_noise
@@ -338,6 +341,7 @@ def run_benchmarks(config: BenchConfig, command: str = "python -m ekfslam bench"
     }
     result.update(bench_replays(config))
     result.update(bench_mrclam(config))
+    result.update(bench_association(config.runs_dir, config.replay_repeats))
     result.update(bench_sizes(config))
     result["peak_mb_1000"] = peak_memory_mb(result["floor_n"])
     result["peak_memory_method"] = "tracemalloc"

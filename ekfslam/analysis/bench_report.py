@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from ekfslam.analysis.association_bench import association_lines
 from ekfslam.analysis.bench import MRCLAM_ROBOT, RUNS
 from ekfslam.analysis.startup import startup_lines
 from ekfslam.files import atomic_write_text
@@ -71,6 +72,7 @@ def markdown_table(r: dict) -> str:
         f"predict {_fmt(fej.get('predict'), digits=2)}x and update "
         f"{_fmt(fej.get('update'), digits=2)}x at n = {fej.get('update_n')}",
     ]
+    lines += association_lines(r)
     if "startup_s" in r:  # results written before the startup section have none
         lines += startup_lines(r)
     return "\n".join(lines)

@@ -101,3 +101,17 @@ def table1_markdown(summaries: Mapping[str, RunSummary], seed_table: Mapping[str
 
 def _markdown_row(label: str, row: Row) -> str:
     return f"| {label} | " + " | ".join(f"{v:.3f}" for v in row) + " |"
+
+
+def association_line(block: dict) -> str:
+    """One line of ``run``'s table: its ``association`` block (`ekfslam.analysis.association`)."""
+    f = block["correct_fraction"]
+    share = "n/a" if f is None else f"{100 * f:.1f}%"
+    return (
+        f"association {block['method']}: correct {block['correct']}, wrong {block['wrong']}, "
+        f"missed {block['missed']} ({share} correct), new {block['new']}, ambiguous "
+        f"{block['ambiguous']}, tentative discarded {block['tentative_discarded']}"
+        + (f", duplicates {len(block['duplicates'])}" if block["duplicates"] else "")
+        + (f", JCBB budget hit {block['jcbb_budget_hits']}x" if block["jcbb_budget_hits"] else "")
+        + f"; {block['alignment_matching']}"
+    )

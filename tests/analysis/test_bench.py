@@ -55,6 +55,8 @@ def test_smoke_run_prints_the_issue_keys_and_writes_its_files(tmp_path: Path, ca
     assert positive(r["fej_vs_standard"]["replay_octagon"])
     assert positive(r["fej_step"]["update"]) and positive(r["fej_step"]["predict"])
     assert r["machine"]["cores"] >= 1 and r["date"] and r["command"].startswith("python -m")
+    assert r["association_vs_known"]["nn"] > 0 and r["association_vs_known"]["jcbb"] > 0
+    assert r["association_map_size"] == 16 and "1" in r["association_step_ms"]
 
     table = (out / "bench.md").read_text()
     assert "| 120 |" in table and "octagon-2laps" in table

@@ -1,0 +1,66 @@
+"""How well a replay with hidden ids associated, against the ids the run knows (issue 16).
+
+The filter named its landmarks 0, 1, 2 ... (`ekfslam.core.filter.associating`); the run's
+detections still carry the true ids. `score` maps each estimated landmark to the true id most of
+its sightings had (`ekfslam.core.association.confusion`) and returns the replay with its map keyed
+by true id through that mapping, so the alignment of eq. (17) and every score downstream compare
+the same landmarks as with known ids. An estimated landmark whose true id a more-seen one
+already has (a duplicate) is left out of that map, and counted.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ekfslam.core.association import Confusion, confusion
+from ekfslam.logs.runlog import RunLog
+from ekfslam.pipeline import ReplayResult
+
+#: How eq. (17) matched landmarks, said in the output.
+MATCHED_THROUGH_MAPPING = "estimated landmarks matched to true ids through the association mapping"
+
+
+def score(run: RunLog, result: ReplayResult) -> tuple[ReplayResult, Confusion]:
+    """The replay with its landmarks keyed by true id, and the confusion of its decisions.
+
+    `result` must come from a replay with hidden ids (``result.association`` set), of `run`.
+    """
+    log = result.association
+    if log is None:
+        raise ValueError("this replay used the known ids: there is nothing to score")
+    truth = np.asarray(run.detections.tag_id, dtype=int)
+    if len(truth) != len(log.estimated):
+        raise ValueError(f"{len(log.estimated)} decisions for {len(truth)} detections")
+    found = confusion(log.estimated, truth)
+    keep = [e for e in result.landmarks if e in found.mapping and e not in found.duplicates]
+    relabelled = dataclasses.replace(
+        result,
+        landmarks={found.mapping[e]: result.landmarks[e] for e in keep},
+        landmark_covariances={found.mapping[e]: result.landmark_covariances[e] for e in keep},
+    )
+    return relabelled, found
+
+
+def as_dict(result: ReplayResult, found: Confusion) -> dict:
+    """The ``association`` block of ``run --json``: the method, the confusion, the counts."""
+    log = result.association
+    assert log is not None  # score() refused a replay with known ids
+    c = log.counts
+    return {
+        "method": log.method,
+        "correct": found.correct,
+        "wrong": found.wrong,
+        "missed": found.missed,
+        "new": c.confirmed,
+        "ambiguous": c.ambiguous,
+        "correct_fraction": found.correct_fraction,
+        "tentative": c.tentative,
+        "tentative_discarded": c.tentative_discarded,
+        "duplicates": found.duplicates,
+        "jcbb_budget_hits": c.budget_hits,
+        "jcbb_nodes": c.nodes,
+        "mapping": {str(e): t for e, t in sorted(found.mapping.items())},
+        "alignment_matching": MATCHED_THROUGH_MAPPING,
+    }

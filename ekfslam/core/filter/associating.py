@@ -1,0 +1,207 @@
+"""The filter's correction when sightings carry no id: associate, then update (issue 16).
+
+`AssociatingFilter` wraps an `ekfslam.core.filter.ekf.EKFSLAM`. For the sightings taken at one
+time it predicts every mapped landmark's observation and the joint covariance of those
+predictions from the filter's state, lets `ekfslam.core.association` choose the pairing
+(``nn`` or ``jcbb``), and feeds each paired sighting to `EKFSLAM.update` under the landmark's
+estimated id (0, 1, 2 ... in the order they become permanent), one after the other as the
+replay does with known ids. The EKF itself is unchanged: its gate and re-initialisation still
+apply to each update.
+
+A sighting paired with nothing:
+
+- ambiguous (its smallest NIS lies between the gate and the new-landmark threshold): dropped,
+  counted;
+- otherwise a new landmark, which starts TENTATIVE, outside the state, as the position the
+  sighting puts it at with that position's covariance (pose and sighting noise). The rule: a
+  tentative becomes a landmark when a later sighting (at a later time) that pairs with no mapped
+  landmark puts it within the gate of the tentative (Mahalanobis, both covariances); the filter
+  is then initialised from that second sighting. A tentative not confirmed within
+  `AssociationConfig.tentative_life` seconds is discarded and counted, so a single spurious
+  sighting never becomes a landmark.
+
+Linearisation: the predictions use the current estimate, also under FEJ (the association is a
+test, not an update; FEJ's Jacobians still apply to the updates themselves).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ekfslam.core.association import (
+    UNPAIRED,
+    AssociationConfig,
+    individual_nis,
+    jcbb,
+    nearest_neighbour,
+)
+from ekfslam.core.filter.ekf import EKFSLAM
+from ekfslam.core.models import inverse_observation, inverse_observation_jacobians
+
+Array = NDArray[np.float64]
+
+#: What became of each sighting (`AssociationLog.decision`).
+ASSOCIATED, CONFIRMED, TENTATIVE, AMBIGUOUS = "associated", "confirmed", "tentative", "ambiguous"
+
+
+@dataclass(frozen=True)
+class AssociationCounts:
+    """Every sighting is counted once: associated + confirmed + tentative + ambiguous = all.
+
+    associated : paired with a mapped landmark (then updated; the EKF's gate may still reject).
+    confirmed : made a tentative landmark permanent (``new`` landmarks).
+    tentative : started a tentative landmark. tentative_discarded : tentatives never confirmed.
+    ambiguous : inside no landmark's gate but not far enough from all to be new: dropped.
+    budget_hits, nodes : JCBB steps that ran out of their node budget; nodes searched in all.
+    """
+
+    associated: int
+    confirmed: int
+    tentative: int
+    tentative_discarded: int
+    ambiguous: int
+    budget_hits: int
+    nodes: int
+
+
+@dataclass(frozen=True)
+class AssociationLog:
+    """The decisions of a run, one entry per sighting in the order they were fed.
+
+    method : the `AssociationConfig.method`. estimated : (N,) the estimated landmark id each
+    sighting was used for, -1 (`UNPAIRED`) when none. decision : (N,) one of ASSOCIATED,
+    CONFIRMED, TENTATIVE, AMBIGUOUS. counts : `AssociationCounts`.
+    """
+
+    method: str
+    estimated: NDArray[np.int64]
+    decision: tuple[str, ...]
+    counts: AssociationCounts
+
+
+class AssociatingFilter:
+    """An EKF whose sightings are matched to landmarks by `config.method` ("nn" or "jcbb").
+
+    Parameters
+    ----------
+    ekf : the filter to correct (its landmark ids become the estimated ids 0, 1, ...).
+    config : AssociationConfig; its method must not be "known" (that needs no association).
+    """
+
+    def __init__(self, ekf: EKFSLAM, config: AssociationConfig) -> None:
+        if config.method == "known":
+            raise ValueError("'known' association feeds EKFSLAM.update directly")
+        self.ekf = ekf
+        self.config = config
+        self._tentative: list[tuple[float, Array, Array]] = []  # (time, position, covariance)
+        self._estimated: list[int] = []
+        self._decision: list[str] = []
+        self._counts = dict.fromkeys(
+            ("associated", "confirmed", "tentative", "tentative_discarded", "ambiguous",
+             "budget_hits", "nodes"), 0,
+        )  # fmt: skip
+
+    def observe(self, zs: ArrayLike, Q: ArrayLike, t: float) -> list[int]:
+        """Use the sightings taken at time t (s): zs (m, 2) range (m), bearing (rad); Q (2, 2).
+
+        Returns the estimated landmark id each sighting was used for (-1: none).
+        """
+        zs = np.asarray(zs, dtype=float).reshape(-1, 2)
+        Q = np.asarray(Q, dtype=float)
+        self._expire(t)
+        m = len(zs)
+        Qs = np.broadcast_to(Q, (m, 2, 2))
+        ids = self.ekf.landmark_ids
+        nu, P = self.predicted(zs)
+        nis = individual_nis(nu, P, Qs)
+        if self.config.method == "nn":
+            pairing = nearest_neighbour(nis, self.config.gate)
+        else:
+            found = jcbb(
+                nu, P, Qs, self.config.gate, self.config.joint_probability,
+                self.config.node_budget,
+            )  # fmt: skip
+            pairing = found.pairing
+            self._counts["nodes"] += found.nodes
+            self._counts["budget_hits"] += found.budget_hit
+        used = [UNPAIRED] * m
+        decision = [ASSOCIATED] * m
+        for i in range(m):  # the paired ones first: each update sharpens the pose
+            if pairing[i] != UNPAIRED:
+                used[i] = ids[int(pairing[i])]
+                self.ekf.update(used[i], zs[i], Q, t)
+        nearest = nis.min(axis=1) if nis.shape[1] else np.full(m, math.inf)
+        for i in range(m):
+            if pairing[i] != UNPAIRED:
+                continue
+            if nearest[i] <= self.config.new_landmark:
+                decision[i] = AMBIGUOUS
+            else:
+                used[i], decision[i] = self._new_sighting(zs[i], Q, t)
+        for e, what in zip(used, decision, strict=True):  # in the sightings' order, for scoring
+            self._estimated.append(e)
+            self._decision.append(what)
+            self._counts[what] += 1
+        return used
+
+    def predicted(self, zs: Array) -> tuple[Array, Array]:
+        """Innovations ν (m, n, 2) of every sighting against every landmark, and P = H Σ Hᵀ."""
+        ekf = self.ekf
+        mu, n = ekf.mu, ekf.n_landmarks
+        d = 3 + 2 * n
+        x, y, th = mu[0], mu[1], mu[2]
+        L = mu[3:d].reshape(n, 2)
+        dx, dy = L[:, 0] - x, L[:, 1] - y
+        q = np.maximum(dx * dx + dy * dy, 1e-12)  # a landmark on the robot: a huge NIS, no NaN
+        r = np.sqrt(q)
+        zh = np.column_stack([r, np.arctan2(dy, dx) - th])
+        nu = zs[:, None, :] - zh[None, :, :]
+        nu[..., 1] = (nu[..., 1] + math.pi) % (2.0 * math.pi) - math.pi
+        H = np.zeros((2 * n, d))  # eq. (14) for each landmark, stacked
+        a, b, c, e = dx / r, dy / r, dy / q, dx / q
+        rows = np.arange(n)
+        H[2 * rows, 0], H[2 * rows, 1] = -a, -b
+        H[2 * rows + 1, 0], H[2 * rows + 1, 1], H[2 * rows + 1, 2] = c, -e, -1.0
+        H[2 * rows, 3 + 2 * rows], H[2 * rows, 4 + 2 * rows] = a, b
+        H[2 * rows + 1, 3 + 2 * rows], H[2 * rows + 1, 4 + 2 * rows] = -c, e
+        return nu, H @ ekf.Sigma @ H.T
+
+    def _new_sighting(self, z: Array, Q: Array, t: float) -> tuple[int, str]:
+        """A sighting of no mapped landmark: confirm a tentative one, or start one."""
+        pose = self.ekf.mu[:3]
+        G_p, G_z = inverse_observation_jacobians(pose, z)
+        p = inverse_observation(pose, z)
+        C = G_p @ self.ekf.pose_covariance @ G_p.T + G_z @ Q @ G_z.T
+        for k, (t0, p0, C0) in enumerate(self._tentative):
+            if t0 >= t:
+                continue  # seen again means at a later time
+            v = p - p0
+            S = C + C0
+            if v @ np.linalg.solve(S, v) <= self.config.gate:
+                del self._tentative[k]
+                new_id = self.ekf.n_landmarks
+                self.ekf.update(new_id, z, Q, t)
+                return new_id, CONFIRMED
+        self._tentative.append((t, p, C))
+        return UNPAIRED, TENTATIVE
+
+    def _expire(self, t: float) -> None:
+        life = self.config.tentative_life
+        keep = [e for e in self._tentative if t - e[0] <= life]
+        self._counts["tentative_discarded"] += len(self._tentative) - len(keep)
+        self._tentative = keep
+
+    def finish(self) -> AssociationLog:
+        """The decisions so far; the tentatives still waiting count as discarded."""
+        counts = dict(self._counts)
+        counts["tentative_discarded"] += len(self._tentative)
+        return AssociationLog(
+            method=self.config.method,
+            estimated=np.array(self._estimated, dtype=np.int64),
+            decision=tuple(self._decision),
+            counts=AssociationCounts(**counts),
+        )

@@ -1,0 +1,70 @@
+"""The associating correction: tentative landmarks, spurious sightings, ambiguous ones."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ekfslam.core.association import UNPAIRED, AssociationConfig
+from ekfslam.core.filter.associating import AMBIGUOUS, AssociatingFilter
+from ekfslam.core.filter.ekf import EKFSLAM
+from ekfslam.core.models import observation, observation_noise
+
+Q = observation_noise(0.01, 0.01)
+LANDMARKS = np.array([[2.0, 0.0], [0.0, 2.0]])
+POSE = np.zeros(3)  # the robot stands still, its pose known: only the decisions matter
+
+
+def sightings(*points):
+    return np.array([observation(POSE, p) for p in points])
+
+
+def make(method: str = "jcbb") -> AssociatingFilter:
+    return AssociatingFilter(EKFSLAM(POSE), AssociationConfig(method=method, tentative_life=5.0))
+
+
+def test_a_landmark_becomes_permanent_when_seen_again_and_is_then_associated():
+    f = make()
+    assert f.observe(sightings(*LANDMARKS), Q, 0.0) == [UNPAIRED, UNPAIRED]  # tentative
+    assert f.observe(sightings(*LANDMARKS), Q, 1.0) == [0, 1]  # confirmed: new landmarks
+    assert f.observe(sightings(LANDMARKS[1], LANDMARKS[0]), Q, 2.0) == [1, 0]
+    log = f.finish()
+    assert (log.counts.tentative, log.counts.confirmed, log.counts.associated) == (2, 2, 2)
+    assert f.ekf.n_landmarks == 2
+
+
+def test_a_spurious_sighting_does_not_become_a_landmark():
+    f = make("nn")
+    for t in range(3):
+        f.observe(sightings(*LANDMARKS), Q, float(t))
+    f.observe(sightings(*LANDMARKS, [-1.5, -1.0]), Q, 3.0)  # one sighting of nothing
+    for t in range(4, 12):
+        f.observe(sightings(*LANDMARKS), Q, float(t))
+    log = f.finish()
+    assert f.ekf.n_landmarks == 2
+    assert log.counts.tentative_discarded == 1  # expired after tentative_life
+    assert log.decision[8] == "tentative"
+
+
+def test_a_landmark_never_seen_again_is_discarded_at_the_end():
+    f = make()
+    f.observe(sightings(LANDMARKS[0]), Q, 0.0)
+    f.observe(sightings(LANDMARKS[0]), Q, 1.0)
+    f.observe(sightings(LANDMARKS[0], LANDMARKS[1]), Q, 2.0)  # the second, once only
+    log = f.finish()
+    assert f.ekf.n_landmarks == 1
+    assert log.counts.tentative_discarded == 1
+
+
+def test_a_sighting_between_the_gate_and_the_new_landmark_threshold_is_dropped():
+    f = make()
+    f.observe(sightings(LANDMARKS[0]), Q, 0.0)
+    f.observe(sightings(LANDMARKS[0]), Q, 1.0)
+    _, S = f.ekf.landmark(0)
+    # a range off by ~4 σ of the innovation: NIS about 16, between 9.21 and 23.0
+    sigma = np.sqrt(S[0, 0] + Q[0, 0])
+    z = observation(POSE, LANDMARKS[0]) + np.array([4.0 * sigma, 0.0])
+    mean_before = f.ekf.mu.copy()
+    assert f.observe(z[None, :], Q, 2.0) == [UNPAIRED]
+    log = f.finish()
+    assert log.decision[-1] == AMBIGUOUS and log.counts.ambiguous == 1
+    np.testing.assert_array_equal(f.ekf.mu, mean_before)  # dropped: the state is untouched

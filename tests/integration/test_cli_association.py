@@ -1,0 +1,43 @@
+"""``run --association``: the flag, its JSON block, and its one-line refusal."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+OCTAGON = REPO / "data" / "runs" / "octagon-2laps"
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    return subprocess.run(
+        [sys.executable, "-m", "ekfslam", *args],
+        cwd=REPO, capture_output=True, text=True, env=env, timeout=300,
+    )  # fmt: skip
+
+
+def test_jcbb_adds_the_association_block_and_known_does_not():
+    hidden = cli("run", str(OCTAGON), "--association", "jcbb", "--json")
+    assert hidden.returncode == 0, hidden.stderr
+    out = json.loads(hidden.stdout)
+    block = out["association"]
+    for key in ("method", "correct", "wrong", "new", "ambiguous", "correct_fraction"):
+        assert key in block
+    assert block["method"] == "jcbb"
+    assert block["correct_fraction"] >= 0.99
+    assert "association mapping" in block["alignment_matching"]
+    known = json.loads(cli("run", str(OCTAGON), "--json").stdout)
+    assert "association" not in known  # the default's output is as it was
+    assert known.keys() | {"association"} == out.keys()
+
+
+def test_the_table_says_how_it_associated_and_a_bad_method_is_one_line():
+    text = cli("run", str(OCTAGON), "--association", "nn").stdout
+    assert "association nn: correct" in text and "association mapping" in text
+    bad = cli("run", str(OCTAGON), "--association", "guess")
+    assert bad.returncode == 2
+    assert bad.stderr.count("\n") == 1 and "--association" in bad.stderr
