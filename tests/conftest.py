@@ -73,3 +73,22 @@ def mrclam7() -> Path:
             f"MRCLAM Dataset 7 is in neither {shared_data_dir()}/mrclam nor {missing.path}: run "
             "`python -m ekfslam fetch mrclam 7`, or set EKFSLAM_SHARED_DATA"
         )
+
+
+RUNS = REPO / "data" / "runs"
+
+
+@pytest.fixture(scope="module")
+def square():
+    """The seed's square run, ``data/runs/square-2laps`` (read once per test module)."""
+    from ekfslam.logs.runlog import read_run
+
+    return read_run(RUNS / "square-2laps")
+
+
+@pytest.fixture(scope="module")
+def square_result(square):
+    """Its replay with the run's default noise."""
+    from ekfslam.pipeline import replay
+
+    return replay(square)

@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from ekfslam import SimulationConfig, read_run, replay, simulate
+from ekfslam import SimulationConfig, replay, simulate
 from ekfslam.analysis.frames_of_reference import (
     filter_frame_transform,
     position_errors,
@@ -18,13 +17,6 @@ from ekfslam.analysis.frames_of_reference import (
 )
 from ekfslam.errors import EkfSlamError
 from ekfslam.logs.edit import without_detections
-
-RUNS = Path(__file__).resolve().parents[2] / "data" / "runs"
-
-
-@pytest.fixture(scope="module")
-def square():
-    return read_run(RUNS / "square-2laps")
 
 
 def test_noise_free_dead_reckoning_matches_the_truth_in_the_filter_frame() -> None:

@@ -4,24 +4,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from ekfslam import EKFSLAM, read_run
+from ekfslam import EKFSLAM
 from ekfslam.analysis.alignment import align
 from ekfslam.analysis.frames_of_reference import tags_in_filter_frame
 from ekfslam.analysis.laps import lap_statistics, lap_times, revisits, size_sweep
 from ekfslam.errors import EkfSlamError
 from ekfslam.pipeline import replay_until
-
-RUNS = Path(__file__).resolve().parents[2] / "data" / "runs"
-
-
-@pytest.fixture(scope="module")
-def square():
-    return read_run(RUNS / "square-2laps")
 
 
 def test_lap_times_are_every_fourth_waypoint_of_the_square(square) -> None:

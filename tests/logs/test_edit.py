@@ -2,20 +2,11 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-from ekfslam import NoiseConfig, read_run, replay
+from ekfslam import NoiseConfig, replay
 from ekfslam.logs.edit import truncate, without_detections
-
-RUNS = Path(__file__).resolve().parents[2] / "data" / "runs"
-
-
-@pytest.fixture(scope="module")
-def square():
-    return read_run(RUNS / "square-2laps")
 
 
 def test_dead_reckoning_heading_variance_is_the_noise_density_times_the_duration(square) -> None:

@@ -18,16 +18,6 @@ from ekfslam.pipeline import landmark_slots, prior_before, replay_until, replay_
 RUNS = Path(__file__).resolve().parents[2] / "data" / "runs"
 
 
-@pytest.fixture(scope="module")
-def square():
-    return read_run(RUNS / "square-2laps")
-
-
-@pytest.fixture(scope="module")
-def square_result(square):
-    return replay(square)
-
-
 def test_replay_until_a_detection_time_is_the_full_replay_at_that_moment(
     square, square_result
 ) -> None:

@@ -3,26 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 
 import pytest
 
-from ekfslam import read_run, replay
 from ekfslam.analysis.evaluation import SEED_TABLE1, summarize
 from ekfslam.errors import EkfSlamError
 from ekfslam.viz.tables import PANEL, table1_lines, table1_markdown
-
-RUNS = Path(__file__).resolve().parents[2] / "data" / "runs"
-
-
-@pytest.fixture(scope="module")
-def square():
-    return read_run(RUNS / "square-2laps")
-
-
-@pytest.fixture(scope="module")
-def square_result(square):
-    return replay(square)
 
 
 def test_table1_markdown_puts_each_run_beside_the_seed(square, square_result) -> None:
