@@ -12,7 +12,8 @@ import argparse
 import json
 
 from ekfslam.cli import args as ca
-from ekfslam.places import shared_data_dir
+from ekfslam.errors import InputError
+from ekfslam.logs.mrclam.load import find_dataset
 from ekfslam.ui.browser_latency import browser_benchmark
 from ekfslam.ui.latency import benchmark
 
@@ -27,7 +28,7 @@ BEFORE = (
 AFTER = "panel = tuning_panel({runs})"
 MRCLAM_RUNS = (
     "from ekfslam.logs.mrclam.load import load_mrclam\n"
-    "runs = {{'mrclam1-r1': lambda: load_mrclam({folder!r}, 1)[0]}}\n"
+    "runs = {{'mrclam7-r1': lambda: load_mrclam({folder!r}, 1)[0]}}\n"
 )
 
 
@@ -65,11 +66,13 @@ def cmd_tune(args: argparse.Namespace) -> int:
 
 def _browser(args: argparse.Namespace) -> int:
     setups = {"seed, before": BEFORE.format(runs=""), "seed, now": AFTER.format(runs="")}
-    dataset = shared_data_dir() / "mrclam" / "MRCLAM_Dataset1" if shared_data_dir() else None
-    if dataset is not None and dataset.is_dir():
-        code = MRCLAM_RUNS.format(folder=str(dataset))
-        setups["MRCLAM 1 robot 1, before"] = code + BEFORE.format(runs="runs, ")
-        setups["MRCLAM 1 robot 1, now"] = code + AFTER.format(runs="runs, ")
+    try:  # dataset 7: the one with the robots' true paths (the figure's grey line)
+        code = MRCLAM_RUNS.format(folder=str(find_dataset(7)))
+    except InputError as exc:
+        print(f"(no MRCLAM robot: {exc})")
+    else:
+        setups["MRCLAM 7 robot 1, before"] = code + BEFORE.format(runs="runs, ")
+        setups["MRCLAM 7 robot 1, now"] = code + AFTER.format(runs="runs, ")
     results = browser_benchmark(setups, moves=args.repeats or 20)
     if args.json:
         print(json.dumps(results, indent=2, allow_nan=False))

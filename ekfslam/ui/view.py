@@ -136,9 +136,11 @@ class TuningView:
         # limits redraw every tick label (ekfslam.ui.blit), a wiggle of a millimetre included.
         (x0, x1), (y0, y1) = self.map_ax.get_xlim(), self.map_ax.get_ylim()
         shown, shown_half = np.array([x0 + x1, y0 + y1]) / 2, (x1 - x0) / 2
-        if self._limits_set and half >= 0.8 * shown_half:
-            if np.all(np.abs(centre - shown) + half / 1.12 <= shown_half):
+        if self._limits_set:
+            fits = np.all(np.abs(centre - shown) + half / 1.12 <= shown_half)
+            if fits and half >= 0.8 * shown_half:
                 return
+            half *= 1.1  # room for the next wiggle (a drifting MRCLAM path moves by decimetres)
         self._limits_set = True
         self.map_ax.set_xlim(centre[0] - half, centre[0] + half)
         self.map_ax.set_ylim(centre[1] - half, centre[1] + half)
