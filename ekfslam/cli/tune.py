@@ -59,7 +59,8 @@ def cmd_tune(args: argparse.Namespace) -> int:
             f"{name:<16} median {r['median_ms']:6.1f} ms = replay {r['replay_ms']:.1f} ms "
             f"+ summary and artists {r['update_ms'] - r['replay_ms']:.1f} ms "
             f"+ render to PNG {r['draw_ms']:.1f} ms; CPU time {r['cpu_ms']:.1f} ms "
-            f"({r['samples']} samples; target 100 ms)"
+            f"({r['samples']} samples; target 100 ms); blitted as on ipympl "
+            f"{r['blit_ms']:.1f} ms before its PNG"
         )
     return 0
 

@@ -13,6 +13,7 @@ from matplotlib.figure import Figure
 
 from ekfslam.logs.runlog import read_run
 from ekfslam.ui.coalescer import COALESCE_DELAY, Coalescer
+from ekfslam.ui.latency import benchmark
 from ekfslam.ui.tuning import DEFAULT_FIGSIZE, RUNS_DIR, Tuner
 
 
@@ -99,3 +100,8 @@ def test_after_an_idle_spell_a_change_runs_at_once():
     started = asyncio.run(main())
     assert [v for v, _ in done] == [1]
     assert done[0][1] - started < COALESCE_DELAY  # no waiting: nothing else was queued
+
+
+def test_the_in_process_benchmark_times_the_blitted_move(runs):
+    report = benchmark({"square": runs["square"]}, repeats=2)["square"]
+    assert 0 < report["replay_ms"] < report["blit_ms"]
