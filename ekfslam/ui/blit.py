@@ -88,10 +88,6 @@ class Blitter:
             canvas.restore_region(region)
         canvas.blit(fig.bbox)
 
-    def invalidate(self) -> None:
-        """Draw the background again at the next `redraw` (e.g. after a change of run)."""
-        self._background = None
-
     def _draw_background(self) -> None:
         canvas = self.figure.canvas
         shown = [a for a in self.artists() if a.get_visible()]
