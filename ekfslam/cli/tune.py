@@ -1,7 +1,9 @@
-"""``python -m ekfslam tune --bench [--repeats N] [--json]``: the live panel's latency per run.
+"""``python -m ekfslam tune --bench|--browser [--repeats N] [--json]``: the live panel's latency.
 
-The panel itself lives in a notebook (`ekfslam.ui.widgets.tuning_panel`); this command times what
-one slider change costs, from the change to the redrawn figure, on each seed run.
+The panel itself lives in a notebook (`ekfslam.ui.widgets.tuning_panel`); ``--bench`` times what
+one slider change costs in this process, from the change to the redrawn figure, on each seed run;
+``--browser`` times a key press to the figure's new pixels in headless Chromium (Voila on
+127.0.0.1), the panel as it draws today and as it drew before blitting, alternately.
 """
 
 from __future__ import annotations
@@ -10,24 +12,45 @@ import argparse
 import json
 
 from ekfslam.cli import args as ca
+from ekfslam.errors import InputError
+from ekfslam.logs.mrclam.load import find_dataset
+from ekfslam.ui.browser_latency import browser_benchmark
 from ekfslam.ui.latency import benchmark
+
+#: The panel as it was before blitting (issue 18): a full draw per move through ipympl's draw
+#: request, and a change waiting COALESCE_DELAY even after an idle spell.
+BEFORE = (
+    "import asyncio\nfrom ekfslam.ui.coalescer import COALESCE_DELAY\n"
+    "panel = tuning_panel({runs}blit=False)\n"
+    "panel.tuner._coalescer._schedule = "
+    "lambda fn: asyncio.get_running_loop().call_later(COALESCE_DELAY, fn)"
+)
+AFTER = "panel = tuning_panel({runs})"
+MRCLAM_RUNS = (
+    "from ekfslam.logs.mrclam.load import load_mrclam\n"
+    "runs = {{'mrclam7-r1': lambda: load_mrclam({folder!r}, 1)[0]}}\n"
+)
 
 
 def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) -> None:
     """Register ``tune`` (`help` is the one line of `ekfslam.cli.main.COMMANDS`)."""
     p = subparsers.add_parser(name, help=help, description=__doc__.split("\n\n")[0])
     p.add_argument("--bench", action="store_true", help="time the panel's update")
-    p.add_argument("--repeats", type=ca.whole(1, 1000), default=15,
-                   help="samples per run (default: %(default)s)")  # fmt: skip
+    p.add_argument("--browser", action="store_true",
+                   help="time key press to new pixels in headless Chromium (Voila)")  # fmt: skip
+    p.add_argument("--repeats", type=ca.whole(1, 1000), default=None,
+                   help="samples per run (default: 15, in the browser 20 moves)")  # fmt: skip
     ca.add_json_argument(p)
     p.set_defaults(func=cmd_tune, print_help=p.print_help)
 
 
 def cmd_tune(args: argparse.Namespace) -> int:
+    if args.browser:
+        return _browser(args)
     if not args.bench:
         args.print_help()
         return 0
-    results = benchmark(repeats=args.repeats)
+    results = benchmark(repeats=args.repeats or 15)
     if args.json:
         print(json.dumps(results, indent=2, allow_nan=False))
         return 0
@@ -36,6 +59,28 @@ def cmd_tune(args: argparse.Namespace) -> int:
             f"{name:<16} median {r['median_ms']:6.1f} ms = replay {r['replay_ms']:.1f} ms "
             f"+ summary and artists {r['update_ms'] - r['replay_ms']:.1f} ms "
             f"+ render to PNG {r['draw_ms']:.1f} ms; CPU time {r['cpu_ms']:.1f} ms "
-            f"({r['samples']} samples; target 100 ms)"
+            f"({r['samples']} samples; target 100 ms); blitted as on ipympl "
+            f"{r['blit_ms']:.1f} ms before its PNG"
+        )
+    return 0
+
+
+def _browser(args: argparse.Namespace) -> int:
+    setups = {"seed, before": BEFORE.format(runs=""), "seed, now": AFTER.format(runs="")}
+    try:  # dataset 7: the one with the robots' true paths (the figure's grey line)
+        code = MRCLAM_RUNS.format(folder=str(find_dataset(7)))
+    except InputError as exc:
+        print(f"(no MRCLAM robot: {exc})")
+    else:
+        setups["MRCLAM 7 robot 1, before"] = code + BEFORE.format(runs="runs, ")
+        setups["MRCLAM 7 robot 1, now"] = code + AFTER.format(runs="runs, ")
+    results = browser_benchmark(setups, moves=args.repeats or 20)
+    if args.json:
+        print(json.dumps(results, indent=2, allow_nan=False))
+        return 0
+    for name, r in results.items():
+        print(
+            f"{name:<26} key press to new pixels: median {r['median_ms']:6.1f} ms, "
+            f"p90 {r['p90_ms']:6.1f} ms; figure changed {r['changed']}/{r['moves']} moves"
         )
     return 0

@@ -23,7 +23,10 @@ def benchmark(runs: Mapping[str, RunSource] | None = None, repeats: int = 15) ->
     an Agg render of the whole figure (`DEFAULT_FIGSIZE`, 100 dpi) encoded to PNG. The browser's
     share (the round trip and the PNG decode) is not in it. Returns, per run, medians in ms:
     "median_ms" (the whole), "replay_ms", "update_ms" (replay to artists), "draw_ms", and
-    "cpu_ms", the whole in this process's CPU time (steadier than wall time on a busy machine).
+    "cpu_ms", the whole in this process's CPU time (steadier than wall time on a busy machine);
+    "blit_ms", the same change as the panel draws it on ipympl (`ekfslam.ui.blit`: replay,
+    artists and the data drawn over the cached background; without the PNG of the changed
+    pixels, which ipympl's blit then encodes).
     """
     # lazy: matplotlib's Agg canvas is only for this measurement, not for the panel's import
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -39,8 +42,15 @@ def benchmark(runs: Mapping[str, RunSource] | None = None, repeats: int = 15) ->
         tuner = Tuner({name: source}, fig)
         tuner.apply()
         fig.canvas.print_png(io.BytesIO())  # warm the font and text caches
-        samples = []
+        blit_fig = Figure(figsize=DEFAULT_FIGSIZE, dpi=100)
+        FigureCanvasAgg(blit_fig)
+        blitting = Tuner({name: source}, blit_fig, blit=True)
+        blitting.apply()
+        samples, blits = [], []
         for k in range(repeats):
+            started = time.perf_counter()
+            blitting.apply(sigma_range=(0.02, 0.04)[k % 2])
+            blits.append(time.perf_counter() - started)
             cpu, started = time.process_time(), time.perf_counter()
             state = tuner.apply(sigma_range=(0.02, 0.04)[k % 2])
             updated = time.perf_counter()
@@ -51,5 +61,6 @@ def benchmark(runs: Mapping[str, RunSource] | None = None, repeats: int = 15) ->
         medians = (np.median(np.array(samples), axis=0) * 1e3).tolist()
         out[name] = dict(zip(("median_ms", "replay_ms", "update_ms", "draw_ms", "cpu_ms"),
                              medians, strict=True))  # fmt: skip
+        out[name]["blit_ms"] = float(np.median(blits) * 1e3)
         out[name]["samples"] = repeats
     return out

@@ -3,12 +3,14 @@
 Three layers, each ordinary code, tested without a browser:
 - `TunerSettings` and `apply_changes`: widget values -> `NoiseConfig` (R of eq. 9, Q of eq. 11)
   and `FilterConfig` (landmark initialisation, NIS gate).
-- `TuningView`: one figure built once (the seed's Figure 2 on the left, the NIS of every update on
-  the right, a Table 1 row as its title) whose artists `show` updates in place.
+- `TuningView` (`ekfslam.ui.view`): one figure built once (the seed's Figure 2 on the left,
+  the NIS of every update on the right, a Table 1 row as its title) whose artists `show`
+  updates in place.
 - `Tuner`: holds the runs and the current settings, asks its injected compute (by default
   `ekfslam.analysis.evaluation.replay_and_summarize`) for the replay and its score, updates the
-  view and calls ``canvas.draw_idle()``; changes are coalesced (`ekfslam.ui.coalescer`), so at
-  most one replay runs and one waits. `ekfslam.ui.widgets.TuningPanel` is its ipywidgets face.
+  view and redraws it (`TuningView.redraw`: on ipympl only the data, see `ekfslam.ui.blit`);
+  changes are coalesced (`ekfslam.ui.coalescer`), so at most one replay runs and one waits.
+  `ekfslam.ui.widgets.TuningPanel` is its ipywidgets face.
 
 Errors: an exception in a widget callback is logged by the kernel where no student sees it, so
 the panel shows it in an Output widget and keeps the last good figure; a bare `Tuner` re-raises.
@@ -23,20 +25,16 @@ from dataclasses import dataclass, field, fields, replace
 from functools import partial
 from pathlib import Path
 
-import numpy as np
 from matplotlib.figure import Figure
-from matplotlib.patches import Ellipse
 
 from ekfslam.analysis.evaluation import RunSummary, replay_and_summarize
 from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig, chi2_2dof_quantile
-from ekfslam.core.filter.history import Outcome
 from ekfslam.core.noise import NoiseConfig, default_noise
 from ekfslam.errors import InputError
 from ekfslam.logs.runlog import RunLog, read_run
 from ekfslam.pipeline import ReplayResult
 from ekfslam.ui.coalescer import Coalescer
-from ekfslam.viz.plotting import ellipse_parameters
-from ekfslam.viz.tables import PANEL, Row, table1_lines
+from ekfslam.ui.view import TuningView, status_text
 
 #: A run to offer in the panel: a function that loads it (called once, then cached).
 RunSource = Callable[[], RunLog]
@@ -55,8 +53,6 @@ GATES = {
     "99% (9.21)": CHI2_2DOF_99,
     "99.9% (13.8)": chi2_2dof_quantile(0.999),
 }
-#: The NIS axis starts here (smaller values are drawn on it): decades of tiny NIS say nothing.
-NIS_FLOOR = 1e-2
 
 
 @dataclass(frozen=True)
@@ -142,133 +138,6 @@ def seed_runs(folder: str | Path | None = None) -> dict[str, RunSource]:
     return {name: partial(read_run, folder / name) for name in SEED_RUNS}
 
 
-class TuningView:
-    """The panel's figure: built once, then `show` moves its artists (never adds axes).
-
-    Left, the seed's Figure 2: estimated path (red) and true path (grey), estimated landmarks
-    (red circles) with 95% ellipses (blue), true tags (green), true start (blue dot). Right, the
-    NIS νᵀS⁻¹ν of each update over time (eqs. 13-15) on a log scale, with the gate and the
-    χ²(2) mean 2 that a consistent filter averages. Title: the Table 1 row and the average NIS.
-
-    Drawing is most of an update's time, so the figure avoids what costs without showing
-    anything: no layout engine, and the NIS axis plots log10(NIS) on a linear axis with plain
-    decade labels (a log-scale axis transforms every point and typesets every label each draw).
-    """
-
-    def __init__(self, figure: Figure) -> None:
-        self.figure = fig = figure
-        # A fixed layout: constrained layout would re-measure every tick label on every redraw
-        # (about half the drawing time here), and the boxes must not move while a slider does.
-        fig.set_layout_engine("none")
-        fig.subplots_adjust(left=0.09, right=0.985, bottom=0.09, top=0.86, wspace=0.22)
-        self.map_ax, self.nis_ax = fig.subplots(1, 2, width_ratios=(1.45, 1))
-        ax = self.map_ax
-        (self.true_path,) = ax.plot([], [], "--", color="0.55", lw=1, label="true path")
-        (self.path,) = ax.plot([], [], "-", color="tab:red", lw=1.2, label="estimated path")
-        (self.true_tags,) = ax.plot([], [], "o", color="tab:green", ms=8, label="true tags")
-        self.tags = ax.scatter(
-            np.empty(0),
-            np.empty(0),
-            s=90,
-            facecolors="none",
-            edgecolors="tab:red",
-            linewidths=1.5,
-            label="estimated tags",
-        )
-        (self.start,) = ax.plot([], [], "o", color="tab:blue", ms=7, label="true start")
-        ax.plot([], [], "-", color="tab:blue", label="95% ellipses")
-        self.ellipses: list[Ellipse] = []
-        ax.set_aspect("equal", adjustable="box")
-        ax.locator_params(nbins=5)  # every tick label is typeset again on every redraw
-        ax.set(xlabel="x (m)", ylabel="y (m)", title="map and path (Figure 2)")
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
-        n = self.nis_ax
-        (self.accepted,) = n.plot([], [], ".", color="tab:blue", ms=3, label="accepted")
-        (self.rejected,) = n.plot([], [], "x", color="tab:red", ms=4, label="rejected by gate")
-        self.gate_line = n.axhline(math.log10(CHI2_2DOF_99), color="tab:red", lw=1, label="gate")
-        n.axhline(math.log10(2.0), color="k", ls="--", lw=1, label="χ²(2) mean = 2")
-        n.set(xlabel="time (s)", ylabel="NIS (log scale)", title="NIS of each update (eqs. 13-15)")
-        n.grid(True, alpha=0.3)
-        n.legend(loc="upper right", fontsize=7, framealpha=0.8)
-        self.text = fig.suptitle("", family="monospace", fontsize=9.5)
-        self._decades = (0, 0)
-
-    def show(self, run: RunLog, result: ReplayResult, summary: RunSummary) -> None:
-        """Move every artist to this replay's data (in place; the canvas is not drawn here)."""
-        h = result.history
-        self.path.set_data(h.pose[:, 0], h.pose[:, 1])
-        gt = run.groundtruth
-        gt_xy = gt.pose[:, :2] if gt is not None and len(gt.t) else np.empty((0, 2))
-        self.true_path.set_data(gt_xy[:, 0], gt_xy[:, 1])
-        self.start.set_data(gt_xy[:1, 0], gt_xy[:1, 1])
-        tags = run.meta.tag_map or {}
-        truth = np.array([tags[i] for i in sorted(tags)]).reshape(-1, 2)
-        self.true_tags.set_data(truth[:, 0], truth[:, 1])
-        ids = sorted(result.landmarks)
-        est = np.array([result.landmarks[i] for i in ids]).reshape(-1, 2)
-        self.tags.set_offsets(est)
-        while len(self.ellipses) < len(ids):  # a pool: a run with more landmarks adds patches
-            patch = Ellipse((0, 0), 0, 0, fill=False, color="tab:blue", lw=1.2)
-            self.ellipses.append(self.map_ax.add_patch(patch))
-        for k, patch in enumerate(self.ellipses):
-            patch.set_visible(k < len(ids))
-            if k < len(ids):
-                w, hgt, angle = ellipse_parameters(result.landmark_covariances[ids[k]])
-                patch.set(center=tuple(est[k]), width=w, height=hgt, angle=angle)
-        self._map_limits(np.vstack([truth, gt_xy]), np.vstack([est, h.pose[:, :2]]))
-        self._show_nis(result)
-        self.text.set_text("\n".join(status_text(summary).splitlines()[:2]))
-
-    def _map_limits(self, truth: np.ndarray, estimate: np.ndarray) -> None:
-        # Follow a diverging estimate only so far (twice the true scene): the map stays readable.
-        ref = truth if len(truth) else estimate
-        lo, hi = ref.min(axis=0), ref.max(axis=0)
-        span = max(float(np.max(hi - lo)), 0.5)
-        finite = estimate[np.isfinite(estimate).all(axis=1)]
-        if len(finite):
-            lo = np.maximum(np.minimum(lo, finite.min(axis=0)), lo - span)
-            hi = np.minimum(np.maximum(hi, finite.max(axis=0)), hi + span)
-        # equal spans keep the equal-aspect box the same size from one update to the next
-        half = 0.56 * max(float(np.max(hi - lo)), 0.5)
-        centre = 0.5 * (lo + hi)
-        self.map_ax.set_xlim(centre[0] - half, centre[0] + half)
-        self.map_ax.set_ylim(centre[1] - half, centre[1] + half)
-
-    def _show_nis(self, result: ReplayResult) -> None:
-        h = result.history
-        for line, outcome in ((self.accepted, Outcome.ACCEPTED), (self.rejected, Outcome.REJECTED)):
-            mask = h.outcome_mask(outcome)
-            line.set_data(h.obs_t[mask], np.log10(np.maximum(h.obs_nis[mask], NIS_FLOOR)))
-        gate = result.config.gate
-        self.gate_line.set_visible(gate is not None)
-        self.gate_line.set_ydata([math.log10(gate or 1.0)] * 2)
-        nis = h.obs_nis[np.isfinite(h.obs_nis)]
-        top = max(math.ceil(math.log10(max(float(nis.max()), 1.0))) if len(nis) else 2, 2)
-        bottom = round(math.log10(NIS_FLOOR))
-        self.nis_ax.set_ylim(bottom - 0.2, top + 0.2)
-        if (bottom, top) != self._decades:  # the decade labels change only with the range
-            self._decades = (bottom, top)
-            step = max(1, math.ceil((top - bottom) / 7))
-            ticks = list(range(bottom, top + 1, step))
-            self.nis_ax.set_yticks(ticks, [f"{10.0**k:g}" for k in ticks])
-        t = h.t if len(h.t) else np.array([0.0, 1.0])
-        self.nis_ax.set_xlim(float(t[0]), float(t[-1]) + 1e-9)
-
-
-def status_text(summary: RunSummary, seed: Row | None = None) -> str:
-    """The Table 1 row of a replay (eq. 17), its average NIS and its update counts, 3 lines;
-    with `seed` (the seed's real-robot row), that row under ours, 4 lines."""
-    nis = "-" if summary.nis_mean is None else f"{summary.nis_mean:.2f}"
-    lines = table1_lines(summary, seed, layout=PANEL, extra=("avg NIS", nis))
-    counts = (
-        f"updates accepted {summary.accepted}, rejected {summary.rejected}, "
-        f"initialised {summary.initialised}, refused {summary.refused}"
-        + (f", singular S {summary.singular}" if summary.singular else "")
-    )
-    return "\n".join([*lines, counts])
-
-
 @dataclass(frozen=True, eq=False)
 class TunerState:
     """One finished update: its settings, replay, summary, text and timings (s)."""
@@ -294,6 +163,7 @@ class Tuner:
     on_update, on_error : called with each `TunerState` / exception.
     compute : (run, noise, config) -> (replay, summary); default
         `ekfslam.analysis.evaluation.replay_and_summarize`.
+    blit : redraw only the data (see `TuningView`); default: on a browser's canvas (ipympl).
     """
 
     def __init__(
@@ -307,6 +177,7 @@ class Tuner:
         on_update: Callable[[TunerState], None] | None = None,
         on_error: Callable[[BaseException], None] | None = None,
         compute: Compute = replay_and_summarize,
+        blit: bool | None = None,
     ) -> None:
         if not runs:
             raise ValueError("a Tuner needs at least one run")
@@ -316,7 +187,8 @@ class Tuner:
             first = next(iter(self.runs))
             settings = TunerSettings(first, default_noise(self.load(first)))
         self.settings = settings
-        self.view = TuningView(figure if figure is not None else Figure(figsize=DEFAULT_FIGSIZE))
+        figure = figure if figure is not None else Figure(figsize=DEFAULT_FIGSIZE)
+        self.view = TuningView(figure, blit)
         self.raise_errors, self.on_update, self.on_error = raise_errors, on_update, on_error
         self.compute = compute
         self.state: TunerState | None = None
@@ -374,7 +246,7 @@ class Tuner:
         run = self.load(settings.run)
         result, summary = self.compute(run, settings.noise, settings.config)
         self.view.show(run, result, summary)
-        self.figure.canvas.draw_idle()
+        self.view.redraw()
         self.last_error = None
         self._renders += 1
         self.state = TunerState(

@@ -27,8 +27,8 @@ from ekfslam.ui.tuning import (
     TunerSettings,
     TunerState,
     seed_runs,
-    status_text,
 )
+from ekfslam.ui.view import status_text
 
 
 class TuningPanel:
@@ -169,16 +169,18 @@ def tuning_panel(
     *,
     settings: TunerSettings | None = None,
     figure: Figure | None = None,
+    blit: bool | None = None,
 ) -> TuningPanel:
     """The live tuning panel over `runs` (default: the seed runs), drawn once before returning.
 
-    Use after ``%matplotlib widget``; the figure is then an ipympl canvas (9x6 in).
+    Use after ``%matplotlib widget``; the figure is then an ipympl canvas (9x6 in), on which a
+    move redraws only the data (`blit`, see `ekfslam.ui.blit`; False: a full draw each time).
     """
     if figure is None:
         import matplotlib.pyplot as plt  # lazy: pyplot picks a backend; only a new figure needs it
 
         with plt.ioff():  # the panel places the canvas itself
             figure = plt.figure(figsize=DEFAULT_FIGSIZE)
-    tuner = Tuner(runs or seed_runs(), figure, settings=settings)
+    tuner = Tuner(runs or seed_runs(), figure, settings=settings, blit=blit)
     tuner.apply()
     return TuningPanel(tuner)

@@ -1,7 +1,7 @@
 """The seed's Table 1 (eq. 17's x0, y0, θ0 and average error), formatted in one place.
 
 Three faces of the same table: the command line's text (`python -m ekfslam run`), the tuning
-panel's narrower text with an average-NIS column (`ekfslam.ui.tuning.status_text`), and Markdown
+panel's narrower text with an average-NIS column (`ekfslam.ui.view.status_text`), and Markdown
 for the notebooks (`table1_markdown`). Each puts the seed's real-robot row beside ours when it
 is given; which row that is (`ekfslam.analysis.evaluation.seed_experiment`) is the caller's.
 """

@@ -5,9 +5,12 @@ runtime, settings and workspace folders and a copy of the notebook (so nothing i
 is written, not even by autosave). Playwright drives ``/usr/bin/chromium`` headless with
 background networking off (the machine has no network but the package registries); Playwright's
 own browser download is never used. The test moves the Q slider (σr) with the keyboard and checks
-that the Table 1 text and the figure's pixels both change. Screenshots go to
-``artifacts/browser/``. Where Chromium or Playwright is missing the tests skip with a reason;
-with ``CI=true`` that is a failure.
+that the Table 1 text and the figure's pixels both change; then it times `MOVES` single key
+presses to the figure's new pixels (`ekfslam.ui.browser_latency`), prints the median and p90 and
+checks that the figure changed for each (no timing assertion: the machine is shared; the
+benchmark is ``python -m ekfslam tune --browser``). Screenshots go to ``artifacts/browser/``.
+Where Chromium or Playwright is missing the tests skip with a reason; with ``CI=true`` that is a
+failure.
 """
 
 from __future__ import annotations
@@ -30,20 +33,22 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ekfslam.ui.browser_latency import (
+    CHROMIUM,
+    CHROMIUM_ARGS,
+    free_port,
+    jupyter_home,
+    measure_moves,
+    stats,
+)
+
 pytestmark = pytest.mark.slow
 
 REPO = Path(__file__).resolve().parents[2]
 NOTEBOOK = REPO / "notebooks" / "08-live-tuning.ipynb"
 ARTIFACTS = REPO / "artifacts" / "browser"
-CHROMIUM = Path(os.environ.get("EKFSLAM_CHROMIUM", "/usr/bin/chromium"))
-#: As root in a sandbox with no network: no setuid sandbox, no GPU, and no background requests
-#: (without these Chromium keeps opening connections that the machine refuses).
-CHROMIUM_ARGS = (
-    "--no-sandbox --disable-gpu --disable-dev-shm-usage --disable-quic --no-first-run "
-    "--disable-background-networking --disable-component-update --disable-sync "
-    "--disable-default-apps --disable-extensions"
-).split()
 KEY_PRESSES = 8  # σr 0.03 -> 0.03 / 10**0.8 ≈ 0.0048 m: far below the camera's 0.02
+MOVES = 20  # single key presses timed, alternately left and right
 STARTUP_S, EXECUTE_S = 120, 240
 
 
@@ -71,27 +76,9 @@ def browser():
         b.close()
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def _jupyter_home(tmp: Path) -> dict[str, str]:
     """Environment for a server whose every Jupyter folder is under `tmp`."""
-    env = dict(os.environ)
-    folders = {
-        "JUPYTER_CONFIG_DIR": "config",
-        "JUPYTER_DATA_DIR": "data",
-        "JUPYTER_RUNTIME_DIR": "runtime",
-        "JUPYTERLAB_SETTINGS_DIR": "settings",
-        "JUPYTERLAB_WORKSPACES_DIR": "workspaces",
-        "IPYTHONDIR": "ipython",
-    }
-    for var, sub in folders.items():
-        (tmp / sub).mkdir(parents=True, exist_ok=True)
-        env[var] = str(tmp / sub)
-    env["PYDEVD_DISABLE_FILE_VALIDATION"] = "1"
+    env = jupyter_home(tmp)
     # JupyterLab: no autosave (the copy is throwaway anyway), no news or update checks, and no
     # debugger (its probe of a starting kernel races with "Run All").
     settings = {
@@ -239,6 +226,21 @@ def _move_q_slider(page, prefix: str) -> None:
         f"{prefix}: {KEY_PRESSES} key presses, {changes - changes0} values reached the kernel, "
         f"{replays - replays0} replays"
     )
+    _time_moves(page, prefix)
+
+
+def _time_moves(page, prefix: str) -> None:
+    """`MOVES` single key presses, each to its first repaint: print the latencies, check that
+    the figure changed for every move and that each needed one repaint (no stale frames)."""
+    moves = measure_moves(page, MOVES, timeout=EXECUTE_S)
+    s = stats(moves)
+    print(
+        f"{prefix}: key press to new pixels over {s['moves']} moves: median {s['median_ms']:.0f}"
+        f" ms, p90 {s['p90_ms']:.0f} ms; figure changed {s['changed']}/{s['moves']}; each: "
+        + " ".join(f"{m.latency_ms:.0f}{'' if m.changed else '(unchanged!)'}" for m in moves)
+    )
+    assert all(m.changed for m in moves), [m for m in moves if not m.changed]
+    assert page.locator(".ekfslam-error").count() == 0
 
 
 def _counters(page) -> tuple[int, int]:
@@ -264,7 +266,7 @@ def _copy_notebook(tmp: Path) -> Path:
 
 
 def test_jupyterlab_runs_the_notebook_and_the_slider_redraws(browser, tmp_path):
-    env, port, token = _jupyter_home(tmp_path), _free_port(), secrets.token_hex(16)
+    env, port, token = _jupyter_home(tmp_path), free_port(), secrets.token_hex(16)
     notebook = _copy_notebook(tmp_path)
     base = f"http://127.0.0.1:{port}"
     options = {
@@ -323,7 +325,7 @@ def _run_all_cells(page, base: str, token: str) -> None:
 
 
 def test_voila_serves_the_panel_and_the_slider_redraws(browser, tmp_path):
-    env, port, token = _jupyter_home(tmp_path), _free_port(), secrets.token_hex(16)
+    env, port, token = _jupyter_home(tmp_path), free_port(), secrets.token_hex(16)
     notebook = _copy_notebook(tmp_path)
     base = f"http://127.0.0.1:{port}"
     cmd = [sys.executable, "-m", "voila", str(notebook), "--no-browser"]

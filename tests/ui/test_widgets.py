@@ -29,8 +29,8 @@ from ekfslam.ui.tuning import (
     TunerSettings,
     apply_changes,
     seed_runs,
-    status_text,
 )
+from ekfslam.ui.view import status_text
 from ekfslam.ui.widgets import tuning_panel
 
 CHI2_95 = 5.991464547107979  # chi-square(2) 95% quantile: the radius² of a 95% ellipse

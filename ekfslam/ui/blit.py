@@ -1,0 +1,109 @@
+"""Redraw only what moved: the panel's data artists over a cached picture of the rest.
+
+Why: a slider move changes the data (paths, tags, ellipses, NIS points, the Table 1 title) but
+rarely the axes, and most of a full Agg draw is text: tick labels, legends and titles, typeset
+again on every draw (about 85 of the 92 ms of a move, measured in process). So `Blitter` draws
+the figure once without its data artists, keeps those pixels (and the legends' pixels, which a
+full draw paints over the data), and for each move restores them, draws the data artists in
+z-order and pastes the legends back. Whenever anything else may have changed (the axis limits,
+the NIS ticks, the figure's size or dpi: see `key`) it draws the background again.
+
+On an ipympl canvas the result goes to the browser at once (``canvas.blit``: webagg's
+diff-PNG of the changed pixels), without the ``draw_idle`` round trip (kernel -> browser ->
+kernel) that a full draw needs. The figure itself stays an ordinary one: every artist is
+visible, so a full draw (a browser refresh, ``savefig``, the static PNG of an exported
+notebook) shows the same picture, except that a pasted legend hides the data under it entirely
+where a full draw's 0.8-opaque frame lets a little through.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Hashable, Sequence
+
+from matplotlib.artist import Artist
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.backends.backend_webagg_core import FigureCanvasWebAggCore
+from matplotlib.figure import Figure
+
+
+def can_blit(figure: Figure) -> bool:
+    """Whether `figure`'s canvas is one whose blit reaches a browser (ipympl, webagg)."""
+    return isinstance(figure.canvas, FigureCanvasWebAggCore)
+
+
+def browser_ready(figure: Figure) -> bool:
+    """False while an ipympl canvas has no view in a browser yet (``syncing_data_url``).
+
+    Until then ipympl keeps each frame sent as a base64 ``_data_url`` for a static copy, and
+    its front end, started later with that value set, fails to show any frame (ipympl 0.10:
+    "drawImage ... in the 'broken' state"). So the first frame must come from the browser's
+    own draw request, as without blitting.
+    """
+    return not getattr(figure.canvas, "syncing_data_url", False)
+
+
+class Blitter:
+    """Draws `artists` (the data) over a cached background; see the module docstring.
+
+    Parameters
+    ----------
+    figure : an Agg-based figure (ipympl's canvas is one).
+    artists : the artists a move changes, drawn in z-order over the background.
+    overlays : artists a full draw paints over the data (the legends): their pixels are cached
+        with the background and pasted back after the data.
+    key : () -> hashable, the state of everything else (limits, ticks); a new value redraws the
+        background.
+    """
+
+    def __init__(
+        self,
+        figure: Figure,
+        artists: Callable[[], Sequence[Artist]],
+        overlays: Sequence[Artist],
+        key: Callable[[], Hashable],
+    ) -> None:
+        self.figure, self.artists, self.overlays, self.key = figure, artists, overlays, key
+        self._background = None
+        self._pasted: list = []
+        self._key: Hashable = None
+        self.backgrounds = 0  # how many times the background was drawn (for tests and benchmarks)
+
+    def redraw(self) -> None:
+        """Show the artists' current state: restore, draw the data, paste the legends, blit;
+        a full draw request (``draw_idle``) while the browser has no view (`browser_ready`)."""
+        canvas, fig = self.figure.canvas, self.figure
+        if not browser_ready(fig):
+            canvas.draw_idle()
+            return
+        key = (self.key(), tuple(fig.bbox.bounds), fig.dpi)
+        if self._background is None or key != self._key:
+            self._draw_background()
+            self._key = key
+        else:
+            canvas.restore_region(self._background)
+        for artist in sorted(self.artists(), key=lambda a: a.get_zorder()):  # stable: as added
+            if artist.get_visible():
+                fig.draw_artist(artist)
+        for region in self._pasted:
+            canvas.restore_region(region)
+        canvas.blit(fig.bbox)
+
+    def _draw_background(self) -> None:
+        canvas = self.figure.canvas
+        shown = [a for a in self.artists() if a.get_visible()]
+        for artist in shown:
+            artist.set_visible(False)
+        try:
+            # Agg's draw only: webagg's own draw would also send this data-less frame out
+            FigureCanvasAgg.draw(canvas)
+        finally:
+            for artist in shown:
+                artist.set_visible(True)
+        self._background = canvas.copy_from_bbox(self.figure.bbox)
+        renderer = canvas.get_renderer()
+        self._pasted = [
+            canvas.copy_from_bbox(a.get_window_extent(renderer).padded(2))
+            for a in self.overlays
+            if a.get_visible()
+        ]
+        self.backgrounds += 1

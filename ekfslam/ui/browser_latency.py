@@ -1,0 +1,222 @@
+"""What the student feels: from a slider key press to the figure's pixels changing, in a browser.
+
+`measure_moves` drives a page that shows the live panel (JupyterLab or Voila, any Playwright page)
+and times, for each move, the key press (the page's own ``keydown`` clock) to the first frame in
+which ipympl's canvas is drawn again (a wrapped ``drawImage``, stamped at the next animation
+frame, when the new pixels are painted). It also checks, by a hash of the canvas pixels, that
+the figure changed for every move. The browser test uses it (and prints what it measured);
+`browser_benchmark` serves generated notebooks from one Voila server and times the panel's
+redraw strategies alternately in the same run (the machine is shared: only the comparison
+within one run means much). ``python -m ekfslam tune --browser`` prints it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import secrets
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+#: Debian's Chromium (Playwright's own browser download is never used).
+CHROMIUM = Path(os.environ.get("EKFSLAM_CHROMIUM", "/usr/bin/chromium"))
+#: As root in a sandbox with no network: no setuid sandbox, no GPU, and no background requests
+#: (without these Chromium keeps opening connections that the machine refuses).
+CHROMIUM_ARGS = (
+    "--no-sandbox --disable-gpu --disable-dev-shm-usage --disable-quic --no-first-run "
+    "--disable-background-networking --disable-component-update --disable-sync "
+    "--disable-default-apps --disable-extensions"
+).split()
+
+# Installed once per page. ipympl paints its view canvas from an offscreen canvas with
+# drawImage; the offscreen one is not in the document, so `closest` keeps only what is shown.
+_INSTALL = """() => {
+  if (window.__ekfslamLatency) return;
+  const st = window.__ekfslamLatency = {draws: [], keys: []};
+  const drawImage = CanvasRenderingContext2D.prototype.drawImage;
+  CanvasRenderingContext2D.prototype.drawImage = function (...args) {
+    const out = drawImage.apply(this, args);
+    if (this.canvas.closest && this.canvas.closest('.jupyter-matplotlib-canvas-div')) {
+      requestAnimationFrame(() => st.draws.push(performance.now()));
+    }
+    return out;
+  };
+  document.addEventListener('keydown', () => st.keys.push(performance.now()), true);
+}"""
+_HASH = """() => {
+  const c = document.querySelector('.jupyter-matplotlib-canvas-div canvas');
+  const px = new Uint32Array(c.getContext('2d').getImageData(0, 0, c.width, c.height).data.buffer);
+  let h = 2166136261;
+  for (let i = 0; i < px.length; i++) h = Math.imul(h ^ px[i], 16777619);
+  return (h >>> 0).toString(16) + '/' + c.width + 'x' + c.height;
+}"""
+_STATE = """() => [window.__ekfslamLatency.keys.slice(-1)[0] ?? null,
+  window.__ekfslamLatency.draws.slice(),
+  document.querySelector('.ekfslam-timing')?.innerText ?? '']"""
+#: A move is over when the kernel reported a new replay and the canvas was quiet this long (s).
+QUIET_S = 0.4
+
+
+@dataclass(frozen=True)
+class Move:
+    """One key press: its latency to the first repaint (ms), and whether the pixels changed."""
+
+    key: str
+    latency_ms: float
+    changed: bool
+    repaints: int
+
+
+def measure_moves(page, moves: int = 20, slider: str = "Q: σr", timeout: float = 60.0):
+    """Press ArrowLeft, ArrowRight, ... on the panel's `slider` `moves` times, one at a time.
+
+    page : a Playwright page showing a drawn `ekfslam.ui.widgets.TuningPanel`.
+    Returns a list of `Move`. Each move waits until the panel's timing line shows a new replay
+    and the canvas has been quiet for `QUIET_S`, so one move's redraw never counts for the next.
+    Raises TimeoutError when a move shows no repaint within `timeout` s.
+    """
+    page.evaluate(_INSTALL)
+    handle = page.locator(".widget-slider", has_text=slider).locator(".noUi-handle")
+    handle.focus()
+    out = []
+    for k in range(moves):
+        key = ("ArrowLeft", "ArrowRight")[k % 2]
+        before, (_, draws0, timing0) = page.evaluate(_HASH), page.evaluate(_STATE)
+        handle.press(key)
+        deadline = time.monotonic() + timeout
+        while True:
+            pressed, draws, timing = page.evaluate(_STATE)
+            new = [t for t in draws[len(draws0) :] if pressed is not None and t >= pressed]
+            if new and timing != timing0 and performance_quiet(page, draws[-1]):
+                break
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"move {k + 1} ({key}): no repaint after {timeout:.0f} s")
+            time.sleep(0.05)
+        out.append(Move(key, new[0] - pressed, page.evaluate(_HASH) != before, len(new)))
+    return out
+
+
+def performance_quiet(page, last_draw: float) -> bool:
+    """Whether the page's clock is `QUIET_S` past `last_draw` (both in performance.now() ms)."""
+    return page.evaluate("() => performance.now()") - last_draw > QUIET_S * 1e3
+
+
+def stats(moves: Sequence[Move]) -> dict[str, float]:
+    """Median and 90th percentile of the latencies (ms), the number of moves and of changes."""
+    ms = np.array([m.latency_ms for m in moves])
+    return {
+        "median_ms": float(np.median(ms)),
+        "p90_ms": float(np.percentile(ms, 90)),
+        "moves": len(moves),
+        "changed": sum(m.changed for m in moves),
+    }
+
+
+def jupyter_home(tmp: Path) -> dict[str, str]:
+    """Environment for a Jupyter server whose every config and data folder is under `tmp`."""
+    env = dict(os.environ)
+    folders = {
+        "JUPYTER_CONFIG_DIR": "config",
+        "JUPYTER_DATA_DIR": "data",
+        "JUPYTER_RUNTIME_DIR": "runtime",
+        "JUPYTERLAB_SETTINGS_DIR": "settings",
+        "JUPYTERLAB_WORKSPACES_DIR": "workspaces",
+        "IPYTHONDIR": "ipython",
+    }
+    for var, sub in folders.items():
+        (tmp / sub).mkdir(parents=True, exist_ok=True)
+        env[var] = str(tmp / sub)
+    env["PYDEVD_DISABLE_FILE_VALIDATION"] = "1"
+    return env
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _notebook(setup: str) -> dict:
+    """A three-cell notebook: ipympl and the panel's import, `setup` (defines ``panel``), panel."""
+    cells = ["%matplotlib widget\nfrom ekfslam.ui.widgets import tuning_panel", setup, "panel"]
+    kernel = {"name": "python3", "display_name": "Python 3", "language": "python"}
+    code = {"cell_type": "code", "metadata": {}, "outputs": [], "execution_count": None}
+    return {
+        "cells": [{**code, "id": f"cell{k}", "source": s} for k, s in enumerate(cells)],
+        "metadata": {"kernelspec": kernel},
+        "nbformat": 4,
+        "nbformat_minor": 5,
+    }
+
+
+@contextlib.contextmanager
+def _voila(folder: Path, tmp: Path, startup_s: float = 120.0) -> Iterator[str]:
+    """A Voila server on 127.0.0.1 over `folder` until the block ends; yields its base URL."""
+    port, token = free_port(), secrets.token_hex(16)
+    cmd = [sys.executable, "-m", "voila", str(folder), "--no-browser", "--Voila.ip=127.0.0.1"]
+    cmd += [f"--port={port}", f"--token={token}"]
+    log = tmp / "voila.log"
+    with open(log, "wb") as out:
+        proc = subprocess.Popen(cmd, env=jupyter_home(tmp), cwd=folder, stdout=out,
+                                stderr=subprocess.STDOUT, start_new_session=True)  # fmt: skip
+    try:
+        deadline = time.monotonic() + startup_s
+        while True:
+            with contextlib.suppress(OSError), socket.create_connection(("127.0.0.1", port), 2):
+                break
+            if proc.poll() is not None or time.monotonic() > deadline:
+                raise RuntimeError(f"voila did not start:\n{log.read_text()[-3000:]}")
+            time.sleep(0.5)
+        yield f"http://127.0.0.1:{port}", token
+    finally:
+        proc.terminate()  # Voila shuts its kernels down on SIGTERM
+        try:
+            proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=10)
+
+
+def browser_benchmark(setups: dict[str, str], moves: int = 20, rounds: int = 2) -> dict:
+    """Latency per notebook setup, measured alternately in one Voila server and one browser.
+
+    setups : {label: a code cell that defines ``panel``}, e.g. ``panel = tuning_panel(blit=False)``.
+    Each label gets its own page (and kernel); the pages take turns, `moves` // `rounds` moves at a
+    time, so a busy spell on the shared machine hits every setup alike. Returns {label: `stats`}.
+    """
+    from playwright.sync_api import sync_playwright  # lazy: a test-only dependency
+
+    with tempfile.TemporaryDirectory(prefix="ekfslam-latency-") as tmp_name:
+        tmp = Path(tmp_name)
+        folder = tmp / "notebooks"
+        folder.mkdir()
+        for k, setup in enumerate(setups.values()):
+            (folder / f"panel{k}.ipynb").write_text(json.dumps(_notebook(setup)))
+        with _voila(folder, tmp) as (base, token), sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+            pages = []
+            for k in range(len(setups)):
+                page = browser.new_page(viewport={"width": 1400, "height": 1000})
+                page.goto(f"{base}/voila/render/panel{k}.ipynb?token={token}", timeout=240_000)
+                page.wait_for_selector(".ekfslam-timing", timeout=240_000)
+                page.wait_for_selector(".jupyter-matplotlib-canvas-div canvas", timeout=60_000)
+                time.sleep(1.0)  # the first full frame
+                pages.append(page)
+            results: dict[str, list[Move]] = {label: [] for label in setups}
+            for r in range(rounds):
+                n = moves // rounds + (r < moves % rounds)
+                for label, page in zip(setups, pages, strict=True):
+                    results[label] += measure_moves(page, n)
+            for page in pages:
+                page.close(run_before_unload=True)
+            browser.close()
+    return {label: stats(ms) for label, ms in results.items()}

@@ -1,0 +1,107 @@
+"""Blitting the panel's data: the same picture as a full draw, the background drawn only when
+the axes change, and a full draw request while ipympl's view is not live yet."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+import numpy as np
+import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from ekfslam.logs.runlog import read_run
+from ekfslam.ui.coalescer import COALESCE_DELAY, Coalescer
+from ekfslam.ui.latency import benchmark
+from ekfslam.ui.tuning import DEFAULT_FIGSIZE, RUNS_DIR, Tuner
+
+
+@pytest.fixture(scope="module")
+def runs():
+    square, octagon = (read_run(RUNS_DIR / name) for name in ("square-2laps", "octagon-2laps"))
+    return {"square": lambda: square, "octagon": lambda: octagon}
+
+
+def blitting_tuner(runs, canvas_class=FigureCanvasAgg) -> Tuner:
+    fig = Figure(figsize=DEFAULT_FIGSIZE, dpi=100)
+    canvas_class(fig)
+    return Tuner(runs, fig, blit=True)
+
+
+def pixels(fig: Figure) -> np.ndarray:
+    return np.asarray(fig.canvas.buffer_rgba())[..., :3].astype(int).copy()
+
+
+def test_a_blitted_move_shows_what_a_full_draw_shows(runs):
+    tuner = blitting_tuner(runs)
+    tuner.apply()
+    tuner.apply(sigma_range=0.01)  # the ellipses shrink, the path and the NIS points move
+    blitted = pixels(tuner.figure)
+    tuner.figure.canvas.draw()  # what a browser refresh or savefig draws
+    full = pixels(tuner.figure)
+    differ = np.any(np.abs(blitted - full) > 40, axis=-1)
+    # a full draw puts the spines over the data and lets 20% of it through the legends' frames
+    assert differ.mean() < 0.003, differ.mean()
+    plain = Figure(figsize=DEFAULT_FIGSIZE, dpi=100)
+    FigureCanvasAgg(plain)
+    unblitted = Tuner(runs, plain, blit=False)
+    unblitted.apply()
+    unblitted.apply(sigma_range=0.01)
+    plain.canvas.draw()
+    assert np.array_equal(pixels(plain), full)  # and the figure itself is the same as unblitted
+
+
+def test_the_background_is_drawn_again_only_when_the_axes_change(runs):
+    tuner = blitting_tuner(runs)
+    tuner.apply()
+    for k in range(6):  # what a student's arrow keys do: one step down, one up
+        tuner.apply(sigma_range=(0.03 / 10**0.1, 0.03)[k % 2])
+    assert tuner.view.blitter.backgrounds == 1
+    tuner.apply(run="octagon")  # another scene: new limits, new tick labels
+    assert tuner.view.blitter.backgrounds == 2
+
+
+class NotYetShown(FigureCanvasAgg):
+    """Like an ipympl canvas before its front end sent 'initialized'."""
+
+    syncing_data_url = True
+    idle_draws = 0
+
+    def draw_idle(self, *args, **kwargs) -> None:
+        self.idle_draws += 1
+
+
+def test_before_the_browser_shows_the_canvas_a_full_draw_is_requested(runs):
+    tuner = blitting_tuner(runs, NotYetShown)
+    tuner.apply()
+    assert tuner.figure.canvas.idle_draws == 1 and tuner.view.blitter.backgrounds == 0
+    tuner.figure.canvas.syncing_data_url = False  # the view is live: blit from now on
+    tuner.apply(sigma_range=0.01)
+    assert tuner.figure.canvas.idle_draws == 1 and tuner.view.blitter.backgrounds == 1
+
+
+def test_panels_outside_a_browser_ask_for_full_draws(runs):
+    fig = Figure()
+    FigureCanvasAgg(fig)
+    assert Tuner(runs, fig).view.blitter is None  # Agg alone, tests, scripts: as before
+
+
+def test_after_an_idle_spell_a_change_runs_at_once():
+    done = []
+
+    async def main():
+        coalescer = Coalescer(lambda value: done.append((value, time.monotonic())))
+        started = time.monotonic()
+        coalescer.request(1)
+        await asyncio.sleep(0.2)
+        return started
+
+    started = asyncio.run(main())
+    assert [v for v, _ in done] == [1]
+    assert done[0][1] - started < COALESCE_DELAY  # no waiting: nothing else was queued
+
+
+def test_the_in_process_benchmark_times_the_blitted_move(runs):
+    report = benchmark({"square": runs["square"]}, repeats=2)["square"]
+    assert 0 < report["replay_ms"] < report["blit_ms"]
