@@ -6,6 +6,7 @@ Shared-data tests: skipped (a failure in CI) without ../shared/data/mrclam/MRCLA
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import pytest
@@ -15,6 +16,8 @@ from ekfslam.cli.main import main
 from ekfslam.logs.mrclam.defaults import MRCLAM_CONFIG, MRCLAM_NOISE
 from ekfslam.logs.mrclam.load import load_mrclam
 from ekfslam.pipeline import replay
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
@@ -60,3 +63,18 @@ def test_run_without_groundtruth_text_and_start(
     assert "trajectory ATE RMSE: none, the run has no ground truth" in text
     assert "no ground truth (no Robot*_Groundtruth.dat)" in text
     assert "true start pose" not in text and "recovered start pose: (" in text
+
+
+def test_our_run_format_without_groundtruth_follows_the_same_rule(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """One rule for both formats: a run folder without groundtruth.csv scores its map only."""
+    run = tmp_path / "square"
+    shutil.copytree(REPO / "data" / "runs" / "square-2laps", run)
+    (run / "groundtruth.csv").unlink()
+    assert main(["run", str(run), "--json", "--start", "0.1", "0", "0"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["trajectory"] == {"ate_rmse": None, "reason": NO_GROUNDTRUTH}
+    assert out["true_start"] is None and out["alignment"]["landmarks_matched"] == 8
+    assert main(["run", str(run), "--max-range", "6"]) == 2  # MRCLAM only
+    assert "--max-range is only for MRCLAM" in capsys.readouterr().err
