@@ -78,3 +78,15 @@ def test_our_run_format_without_groundtruth_follows_the_same_rule(
     assert out["true_start"] is None and out["alignment"]["landmarks_matched"] == 8
     assert main(["run", str(run), "--max-range", "6"]) == 2  # MRCLAM only
     assert "--max-range is only for MRCLAM" in capsys.readouterr().err
+
+
+def test_convert_and_tum_without_groundtruth(
+    dataset1: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    out = tmp_path / "robot4"
+    assert main(["convert", "mrclam", str(dataset1), "--robot", "4", "--out", str(out)]) == 0
+    assert "no ground truth" in (text := capsys.readouterr().out) and "489 sightings renamed" in text
+    assert sorted(p.name for p in out.iterdir()) == ["controls.csv", "detections.csv", "run.json"]
+    assert main(["tum", str(out), "--out", str(tmp_path / "tum")]) == 0
+    written = sorted(p.name for p in (tmp_path / "tum").iterdir())
+    assert written == ["map.tum", "map_truth.tum", "trajectory.tum"]  # no groundtruth.tum
