@@ -85,7 +85,8 @@ def test_convert_and_tum_without_groundtruth(
 ) -> None:
     out = tmp_path / "robot4"
     assert main(["convert", "mrclam", str(dataset1), "--robot", "4", "--out", str(out)]) == 0
-    assert "no ground truth" in (text := capsys.readouterr().out) and "489 sightings renamed" in text
+    text = capsys.readouterr().out
+    assert "no ground truth" in text and "489 sightings renamed" in text
     assert sorted(p.name for p in out.iterdir()) == ["controls.csv", "detections.csv", "run.json"]
     assert main(["tum", str(out), "--out", str(tmp_path / "tum")]) == 0
     written = sorted(p.name for p in (tmp_path / "tum").iterdir())
