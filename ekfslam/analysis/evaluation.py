@@ -68,6 +68,13 @@ def ate_rmse(result: ReplayResult, groundtruth: GroundTruth) -> float:
     return float(np.sqrt(np.mean(np.sum(err**2, axis=1))))
 
 
+#: Why a run has no trajectory error: one rule for our format and MRCLAM's.
+NO_GROUNDTRUTH = (
+    "the run has no ground truth (no groundtruth.csv or RobotN_Groundtruth.dat): the filter "
+    "started at the nominal pose and only the map is scored, after eq. (17)"
+)
+
+
 @dataclass(frozen=True, eq=False)
 class RunSummary:
     """Everything the command line reports about one replay.
@@ -91,6 +98,7 @@ class RunSummary:
     nis_mean: float | None
     seconds: float
     alignment_note: str | None = None
+    ate_note: str | None = None  # why ate_rmse is None (`NO_GROUNDTRUTH`), else None
     singular: int = (
         0  # updates skipped: S singular or not finite (`ekfslam.core.filter.history.Outcome`)
     )
@@ -123,7 +131,7 @@ class RunSummary:
             },
             "updates": {o.label: getattr(self, o.label) for o in UPDATES_ORDER},
             "predictions": self.predictions,
-            "trajectory": {"ate_rmse": opt(self.ate_rmse)},
+            "trajectory": {"ate_rmse": opt(self.ate_rmse), "reason": self.ate_note},
             "consistency": {"nis_mean": opt(self.nis_mean)},
             "seconds": self.seconds,
         }
@@ -151,6 +159,7 @@ def summarize(run: RunLog, result: ReplayResult, method: str = "mean_distance") 
     gt = run.groundtruth
     true_start = None
     ate = None
+    ate_note = NO_GROUNDTRUTH if gt is None or not len(gt.t) else None
     if gt is not None and len(gt.t):
         # the truth when the filter starts: MRCLAM's Vicon starts 6-9 s before the odometry
         at_start, inside = interpolate_poses(gt, np.asarray(run.controls.t[:1], dtype=float))
@@ -171,6 +180,7 @@ def summarize(run: RunLog, result: ReplayResult, method: str = "mean_distance") 
         nis_mean=float(np.mean(nis)) if len(nis) else None,
         seconds=result.seconds,
         alignment_note=note,
+        ate_note=ate_note,
     )
 
 

@@ -88,6 +88,11 @@ def score_robots(
     return scores
 
 
+def _cell(metres: float) -> str:
+    """A table cell in m; "none" for a robot without ground truth (no ATE, NaN in RobotScore)."""
+    return "none" if math.isnan(metres) else f"{metres:.3f}"
+
+
 def scores_table(scores: list[RobotScore]) -> str:
     """The results table as Markdown, with the five-robot average as its last row."""
     lines = [
@@ -98,11 +103,11 @@ def scores_table(scores: list[RobotScore]) -> str:
     for s in scores:
         lines.append(
             f"| {s.robot} | {s.landmarks} | {s.aligned_error:.3f} | {s.unaligned_error:.3f} "
-            f"| {s.ate_rmse:.3f} | {s.theta0:+.3f} | {s.seconds:.2f} |"
+            f"| {_cell(s.ate_rmse)} | {s.theta0:+.3f} | {s.seconds:.2f} |"
         )
     mean = [np.mean([getattr(s, f) for s in scores]) for f in (f.name for f in fields(RobotScore))]
     lines.append(
-        f"| average | {mean[1]:.1f} | {mean[2]:.3f} | {mean[3]:.3f} | {mean[4]:.3f} "
+        f"| average | {mean[1]:.1f} | {mean[2]:.3f} | {mean[3]:.3f} | {_cell(mean[4])} "
         f"| | {mean[6]:.2f} |"  # a mean of signed rotations means nothing
     )
     return "\n".join(lines)

@@ -312,6 +312,28 @@ def add_robot_argument(p: argparse.ArgumentParser) -> None:
     )
 
 
+def add_replay_start_arguments(p: Parser) -> None:
+    """``--start X Y THETA`` and ``--max-range M``, for the commands that load and replay a run.
+
+    One rule for both formats: the filter starts at ``--start`` when given, else at the run's
+    nominal start (run.json's; a MRCLAM robot's Vicon pose, or the origin without its
+    RobotN_Groundtruth.dat). ``--max-range``: MRCLAM only, drop sightings beyond M metres
+    (`ekfslam.logs.mrclam.checks`; default no cut), counted in the load report.
+    """
+    p.add_argument("--start", nargs=3, type=finite(), metavar=("X", "Y", "THETA"),
+                   help="the filter's start pose, m, m, rad (default: the run's nominal start; "
+                   "the origin for a robot without ground truth)")  # fmt: skip
+    p.add_check(triple_check("--start", (1000.0, 1000.0, math.pi), ("X", "Y", "THETA")))
+    add_max_range_argument(p)
+
+
+def add_max_range_argument(p: argparse.ArgumentParser) -> None:
+    """``--max-range M``: the MRCLAM loader drops sightings beyond M m (`mrclam.checks`)."""
+    p.add_argument("--max-range", type=positive(1000.0, why="m"), metavar="M",
+                   help="MRCLAM only: drop sightings beyond M m, counted (default: keep all; "
+                   "the dataset's users cut at 6)")  # fmt: skip
+
+
 def add_plot_argument(p: argparse.ArgumentParser, what: str) -> None:
     """``--plot FILE``: checked before the work; the suffix names the format and is required."""
     p.add_argument(

@@ -10,6 +10,8 @@ import argparse
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from ekfslam.cli import args as ca
 from ekfslam.core.arena import SEED_ARENA
 from ekfslam.core.filter.config import FilterConfig
@@ -50,8 +52,9 @@ def load_run(args: argparse.Namespace) -> tuple[RunLog, FramesReport | MrclamLoa
             )
         if args.robot is None:
             raise InputError(folder, None, "a MRCLAM dataset needs --robot N (1-5)")
-        run, report = load_mrclam(folder, args.robot)
-        return run, report
+        max_range = getattr(args, "max_range", None)
+        run, report = load_mrclam(folder, args.robot, max_range=max_range)
+        return with_start(run, args), report
     if args.robot is not None:
         raise InputError(folder, None, "--robot is only for MRCLAM datasets (no Barcodes.dat)")
     if not ours and not any((folder / name).exists() for name in ("controls.csv", "frames.csv")):
@@ -59,9 +62,24 @@ def load_run(args: argparse.Namespace) -> tuple[RunLog, FramesReport | MrclamLoa
             folder, None, "no run.json (our run format) and no Barcodes.dat (MRCLAM) in this folder"
         )
     # A run logged as camera frames, with no detections.csv yet: detect the tags in its frames.
+    if getattr(args, "max_range", None) is not None:
+        raise InputError(folder, None, "--max-range is only for MRCLAM datasets (no Barcodes.dat)")
     if has_frames_only(folder):
-        return read_frames_run(folder)
-    return read_run(folder), None
+        run, frames = read_frames_run(folder)
+        return with_start(run, args), frames
+    return with_start(read_run(folder), args), None
+
+
+def with_start(run: RunLog, args: argparse.Namespace) -> RunLog:
+    """The run, starting at ``--start`` when given (`ekfslam.cli.args.add_replay_start_arguments`).
+
+    Whether or not the run has ground truth: the filter starts at the nominal start, eq. (17)
+    recovers the true start from the map (``alignment.start_pose``).
+    """
+    start = getattr(args, "start", None)
+    if start is None:
+        return run
+    return replace(run, meta=replace(run.meta, nominal_start=np.array(start, dtype=np.float64)))
 
 
 def noise_from_args(args: argparse.Namespace, run: RunLog) -> tuple[NoiseConfig, FilterConfig]:

@@ -32,13 +32,15 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
 
 def _add_mrclam(formats: argparse._SubParsersAction) -> None:
     p = formats.add_parser(
-        "mrclam", help="one robot of a MRCLAM dataset -> a run folder (with its Vicon truth)"
+        "mrclam",
+        help="one robot of a MRCLAM dataset -> a run folder (with its Vicon truth if it has one)",
     )
     p.add_argument("dataset", type=ca.mrclam_dataset,
                    help="a MRCLAM dataset: its folder or its number 1-9")  # fmt: skip
     p.add_argument("--robot", type=ca.one_of(ca.ROBOTS, "MRCLAM robots"), required=True,
                    help="which robot (1-5)")  # fmt: skip
     ca.add_run_folder_arguments(p)
+    ca.add_max_range_argument(p)
     p.add_argument(
         "--calibrate", action="store_true",
         help="shift and scale the commands by MRCLAM_CALIBRATION (lag 0.25 s, v x0.90, w x0.935)",
@@ -48,7 +50,7 @@ def _add_mrclam(formats: argparse._SubParsersAction) -> None:
 
 def cmd_convert_mrclam(args: argparse.Namespace) -> int:
     folder = mrclam_folder(args.dataset)
-    run, report = load_mrclam(folder, args.robot)
+    run, report = load_mrclam(folder, args.robot, max_range=args.max_range)
     if args.calibrate:
         run = calibrate_commands(run, MRCLAM_CALIBRATION)
     try:  # load_mrclam checks what it reads; name the dataset, not a file the user never gave

@@ -27,6 +27,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         "run", type=Path, help="a run folder (run.json ...) or a MRCLAM dataset folder"
     )
     ca.add_robot_argument(run)
+    ca.add_replay_start_arguments(run)
     ca.add_plot_argument(run, "write the seed's Figure 2 for the run to FILE")
     ca.add_json_argument(run)
     run.add_argument(
@@ -132,6 +133,8 @@ def _table(summary: RunSummary, out: dict, report=None) -> str:
     )
     if summary.ate_rmse is not None:
         lines.append(f"trajectory ATE RMSE (no alignment) {summary.ate_rmse:.3f} m")
+    elif summary.ate_note is not None:
+        lines.append(f"trajectory ATE RMSE: none, {summary.ate_note}")
     if "association" in out:
         lines.append(association_line(out["association"]))
     if "detections" in out:

@@ -17,6 +17,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     p = subparsers.add_parser(name, help=help, description=tum.__doc__.split("\n\n")[0])
     p.add_argument("run", type=Path, help="a run folder or a MRCLAM dataset folder")
     ca.add_robot_argument(p)
+    ca.add_replay_start_arguments(p)
     p.add_argument("--out", type=ca.output_folder, required=True,
                    help="folder for the .tum files (created if missing)")  # fmt: skip
     ca.add_noise_arguments(p)

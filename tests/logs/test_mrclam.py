@@ -97,7 +97,7 @@ def test_the_load_report_separates_what_was_loaded_from_what_was_dropped(loaded:
     _, report = loaded[3]
     d = report.as_dict()
     assert set(d) == {"dataset", "robot", "loaded", "dropped"}
-    assert set(d["dropped"]) == {"robot_sightings", "unknown_barcodes"}
+    assert set(d["dropped"]) == {"robot_sightings", "unknown_barcodes", "beyond_range"}
     assert all("reason" in v and "count" in v for v in d["dropped"].values())
     assert d["loaded"]["odometry_rows"] == report.odometry_rows  # loaded, not dropped
     gap = d["loaded"]["odometry_max_gap_s"]
@@ -315,12 +315,25 @@ def test_empty_file(small: Path, content: bytes) -> None:
 
 
 def test_missing_file_names_it_and_the_robot(small: Path) -> None:
-    (small / "Robot4_Groundtruth.dat").unlink()
+    (small / "Robot4_Odometry.dat").unlink()
     with pytest.raises(InputError) as caught:
         load_mrclam(small, 4)
-    assert caught.value.path.endswith("Robot4_Groundtruth.dat")
-    assert "robot 4" in caught.value.problem and "Robot4_Groundtruth.dat" in caught.value.problem
+    assert caught.value.path.endswith("Robot4_Odometry.dat")
+    assert "robot 4" in caught.value.problem and "Robot4_Odometry.dat" in caught.value.problem
     load_mrclam(small, 3)  # other robots are unaffected
+
+
+def test_without_groundtruth_the_robot_starts_at_the_origin(small: Path) -> None:
+    """Datasets 1 and 4 come without Robot*_Groundtruth.dat: a run without truth, not an error."""
+    with_truth, _ = load_mrclam(small, 4)
+    (small / "Robot4_Groundtruth.dat").unlink()
+    run, report = load_mrclam(small, 4)
+    assert run.groundtruth is None and run.meta.nominal_start.tolist() == [0.0, 0.0, 0.0]
+    assert len(run.detections.t) == len(with_truth.detections.t) > 0
+    assert report.groundtruth_rows == 0 and report.groundtruth_first_time is None
+    assert not report.start_inside_groundtruth
+    assert report.as_dict()["loaded"]["groundtruth_span_s"] is None
+    assert "no ground truth (no Robot*_Groundtruth.dat)" in report.lines()[0]
 
 
 @pytest.mark.parametrize("robot", [0, 6, -1, True, 2.0])

@@ -29,7 +29,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +36,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.errors import InputError
 from ekfslam.geometry import wrap_angle
+from ekfslam.logs.mrclam.checks import (
+    DEFAULT_MAX_RANGE,
+    beyond_range,
+    fix_barcodes,
+    swapped_subjects,
+    time_offsets,
+)
+from ekfslam.logs.mrclam.dat import raise_at_row, read_table, require_integers
 from ekfslam.logs.mrclam.defaults import NAME as MRCLAM_DEFAULTS
 from ekfslam.logs.mrclam.fetch import mrclam_path
 from ekfslam.logs.mrclam.report import BARCODES, MrclamLoadReport
@@ -57,18 +64,18 @@ _ODOMETRY_COLUMNS = ("time", "v", "w")
 _MEASUREMENT_COLUMNS = ("time", "barcode", "range", "bearing")
 _GROUNDTRUTH_COLUMNS = ("time", "x", "y", "theta")
 
-# What np.loadtxt accepts as a number; the slow line-by-line check must agree with it.
-_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
-_NON_FINITE = re.compile(r"[+-]?(nan|inf|infinity)", re.IGNORECASE)
-_NEWLINE = re.compile(r"\r\n|\r|\n")  # the universal newlines np.loadtxt reads
-
 
 def robot_file(dataset_dir: str | Path, robot: int, kind: str) -> Path:
     """Path of robot N's file of `kind` ("Odometry", "Measurement" or "Groundtruth")."""
     return Path(dataset_dir) / f"Robot{robot}_{kind}.dat"
 
 
-def load_mrclam(dataset_dir: str | Path, robot: int) -> tuple[RunLog, MrclamLoadReport]:
+def load_mrclam(
+    dataset_dir: str | Path,
+    robot: int,
+    max_range: float | None = DEFAULT_MAX_RANGE,
+    fix_barcode_swap: bool = True,
+) -> tuple[RunLog, MrclamLoadReport]:
     """Load robot `robot` (1-5) of an MRCLAM dataset folder as a recorded run.
 
     Controls: each odometry row (t, v, ω) becomes a body twist (vx, vy, wz) = (v, 0, ω) held
@@ -81,12 +88,20 @@ def load_mrclam(dataset_dir: str | Path, robot: int) -> tuple[RunLog, MrclamLoad
     Start pose convention: ``meta.nominal_start`` is the ground-truth pose linearly interpolated
     at the first odometry time, with θ interpolated on the unwrapped heading (so a crossing of ±π
     between two samples does not sweep through 0). If the first odometry time is outside the
-    ground truth, the nearest ground-truth pose is used and the report says so.
+    ground truth, the nearest ground-truth pose is used and the report says so. Without
+    RobotN_Groundtruth.dat (Datasets 1 and 4 as shipped here) the run has no ground truth and
+    starts at the origin, as the seed's robot did: its map is scored after eq. (17).
+
+    The checks of `ekfslam.logs.mrclam.checks`, each counted in the report: sightings beyond
+    `max_range` (m; None keeps all) are dropped; with `fix_barcode_swap`, Dataset 1's swapped
+    barcodes of subjects 11 and 17 are put right.
 
     Parameters
     ----------
     dataset_dir : folder holding Barcodes.dat, Landmark_Groundtruth.dat and RobotN_*.dat.
     robot : 1 to 5.
+    max_range : m, or None for no cut (the default, `DEFAULT_MAX_RANGE`: measured in `checks`).
+    fix_barcode_swap : undo a known swap in Barcodes.dat (`checks.fix_barcodes`).
 
     Returns
     -------
@@ -107,17 +122,26 @@ def load_mrclam(dataset_dir: str | Path, robot: int) -> tuple[RunLog, MrclamLoad
     if not folder.is_dir():
         raise InputError(folder, None, "not a folder; expected an MRCLAM_Dataset<N> folder")
     paths = {kind: robot_file(folder, robot, kind) for kind in ROBOT_KINDS}
-    _require_files(folder, robot, [folder / BARCODES, folder / LANDMARKS, *paths.values()])
+    has_truth = paths["Groundtruth"].is_file()
+    required = [folder / BARCODES, folder / LANDMARKS, paths["Odometry"], paths["Measurement"]]
+    _require_files(folder, robot, required)
+    dataset = _dataset_number(folder)
 
     barcode_to_subject = read_barcodes(folder / BARCODES)
+    if fix_barcode_swap:
+        barcode_to_subject, swap_fixed = fix_barcodes(dataset, barcode_to_subject)
+    else:
+        swap_fixed = False
     tag_map = read_landmarks(folder / LANDMARKS)
-    odometry, odo_unsorted = _sorted_by_time(_read_table(paths["Odometry"], _ODOMETRY_COLUMNS))
-    measurements = _read_table(paths["Measurement"], _MEASUREMENT_COLUMNS)
+    odometry, odo_unsorted = _sorted_by_time(read_table(paths["Odometry"], _ODOMETRY_COLUMNS))
+    measurements = read_table(paths["Measurement"], _MEASUREMENT_COLUMNS)
     _check_measurements(paths["Measurement"], measurements, barcode_to_subject, tag_map)
     measurements, meas_unsorted = _sorted_by_time(measurements)
-    groundtruth, gt_unsorted = _sorted_by_time(
-        _read_table(paths["Groundtruth"], _GROUNDTRUTH_COLUMNS)
-    )
+    if has_truth:
+        table = read_table(paths["Groundtruth"], _GROUNDTRUTH_COLUMNS)
+    else:
+        table = np.empty((0, 4))
+    groundtruth, gt_unsorted = _sorted_by_time(table)
 
     controls = Controls(
         t=odometry[:, 0].copy(),
@@ -128,7 +152,9 @@ def load_mrclam(dataset_dir: str | Path, robot: int) -> tuple[RunLog, MrclamLoad
     subjects = np.array([barcode_to_subject.get(b, 0) for b in barcodes.tolist()], dtype=np.int64)
     unknown = subjects == 0
     robot_sighting = np.isin(subjects, ROBOTS)
-    keep = ~unknown & ~robot_sighting
+    far = beyond_range(measurements[:, 2], max_range) & ~unknown & ~robot_sighting
+    keep = ~unknown & ~robot_sighting & ~far
+    renamed = np.isin(subjects[keep], swapped_subjects(dataset)) if swap_fixed else keep[:0]
     detections = Detections(
         t=measurements[keep, 0].copy(),
         tag_id=subjects[keep],
@@ -137,11 +163,13 @@ def load_mrclam(dataset_dir: str | Path, robot: int) -> tuple[RunLog, MrclamLoad
     )
     gt_pose = groundtruth[:, 1:4].copy()
     gt_pose[:, 2] = _wrapped(gt_pose[:, 2])
-    truth = GroundTruth(t=groundtruth[:, 0].copy(), pose=gt_pose)
+    truth = GroundTruth(t=groundtruth[:, 0].copy(), pose=gt_pose) if has_truth else None
 
     start_time = float(controls.t[0])
-    nominal_start = interpolate_pose(truth.t, truth.pose, start_time)
-    dataset = _dataset_number(folder)
+    if truth is not None:
+        nominal_start = interpolate_pose(truth.t, truth.pose, start_time)
+    else:
+        nominal_start = np.zeros(3)  # unknown: the origin, as the seed's robot (eq. 17 aligns)
     meta = RunMeta(
         name=f"mrclam{dataset}-robot{robot}",
         source="recorded",
@@ -164,15 +192,21 @@ def load_mrclam(dataset_dir: str | Path, robot: int) -> tuple[RunLog, MrclamLoad
         unknown_barcodes=frozenset(int(b) for b in np.unique(barcodes[unknown])),
         measurement_out_of_order=meas_unsorted,
         groundtruth_rows=len(groundtruth),
-        groundtruth_first_time=float(truth.t[0]),
-        groundtruth_last_time=float(truth.t[-1]),
+        groundtruth_first_time=float(truth.t[0]) if truth is not None else None,
+        groundtruth_last_time=float(truth.t[-1]) if truth is not None else None,
         groundtruth_out_of_order=gt_unsorted,
         start_time=start_time,
-        start_inside_groundtruth=bool(truth.t[0] <= start_time <= truth.t[-1]),
+        start_inside_groundtruth=has_truth
+        and bool(groundtruth[0, 0] <= start_time <= groundtruth[-1, 0]),
+        max_range=max_range,
+        beyond_range_dropped=int(np.count_nonzero(far)),
+        barcode_swap_fixed=swap_fixed,
+        barcode_swap_renamed=int(np.count_nonzero(renamed)),
+        time_offsets=time_offsets(odometry[:, 0], measurements[:, 0]),
     )
     run = RunLog(meta=meta, controls=controls, detections=detections, groundtruth=truth)
     # the measurements share the odometry's clock; the Vicon truth's cover is only reported
-    names = tuple(paths[k].name for k in ROBOT_KINDS)
+    names = (paths["Odometry"].name, paths["Measurement"].name, paths["Groundtruth"].name)
     check_time_spans(dataclasses.replace(run, groundtruth=None), folder, names, lines=False)
     return run, report
 
@@ -205,21 +239,21 @@ def interpolate_pose(t: ArrayLike, pose: ArrayLike, at: float) -> Array:
 def read_barcodes(path: str | Path) -> dict[int, int]:
     """Barcodes.dat as {barcode: subject}; a barcode or subject listed twice is an InputError."""
     path = Path(path)
-    table = _read_table(path, _BARCODE_COLUMNS)
-    _require_integers(path, table, _BARCODE_COLUMNS, (0, 1))
+    table = read_table(path, _BARCODE_COLUMNS)
+    require_integers(path, table, _BARCODE_COLUMNS, (0, 1))
     mapping: dict[int, int] = {}
     first_row_of_subject: dict[int, int] = {}
     for row, (subject, barcode) in enumerate(table.astype(np.int64).tolist()):
         if subject < 1 or barcode < 0:
-            _raise_at_row(path, row, f"subject {subject} must be >= 1, barcode {barcode} >= 0")
+            raise_at_row(path, row, f"subject {subject} must be >= 1, barcode {barcode} >= 0")
         if barcode in mapping:
-            _raise_at_row(
+            raise_at_row(
                 path,
                 row,
                 f"barcode {barcode} is mapped twice (subjects {mapping[barcode]} and {subject})",
             )
         if subject in first_row_of_subject:
-            _raise_at_row(path, row, f"subject {subject} has two barcodes")
+            raise_at_row(path, row, f"subject {subject} has two barcodes")
         mapping[barcode] = subject
         first_row_of_subject[subject] = row
     return mapping
@@ -228,15 +262,15 @@ def read_barcodes(path: str | Path) -> dict[int, int]:
 def read_landmarks(path: str | Path) -> dict[int, Array]:
     """Landmark_Groundtruth.dat as {subject: array (2,) (x, y) in m}."""
     path = Path(path)
-    table = _read_table(path, _LANDMARK_COLUMNS)
-    _require_integers(path, table, _LANDMARK_COLUMNS, (0,))
+    table = read_table(path, _LANDMARK_COLUMNS)
+    require_integers(path, table, _LANDMARK_COLUMNS, (0,))
     tag_map: dict[int, Array] = {}
     for row, (subject, x, y, _sx, _sy) in enumerate(table.tolist()):
         subject = int(subject)
         if subject in ROBOTS:
-            _raise_at_row(path, row, f"subject {subject} is a robot, not a landmark")
+            raise_at_row(path, row, f"subject {subject} is a robot, not a landmark")
         if subject in tag_map:
-            _raise_at_row(path, row, f"landmark {subject} is listed twice")
+            raise_at_row(path, row, f"landmark {subject} is listed twice")
         tag_map[subject] = np.array([x, y])
     return tag_map
 
@@ -272,88 +306,16 @@ def _sorted_by_time(table: Array) -> tuple[Array, int]:
 def _check_measurements(path: Path, table: Array, subjects: dict, tag_map: dict) -> None:
     """Our own reader's rules (`ekfslam.logs.runlog`): range >= 0, bearing in [-π, π], and every
     sighted landmark (a subject of Barcodes.dat, not a robot) in Landmark_Groundtruth.dat."""
-    _require_integers(path, table, _MEASUREMENT_COLUMNS, (1,))
+    require_integers(path, table, _MEASUREMENT_COLUMNS, (1,))
     for row, (_, barcode, r, b) in enumerate(table.tolist()):
         s = subjects.get(int(barcode), ROBOTS[0])
         if r < 0:
-            _raise_at_row(path, row, f"negative range {r:g} m")
+            raise_at_row(path, row, f"negative range {r:g} m")
         if abs(b) > math.pi:
-            _raise_at_row(path, row, f"bearing {b!r} rad is outside [-pi, pi] (degrees?)")
+            raise_at_row(path, row, f"bearing {b!r} rad is outside [-pi, pi] (degrees?)")
         if s not in ROBOTS and s not in tag_map:
             where = f"(barcode {int(barcode)} in {BARCODES}) is not in {LANDMARKS}"
-            _raise_at_row(path, row, f"landmark {s} {where}")
-
-
-def _require_integers(
-    path: Path, table: Array, names: tuple[str, ...], columns: tuple[int, ...]
-) -> None:
-    for col in columns:
-        values = table[:, col]
-        bad = np.flatnonzero((values != np.round(values)) | (np.abs(values) > 2**31))
-        if bad.size:
-            row = int(bad[0])
-            _raise_at_row(
-                path, row, f"{names[col]} {values[row]:g} is not a whole number below 2^31"
-            )
-
-
-def _read_table(path: Path, names: tuple[str, ...]) -> Array:
-    """Parse a whitespace-separated numeric file into (N, columns) float64, validating it.
-
-    np.loadtxt (C parser) does the fast pass; only when it or the shape/finiteness checks fail
-    do we walk the file line by line, to name the exact line.
-    """
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
-            table = np.loadtxt(path, comments="#", ndmin=2, dtype=np.float64, encoding="utf-8-sig")
-    except (ValueError, UnicodeDecodeError) as exc:
-        _raise_first_bad_line(path, names, fallback=str(exc))
-    except OSError as exc:
-        raise InputError(path, None, f"cannot read the file: {exc.strerror or exc}") from None
-    if table.size == 0:
-        raise InputError(path, None, f"empty file: no data rows ({', '.join(names)})")
-    if table.shape[1] != len(names) or not np.isfinite(table).all():
-        _raise_first_bad_line(path, names, fallback="malformed table")
-    return table
-
-
-def _data_lines(path: Path) -> list[tuple[int, list[str]]]:
-    """(1-based line number, fields) of every line that holds data, as np.loadtxt sees them."""
-    raw = path.read_bytes()
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = raw.count(b"\n", 0, exc.start) + 1
-        raise InputError(path, line, f"not text: byte 0x{raw[exc.start]:02x}") from None
-    rows = []
-    for number, line in enumerate(_NEWLINE.split(text), start=1):
-        fields = line.split("#", 1)[0].split()
-        if fields:
-            rows.append((number, fields))
-    return rows
-
-
-def _raise_first_bad_line(path: Path, names: tuple[str, ...], fallback: str) -> None:
-    for number, fields in _data_lines(path):
-        if len(fields) != len(names):
-            raise InputError(
-                path,
-                number,
-                f"expected {len(names)} columns ({', '.join(names)}), found {len(fields)}",
-            )
-        for name, field in zip(names, fields, strict=True):
-            if _NON_FINITE.fullmatch(field):
-                raise InputError(path, number, f"{name} is {field}, not a finite number")
-            if not _NUMBER.fullmatch(field):
-                raise InputError(path, number, f"{name} is {field!r}, not a number")
-            if not math.isfinite(float(field)):
-                raise InputError(path, number, f"{name} is {field}, too large to be a number")
-    raise InputError(path, None, f"could not parse: {fallback}")
-
-
-def _raise_at_row(path: Path, row: int, problem: str) -> None:
-    raise InputError(path, _data_lines(path)[row][0], problem)
+            raise_at_row(path, row, f"landmark {s} {where}")
 
 
 def find_dataset(n: int = 7) -> Path:
