@@ -5,7 +5,9 @@ time it predicts every mapped landmark's observation and the joint covariance of
 predictions from the filter's state, lets `ekfslam.core.association` choose the pairing
 (``nn`` or ``jcbb``), and feeds each paired sighting to `EKFSLAM.update` under the landmark's
 estimated id (0, 1, 2 ... in the order they become permanent), one after the other as the
-replay does with known ids. The EKF itself is unchanged: its gate and re-initialisation still
+replay does with known ids. ``nn`` needs only each landmark's own 2x2 block of that covariance,
+so it runs compiled (`ekfslam.core.filter.kernels.nearest`, O(m n)) and costs about what the
+updates do; ``jcbb`` needs the cross blocks too, and builds H Σ Hᵀ (`predicted`). The EKF itself is unchanged: its gate and re-initialisation still
 apply to each update.
 
 A sighting paired with nothing:
@@ -37,8 +39,8 @@ from ekfslam.core.association import (
     AssociationConfig,
     individual_nis,
     jcbb,
-    nearest_neighbour,
 )
+from ekfslam.core.filter import kernels
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.models import inverse_observation, inverse_observation_jacobians
 
@@ -112,29 +114,30 @@ class AssociatingFilter:
         """
         zs = np.asarray(zs, dtype=float).reshape(-1, 2)
         Q = np.asarray(Q, dtype=float)
-        self._expire(t)
+        if self._tentative:
+            self._expire(t)
         m = len(zs)
-        Qs = np.broadcast_to(Q, (m, 2, 2))
         ids = self.ekf.landmark_ids
-        nu, P = self.predicted(zs)
-        nis = individual_nis(nu, P, Qs)
-        if self.config.method == "nn":
-            pairing = nearest_neighbour(nis, self.config.gate)
+        if self.config.method == "nn":  # compiled, O(m n): no H Σ Hᵀ (see `kernels.nearest`)
+            pairing, nearest = self._nearest(zs, Q)
         else:
+            Qs = np.broadcast_to(Q, (m, 2, 2))
+            nu, P = self.predicted(zs)
+            nis = individual_nis(nu, P, Qs)
+            nearest = nis.min(axis=1) if nis.shape[1] else np.full(m, math.inf)
             found = jcbb(
                 nu, P, Qs, self.config.gate, self.config.joint_probability,
                 self.config.node_budget,
             )  # fmt: skip
-            pairing = found.pairing
+            pairing = found.pairing.tolist()
             self._counts["nodes"] += found.nodes
             self._counts["budget_hits"] += found.budget_hit
         used = [UNPAIRED] * m
         decision = [ASSOCIATED] * m
         for i in range(m):  # the paired ones first: each update sharpens the pose
             if pairing[i] != UNPAIRED:
-                used[i] = ids[int(pairing[i])]
+                used[i] = ids[pairing[i]]
                 self.ekf.update(used[i], zs[i], Q, t)
-        nearest = nis.min(axis=1) if nis.shape[1] else np.full(m, math.inf)
         for i in range(m):
             if pairing[i] != UNPAIRED:
                 continue
@@ -147,6 +150,18 @@ class AssociatingFilter:
             self._decision.append(what)
             self._counts[what] += 1
         return used
+
+    def _nearest(self, zs: Array, Q: Array) -> tuple[list[int], list[float]]:
+        """`nearest_neighbour` over `individual_nis`, compiled: pairing and smallest NIS."""
+        ekf = self.ekf
+        (q00, q01), (_, q11) = Q.tolist()
+        pairing = np.empty(len(zs), dtype=np.int64)
+        smallest = np.empty(len(zs))
+        # positional, each argument named as the kernel's parameter (see `EKFSLAM._propagate`)
+        kernels.nearest(
+            ekf._mu, ekf._Sigma, ekf._dim, zs, q00, q01, q11, self.config.gate, pairing, smallest
+        )
+        return pairing.tolist(), smallest.tolist()
 
     def predicted(self, zs: Array) -> tuple[Array, Array]:
         """Innovations ν (m, n, 2) of every sighting against every landmark, and P = H Σ Hᵀ."""
