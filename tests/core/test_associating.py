@@ -95,3 +95,16 @@ def test_the_compiled_nearest_neighbour_decides_as_the_numpy_reference():
     assert pairing == nearest_neighbour(nis, f.config.gate).tolist()
     assert sum(p != UNPAIRED for p in pairing) >= 12
     np.testing.assert_allclose(smallest, nis.min(axis=1), rtol=1e-9)
+
+
+def test_a_drifted_robot_does_not_confirm_a_tentative_with_its_neighbours_sighting():
+    # the pose is very uncertain (a robot deep into a loop) but did not move between the two
+    # sightings: their shared pose error cancels, so a sighting 0.3 m away starts its own
+    # tentative, and a sighting of the same place confirms
+    ekf = EKFSLAM(POSE, np.diag([0.25, 0.25, 0.04]))
+    f = AssociatingFilter(ekf, AssociationConfig(method="nn", tentative_life=5.0))
+    here, beside = np.array([3.0, 0.0]), np.array([3.0, 0.3])
+    assert f.observe(sightings(here), Q, 0.0) == [UNPAIRED]
+    assert f.observe(sightings(beside), Q, 1.0) == [UNPAIRED]  # a second tentative
+    assert f.observe(sightings(here), Q, 2.0) == [0]  # confirms the first
+    assert f.finish().counts.tentative == 2 and f.ekf.n_landmarks == 1

@@ -7,17 +7,18 @@ predictions from the filter's state, lets `ekfslam.core.association` choose the 
 estimated id (0, 1, 2 ... in the order they become permanent), one after the other as the
 replay does with known ids. ``nn`` needs only each landmark's own 2x2 block of that covariance,
 so it runs compiled (`ekfslam.core.filter.kernels.nearest`, O(m n)) and costs about what the
-updates do; ``jcbb`` needs the cross blocks too, and builds H Σ Hᵀ (`predicted`). The EKF itself is unchanged: its gate and re-initialisation still
-apply to each update.
+updates do; ``jcbb`` needs the cross blocks too, and builds H Σ Hᵀ (`predicted`). The EKF
+itself is unchanged: its gate and re-initialisation still apply to each update.
 
 A sighting paired with nothing:
 
 - ambiguous (its smallest NIS lies between the gate and the new-landmark threshold): dropped,
   counted;
 - otherwise a new landmark, which starts TENTATIVE, outside the state, as the position the
-  sighting puts it at with that position's covariance (pose and sighting noise). The rule: a
-  tentative becomes a landmark when a later sighting (at a later time) that pairs with no mapped
-  landmark puts it within the gate of the tentative (Mahalanobis, both covariances); the filter
+  sighting puts it at. The rule: a tentative becomes a landmark when a later sighting (at a
+  later time) that pairs with no mapped landmark puts it within the gate of the tentative
+  (Mahalanobis, over both sightings' noise and the pose uncertainty added between them: the
+  pose error they share cancels, see `AssociatingFilter._new_sighting`); the filter
   is then initialised from that second sighting. A tentative not confirmed within
   `AssociationConfig.tentative_life` seconds is discarded and counted, so a single spurious
   sighting never becomes a landmark.
@@ -99,7 +100,7 @@ class AssociatingFilter:
             raise ValueError("'known' association feeds EKFSLAM.update directly")
         self.ekf = ekf
         self.config = config
-        self._tentative: list[tuple[float, Array, Array]] = []  # (time, position, covariance)
+        self._tentative: list[tuple[float, Array, Array, Array]] = []  # t, p, cov, pose cov
         self._estimated: list[int] = []
         self._decision: list[str] = []
         self._counts = dict.fromkeys(
@@ -186,22 +187,32 @@ class AssociatingFilter:
         return nu, H @ ekf.Sigma @ H.T
 
     def _new_sighting(self, z: Array, Q: Array, t: float) -> tuple[int, str]:
-        """A sighting of no mapped landmark: confirm a tentative one, or start one."""
+        """A sighting of no mapped landmark: confirm a tentative one, or start one.
+
+        The two sightings share the pose error of the earlier one (the robot's drift is the
+        same for both), so the test's covariance is each sighting's own noise, G_z Q G_zᵀ, plus
+        the pose uncertainty added in between (the part of Σ_rr(t) - Σ_rr(t0) that grew),
+        through G_p: with the whole pose covariance twice, a drifted robot would confirm one
+        landmark with its neighbour's sighting.
+        """
         pose = self.ekf.mu[:3]
         G_p, G_z = inverse_observation_jacobians(pose, z)
         p = inverse_observation(pose, z)
-        C = G_p @ self.ekf.pose_covariance @ G_p.T + G_z @ Q @ G_z.T
-        for k, (t0, p0, C0) in enumerate(self._tentative):
+        C = G_z @ Q @ G_z.T
+        P_now = self.ekf.pose_covariance
+        for k, (t0, p0, C0, P0) in enumerate(self._tentative):
             if t0 >= t:
                 continue  # seen again means at a later time
+            w, V = np.linalg.eigh(P_now - P0)
+            grown = (V * np.maximum(w, 0.0)) @ V.T
             v = p - p0
-            S = C + C0
+            S = C + C0 + G_p @ grown @ G_p.T
             if v @ np.linalg.solve(S, v) <= self.config.gate:
                 del self._tentative[k]
                 new_id = self.ekf.n_landmarks
                 self.ekf.update(new_id, z, Q, t)
                 return new_id, CONFIRMED
-        self._tentative.append((t, p, C))
+        self._tentative.append((t, p, C, P_now))
         return UNPAIRED, TENTATIVE
 
     def _expire(self, t: float) -> None:
