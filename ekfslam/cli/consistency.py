@@ -1,4 +1,4 @@
-"""``python -m ekfslam consistency nees|outliers|long-run|mrclam ...``: can we trust Σ?
+"""``python -m ekfslam consistency nees|outliers|long-run|mrclam|association ...``: can we trust Σ?
 
 One sub-command per study, each with only its own options:
 
@@ -8,7 +8,9 @@ One sub-command per study, each with only its own options:
   are outliers (`ekfslam.analysis.robustness.outlier_study`);
 - ``long-run [--steps N]``: drive N steps and check Σ's smallest eigenvalue (`robustness.long_run`);
 - ``mrclam [DATASET]``: pose NEES of every MRCLAM robot against Vicon
-  (`ekfslam.analysis.mrclam_consistency`).
+  (`ekfslam.analysis.mrclam_consistency`);
+- ``association [--runs N]``: nn against jcbb with the ids hidden on the stress scenario, and a
+  picture of the wrong associations (`ekfslam.analysis.association_stress`).
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ import argparse
 import dataclasses
 import json
 
-from ekfslam.analysis import robustness
+from ekfslam.analysis import association_stress, robustness
 from ekfslam.analysis.consistency import (
     CONFIDENCE,
     Consistency,
@@ -37,6 +39,7 @@ from ekfslam.files import save_figure
 from ekfslam.logs.mrclam.defaults import MRCLAM_CONFIG
 from ekfslam.logs.mrclam.load import ROBOTS
 from ekfslam.sim.scenarios import SCENARIOS
+from ekfslam.viz.association import plot_wrong_associations
 from ekfslam.viz.consistency import plot_consistency, plot_mrclam_nees
 
 
@@ -102,6 +105,17 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     )
     ca.add_plot_argument(p, "draw each robot's pose NEES over time to FILE")
     p.set_defaults(func=cmd_mrclam)
+
+    p = studies.add_parser(
+        "association", help="nn against jcbb on the stress scenario (close tags, drift)"
+    )
+    p.add_argument("--runs", type=ca.whole(1, 1000), default=1,
+                   help="simulated runs, 1 to 1000 (default 1)")  # fmt: skip
+    p.add_argument("--seed", type=ca.seed(), default=2,
+                   help="seed of the first run (then +1, +2...; default 2)")  # fmt: skip
+    ca.add_json_argument(p)
+    ca.add_plot_argument(p, "draw the first run's wrong associations to FILE")
+    p.set_defaults(func=cmd_association)
 
 
 def _runs_and_trajectory(p: argparse.ArgumentParser) -> None:
@@ -203,6 +217,29 @@ def cmd_mrclam(args: argparse.Namespace) -> int:
     print(
         json.dumps(out, indent=2, allow_nan=False) if args.json else table(study, out.get("plot"))
     )
+    return 0
+
+
+def cmd_association(args: argparse.Namespace) -> int:
+    """known, nn and jcbb on the stress scenario: correct fraction and aligned error."""
+    study = association_stress.stress_study(args.runs, args.seed)
+    out = study.as_dict()
+    if args.plot is not None:
+        out["plot"] = str(save_figure(plot_wrong_associations(study), args.plot))
+    lines = [
+        f"stress scenario (8 pairs of tags 0.3 m apart, 2 drifting laps), seeds "
+        f"{study.seeds[0]}..{study.seeds[-1]}: mean over {len(study.seeds)} run(s)",
+        f"{'method':<8}{'correct':>9}{'aligned error (m)':>19}{'wrong (first run)':>19}",
+    ]
+    for m in association_stress.METHODS:
+        frac, err = study.mean(m, "correct_fraction"), study.mean(m, "aligned_error")
+        lines.append(
+            f"{m:<8}{'–' if frac is None else f'{frac:.1%}':>9}"
+            f"{'–' if err is None else f'{err:.4f}':>19}{study.cases[m][0].wrong:>19}"
+        )
+    if "plot" in out:
+        lines.append(f"figure written to {out['plot']}")
+    _emit(args, out, "\n".join(lines))
     return 0
 
 

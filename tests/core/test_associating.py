@@ -4,7 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ekfslam.core.association import UNPAIRED, AssociationConfig
+from ekfslam.core.association import (
+    UNPAIRED,
+    AssociationConfig,
+    individual_nis,
+    nearest_neighbour,
+)
 from ekfslam.core.filter.associating import AMBIGUOUS, AssociatingFilter
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.models import observation, observation_noise
@@ -68,3 +73,38 @@ def test_a_sighting_between_the_gate_and_the_new_landmark_threshold_is_dropped()
     log = f.finish()
     assert log.decision[-1] == AMBIGUOUS and log.counts.ambiguous == 1
     np.testing.assert_array_equal(f.ekf.mu, mean_before)  # dropped: the state is untouched
+
+
+def test_the_compiled_nearest_neighbour_decides_as_the_numpy_reference():
+    # a correlated map (pose uncertain, landmarks seen from two poses) and sightings near,
+    # between and far from its landmarks: kernels.nearest agrees with individual_nis then
+    # nearest_neighbour on every pairing, and on the smallest NIS to rounding
+    rng = np.random.default_rng(3)
+    ekf = EKFSLAM(np.zeros(3), np.diag([0.04, 0.04, 0.01]))
+    marks = rng.uniform(-4.0, 4.0, size=(12, 2))
+    for j, p in enumerate(marks):
+        ekf.update(j, observation(np.zeros(3), p), Q)
+    ekf.predict([0.3, 0.1, 0.2], np.diag([0.01, 0.01, 0.004]))
+    f = AssociatingFilter(ekf, AssociationConfig(method="nn"))
+    pose = ekf.pose
+    points = np.vstack([marks + rng.normal(0, 0.05, marks.shape), rng.uniform(-5, 5, (8, 2))])
+    zs = np.array([observation(pose, p) for p in points])
+    nu, P = f.predicted(zs)
+    nis = individual_nis(nu, P, np.broadcast_to(Q, (len(zs), 2, 2)))
+    pairing, smallest = f._nearest(zs, Q)
+    assert pairing == nearest_neighbour(nis, f.config.gate).tolist()
+    assert sum(p != UNPAIRED for p in pairing) >= 12
+    np.testing.assert_allclose(smallest, nis.min(axis=1), rtol=1e-9)
+
+
+def test_a_drifted_robot_does_not_confirm_a_tentative_with_its_neighbours_sighting():
+    # the pose is very uncertain (a robot deep into a loop) but did not move between the two
+    # sightings: their shared pose error cancels, so a sighting 0.3 m away starts its own
+    # tentative, and a sighting of the same place confirms
+    ekf = EKFSLAM(POSE, np.diag([0.25, 0.25, 0.04]))
+    f = AssociatingFilter(ekf, AssociationConfig(method="nn", tentative_life=5.0))
+    here, beside = np.array([3.0, 0.0]), np.array([3.0, 0.3])
+    assert f.observe(sightings(here), Q, 0.0) == [UNPAIRED]
+    assert f.observe(sightings(beside), Q, 1.0) == [UNPAIRED]  # a second tentative
+    assert f.observe(sightings(here), Q, 2.0) == [0]  # confirms the first
+    assert f.finish().counts.tentative == 2 and f.ekf.n_landmarks == 1

@@ -149,6 +149,7 @@ CASES: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "consistency plot gif": ("consistency nees --plot c.gif", "--plot", ("c.gif",)),
     "consistency plot under a file": ("consistency nees --plot {file}/c.png", "--plot", ()),
     "consistency long-run zero": ("consistency long-run --steps 0", "--steps", ()),
+    "consistency association runs zero": ("consistency association --runs 0", "--runs", ()),
     "consistency gate-after zero": ("consistency outliers 0.1 --gate-after 0", "--gate-after", ()),
     "consistency robot nine": ("consistency mrclam --robots 9", "--robots", ()),
     # a MRCLAM dataset is named one way everywhere: its folder or its number 1-9

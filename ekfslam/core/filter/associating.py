@@ -5,17 +5,20 @@ time it predicts every mapped landmark's observation and the joint covariance of
 predictions from the filter's state, lets `ekfslam.core.association` choose the pairing
 (``nn`` or ``jcbb``), and feeds each paired sighting to `EKFSLAM.update` under the landmark's
 estimated id (0, 1, 2 ... in the order they become permanent), one after the other as the
-replay does with known ids. The EKF itself is unchanged: its gate and re-initialisation still
-apply to each update.
+replay does with known ids. ``nn`` needs only each landmark's own 2x2 block of that covariance,
+so it runs compiled (`ekfslam.core.filter.kernels.nearest`, O(m n)) and costs about what the
+updates do; ``jcbb`` needs the cross blocks too, and builds H Σ Hᵀ (`predicted`). The EKF
+itself is unchanged: its gate and re-initialisation still apply to each update.
 
 A sighting paired with nothing:
 
 - ambiguous (its smallest NIS lies between the gate and the new-landmark threshold): dropped,
   counted;
 - otherwise a new landmark, which starts TENTATIVE, outside the state, as the position the
-  sighting puts it at with that position's covariance (pose and sighting noise). The rule: a
-  tentative becomes a landmark when a later sighting (at a later time) that pairs with no mapped
-  landmark puts it within the gate of the tentative (Mahalanobis, both covariances); the filter
+  sighting puts it at. The rule: a tentative becomes a landmark when a later sighting (at a
+  later time) that pairs with no mapped landmark puts it within the gate of the tentative
+  (Mahalanobis, over both sightings' noise and the pose uncertainty added between them: the
+  pose error they share cancels, see `AssociatingFilter._new_sighting`); the filter
   is then initialised from that second sighting. A tentative not confirmed within
   `AssociationConfig.tentative_life` seconds is discarded and counted, so a single spurious
   sighting never becomes a landmark.
@@ -37,8 +40,8 @@ from ekfslam.core.association import (
     AssociationConfig,
     individual_nis,
     jcbb,
-    nearest_neighbour,
 )
+from ekfslam.core.filter import kernels
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.models import inverse_observation, inverse_observation_jacobians
 
@@ -97,7 +100,7 @@ class AssociatingFilter:
             raise ValueError("'known' association feeds EKFSLAM.update directly")
         self.ekf = ekf
         self.config = config
-        self._tentative: list[tuple[float, Array, Array]] = []  # (time, position, covariance)
+        self._tentative: list[tuple[float, Array, Array, Array]] = []  # t, p, cov, pose cov
         self._estimated: list[int] = []
         self._decision: list[str] = []
         self._counts = dict.fromkeys(
@@ -112,29 +115,30 @@ class AssociatingFilter:
         """
         zs = np.asarray(zs, dtype=float).reshape(-1, 2)
         Q = np.asarray(Q, dtype=float)
-        self._expire(t)
+        if self._tentative:
+            self._expire(t)
         m = len(zs)
-        Qs = np.broadcast_to(Q, (m, 2, 2))
         ids = self.ekf.landmark_ids
-        nu, P = self.predicted(zs)
-        nis = individual_nis(nu, P, Qs)
-        if self.config.method == "nn":
-            pairing = nearest_neighbour(nis, self.config.gate)
+        if self.config.method == "nn":  # compiled, O(m n): no H Σ Hᵀ (see `kernels.nearest`)
+            pairing, nearest = self._nearest(zs, Q)
         else:
+            Qs = np.broadcast_to(Q, (m, 2, 2))
+            nu, P = self.predicted(zs)
+            nis = individual_nis(nu, P, Qs)
+            nearest = nis.min(axis=1) if nis.shape[1] else np.full(m, math.inf)
             found = jcbb(
                 nu, P, Qs, self.config.gate, self.config.joint_probability,
                 self.config.node_budget,
             )  # fmt: skip
-            pairing = found.pairing
+            pairing = found.pairing.tolist()
             self._counts["nodes"] += found.nodes
             self._counts["budget_hits"] += found.budget_hit
         used = [UNPAIRED] * m
         decision = [ASSOCIATED] * m
         for i in range(m):  # the paired ones first: each update sharpens the pose
             if pairing[i] != UNPAIRED:
-                used[i] = ids[int(pairing[i])]
+                used[i] = ids[pairing[i]]
                 self.ekf.update(used[i], zs[i], Q, t)
-        nearest = nis.min(axis=1) if nis.shape[1] else np.full(m, math.inf)
         for i in range(m):
             if pairing[i] != UNPAIRED:
                 continue
@@ -147,6 +151,18 @@ class AssociatingFilter:
             self._decision.append(what)
             self._counts[what] += 1
         return used
+
+    def _nearest(self, zs: Array, Q: Array) -> tuple[list[int], list[float]]:
+        """`nearest_neighbour` over `individual_nis`, compiled: pairing and smallest NIS."""
+        ekf = self.ekf
+        (q00, q01), (_, q11) = Q.tolist()
+        pairing = np.empty(len(zs), dtype=np.int64)
+        smallest = np.empty(len(zs))
+        # positional, each argument named as the kernel's parameter (see `EKFSLAM._propagate`)
+        kernels.nearest(
+            ekf._mu, ekf._Sigma, ekf._dim, zs, q00, q01, q11, self.config.gate, pairing, smallest
+        )
+        return pairing.tolist(), smallest.tolist()
 
     def predicted(self, zs: Array) -> tuple[Array, Array]:
         """Innovations ν (m, n, 2) of every sighting against every landmark, and P = H Σ Hᵀ."""
@@ -171,22 +187,32 @@ class AssociatingFilter:
         return nu, H @ ekf.Sigma @ H.T
 
     def _new_sighting(self, z: Array, Q: Array, t: float) -> tuple[int, str]:
-        """A sighting of no mapped landmark: confirm a tentative one, or start one."""
+        """A sighting of no mapped landmark: confirm a tentative one, or start one.
+
+        The two sightings share the pose error of the earlier one (the robot's drift is the
+        same for both), so the test's covariance is each sighting's own noise, G_z Q G_zᵀ, plus
+        the pose uncertainty added in between (the part of Σ_rr(t) - Σ_rr(t0) that grew),
+        through G_p: with the whole pose covariance twice, a drifted robot would confirm one
+        landmark with its neighbour's sighting.
+        """
         pose = self.ekf.mu[:3]
         G_p, G_z = inverse_observation_jacobians(pose, z)
         p = inverse_observation(pose, z)
-        C = G_p @ self.ekf.pose_covariance @ G_p.T + G_z @ Q @ G_z.T
-        for k, (t0, p0, C0) in enumerate(self._tentative):
+        C = G_z @ Q @ G_z.T
+        P_now = self.ekf.pose_covariance
+        for k, (t0, p0, C0, P0) in enumerate(self._tentative):
             if t0 >= t:
                 continue  # seen again means at a later time
+            w, V = np.linalg.eigh(P_now - P0)
+            grown = (V * np.maximum(w, 0.0)) @ V.T
             v = p - p0
-            S = C + C0
+            S = C + C0 + G_p @ grown @ G_p.T
             if v @ np.linalg.solve(S, v) <= self.config.gate:
                 del self._tentative[k]
                 new_id = self.ekf.n_landmarks
                 self.ekf.update(new_id, z, Q, t)
                 return new_id, CONFIRMED
-        self._tentative.append((t, p, C))
+        self._tentative.append((t, p, C, P_now))
         return UNPAIRED, TENTATIVE
 
     def _expire(self, t: float) -> None:
