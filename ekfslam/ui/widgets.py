@@ -15,6 +15,7 @@ import traceback
 from collections.abc import Mapping
 from functools import partial
 
+from IPython.display import HTML, display  # (ipywidgets needs IPython: no extra dependency)
 from matplotlib.figure import Figure
 
 from ekfslam.analysis.evaluation import SEED_TABLE1, seed_experiment
@@ -122,8 +123,6 @@ class TuningPanel:
         matches only an output area that holds a live ipympl canvas, which a notebook exported to
         HTML (``jupyter nbconvert --execute --to html``) never has, so there the PNG shows.
         """
-        from IPython.display import HTML, display
-
         display(self.widget)
         display(HTML(self.static_html()))
 
