@@ -1,9 +1,11 @@
-"""``python -m ekfslam tune --bench|--browser [--repeats N] [--json]``: the live panel's latency.
+"""``python -m ekfslam tune --bench|--browser|--classroom N [--repeats N] [--json]``: panel latency.
 
 The panel itself lives in a notebook (`ekfslam.ui.widgets.tuning_panel`); ``--bench`` times what
 one slider change costs in this process, from the change to the redrawn figure, on each seed run;
 ``--browser`` times a key press to the figure's new pixels in headless Chromium (Voila on
-127.0.0.1), the panel as it draws today and as it drew before blitting, alternately.
+127.0.0.1), the panel as it draws today and as it drew before blitting, alternately;
+``--classroom N`` serves 1 .. N seed-run sessions from one Voila server at once and prints each
+kernel's memory and the latency with every student moving a slider together.
 """
 
 from __future__ import annotations
@@ -11,10 +13,18 @@ from __future__ import annotations
 import argparse
 import json
 
+import numpy as np
+
 from ekfslam.cli import args as ca
 from ekfslam.errors import InputError
 from ekfslam.logs.mrclam.load import find_dataset
 from ekfslam.ui.browser_latency import browser_benchmark
+from ekfslam.ui.classroom import (
+    TARGET_MEDIAN_MS,
+    TARGET_P90_MS,
+    classroom_benchmark,
+    sessions_holding_target,
+)
 from ekfslam.ui.latency import benchmark
 
 #: The panel as it was before blitting (issue 18): a full draw per move through ipympl's draw
@@ -38,6 +48,8 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     p.add_argument("--bench", action="store_true", help="time the panel's update")
     p.add_argument("--browser", action="store_true",
                    help="time key press to new pixels in headless Chromium (Voila)")  # fmt: skip
+    p.add_argument("--classroom", type=ca.whole(1, 12, why="one machine"), metavar="N",
+                   help="1 .. N concurrent Voila sessions: memory and latency")  # fmt: skip
     p.add_argument("--repeats", type=ca.whole(1, 1000), default=None,
                    help="samples per run (default: 15, in the browser 20 moves)")  # fmt: skip
     ca.add_json_argument(p)
@@ -47,6 +59,8 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
 def cmd_tune(args: argparse.Namespace) -> int:
     if args.browser:
         return _browser(args)
+    if args.classroom:
+        return _classroom(args)
     if not args.bench:
         args.print_help()
         return 0
@@ -83,4 +97,26 @@ def _browser(args: argparse.Namespace) -> int:
             f"{name:<26} key press to new pixels: median {r['median_ms']:6.1f} ms, "
             f"p90 {r['p90_ms']:6.1f} ms; figure changed {r['changed']}/{r['moves']} moves"
         )
+    return 0
+
+
+def _classroom(args: argparse.Namespace) -> int:
+    rows = classroom_benchmark(args.classroom, moves=args.repeats or 10)
+    held = sessions_holding_target(rows)
+    if args.json:
+        print(json.dumps({"sessions": rows, "holding_target": held}, indent=2, allow_nan=False))
+        return 0
+    for r in rows:
+        kernels = r["kernel_rss_mb"]
+        print(
+            f"{r['sessions']:2d} sessions: key press to new pixels median {r['median_ms']:6.1f} "
+            f"ms, p90 {r['p90_ms']:6.1f} ms over {r['moves']} moves (changed {r['changed']}); "
+            f"kernel RSS {np.median(kernels):.0f} MiB each (max {max(kernels):.0f}), "
+            f"server {r['server_rss_mb']:.0f} MiB; {'holds' if r['holds_target'] else 'misses'}"
+            f" the target"
+        )
+    print(
+        f"sessions holding the seed-run target (median <= {TARGET_MEDIAN_MS:.0f} ms, "
+        f"p90 <= {TARGET_P90_MS:.0f} ms): {held}"
+    )
     return 0

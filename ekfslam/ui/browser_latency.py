@@ -84,24 +84,39 @@ def measure_moves(page, moves: int = 20, slider: str = "Q: σr", timeout: float 
     and the canvas has been quiet for `QUIET_S`, so one move's redraw never counts for the next.
     Raises TimeoutError when a move shows no repaint within `timeout` s.
     """
-    page.evaluate(_INSTALL)
-    handle = page.locator(".widget-slider", has_text=slider).locator(".noUi-handle")
-    handle.focus()
-    out = []
+    return measure_together([page], moves, slider, timeout)[0]
+
+
+def measure_together(pages, moves: int = 20, slider: str = "Q: σr", timeout: float = 60.0):
+    """`measure_moves` on several pages at once: each move presses the key on every page in
+    turn (a class moving its sliders together), then waits until every page has redrawn.
+
+    Returns one list of `Move` per page, each timed from that page's own key press.
+    """
+    handles = []
+    for page in pages:
+        page.evaluate(_INSTALL)
+        handles.append(page.locator(".widget-slider", has_text=slider).locator(".noUi-handle"))
+    out: list[list[Move]] = [[] for _ in pages]
     for k in range(moves):
         key = ("ArrowLeft", "ArrowRight")[k % 2]
-        before, (_, draws0, timing0) = page.evaluate(_HASH), page.evaluate(_STATE)
-        handle.press(key)
-        deadline = time.monotonic() + timeout
-        while True:
-            pressed, draws, timing = page.evaluate(_STATE)
-            new = [t for t in draws[len(draws0) :] if pressed is not None and t >= pressed]
-            if new and timing != timing0 and performance_quiet(page, draws[-1]):
-                break
-            if time.monotonic() > deadline:
+        before = [(page.evaluate(_HASH), page.evaluate(_STATE)) for page in pages]
+        for handle in handles:
+            handle.focus()
+            handle.press(key)
+        pending, deadline = set(range(len(pages))), time.monotonic() + timeout
+        while pending:
+            for i in sorted(pending):
+                page, (hash0, (_, draws0, timing0)) = pages[i], before[i]
+                pressed, draws, timing = page.evaluate(_STATE)
+                new = [t for t in draws[len(draws0) :] if pressed is not None and t >= pressed]
+                if new and timing != timing0 and performance_quiet(page, draws[-1]):
+                    changed = page.evaluate(_HASH) != hash0
+                    out[i].append(Move(key, new[0] - pressed, changed, len(new)))
+                    pending.discard(i)
+            if pending and time.monotonic() > deadline:
                 raise TimeoutError(f"move {k + 1} ({key}): no repaint after {timeout:.0f} s")
             time.sleep(0.05)
-        out.append(Move(key, new[0] - pressed, page.evaluate(_HASH) != before, len(new)))
     return out
 
 
@@ -145,7 +160,7 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def _notebook(setup: str) -> dict:
+def panel_notebook(setup: str) -> dict:
     """A three-cell notebook: ipympl and the panel's import, `setup` (defines ``panel``), panel."""
     cells = ["%matplotlib widget\nfrom ekfslam.ui.widgets import tuning_panel", setup, "panel"]
     kernel = {"name": "python3", "display_name": "Python 3", "language": "python"}
@@ -159,7 +174,7 @@ def _notebook(setup: str) -> dict:
 
 
 @contextlib.contextmanager
-def _voila(folder: Path, tmp: Path, startup_s: float = 120.0) -> Iterator[str]:
+def voila_server(folder: Path, tmp: Path, startup_s: float = 120.0) -> Iterator[str]:
     """A Voila server on 127.0.0.1 over `folder` until the block ends; yields its base URL."""
     port, token = free_port(), secrets.token_hex(16)
     cmd = [sys.executable, "-m", "voila", str(folder), "--no-browser", "--Voila.ip=127.0.0.1"]
@@ -176,7 +191,7 @@ def _voila(folder: Path, tmp: Path, startup_s: float = 120.0) -> Iterator[str]:
             if proc.poll() is not None or time.monotonic() > deadline:
                 raise RuntimeError(f"voila did not start:\n{log.read_text()[-3000:]}")
             time.sleep(0.5)
-        yield f"http://127.0.0.1:{port}", token
+        yield f"http://127.0.0.1:{port}", token, proc.pid
     finally:
         proc.terminate()  # Voila shuts its kernels down on SIGTERM
         try:
@@ -184,6 +199,16 @@ def _voila(folder: Path, tmp: Path, startup_s: float = 120.0) -> Iterator[str]:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait(timeout=10)
+
+
+def open_panel(browser, base: str, token: str, name: str):
+    """A new page showing ``{name}.ipynb`` as served by `voila_server`, once its figure is drawn."""
+    page = browser.new_page(viewport={"width": 1400, "height": 1000})
+    page.goto(f"{base}/voila/render/{name}.ipynb?token={token}", timeout=240_000)
+    page.wait_for_selector(".ekfslam-timing", timeout=240_000)
+    page.wait_for_selector(".jupyter-matplotlib-canvas-div canvas", timeout=60_000)
+    time.sleep(1.0)  # the first full frame
+    return page
 
 
 def browser_benchmark(setups: dict[str, str], moves: int = 20, rounds: int = 2) -> dict:
@@ -200,17 +225,10 @@ def browser_benchmark(setups: dict[str, str], moves: int = 20, rounds: int = 2) 
         folder = tmp / "notebooks"
         folder.mkdir()
         for k, setup in enumerate(setups.values()):
-            (folder / f"panel{k}.ipynb").write_text(json.dumps(_notebook(setup)))
-        with _voila(folder, tmp) as (base, token), sync_playwright() as p:
+            (folder / f"panel{k}.ipynb").write_text(json.dumps(panel_notebook(setup)))
+        with voila_server(folder, tmp) as (base, token, _pid), sync_playwright() as p:
             browser = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-            pages = []
-            for k in range(len(setups)):
-                page = browser.new_page(viewport={"width": 1400, "height": 1000})
-                page.goto(f"{base}/voila/render/panel{k}.ipynb?token={token}", timeout=240_000)
-                page.wait_for_selector(".ekfslam-timing", timeout=240_000)
-                page.wait_for_selector(".jupyter-matplotlib-canvas-div canvas", timeout=60_000)
-                time.sleep(1.0)  # the first full frame
-                pages.append(page)
+            pages = [open_panel(browser, base, token, f"panel{k}") for k in range(len(setups))]
             results: dict[str, list[Move]] = {label: [] for label in setups}
             for r in range(rounds):
                 n = moves // rounds + (r < moves % rounds)

@@ -11,6 +11,7 @@ import math
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Ellipse
+from matplotlib.transforms import offset_copy
 
 from ekfslam.analysis.evaluation import RunSummary
 from ekfslam.core.filter.config import CHI2_2DOF_99
@@ -20,6 +21,8 @@ from ekfslam.pipeline import ReplayResult
 from ekfslam.ui.blit import Blitter, can_blit
 from ekfslam.viz.plotting import ellipse_parameters
 from ekfslam.viz.tables import PANEL, Row, table1_lines
+
+TITLE_PT = 9.5  # the Table 1 text above the axes (points)
 
 #: The NIS axis starts here (smaller values are drawn on it): decades of tiny NIS say nothing.
 NIS_FLOOR = 1e-2
@@ -76,14 +79,19 @@ class TuningView:
         n.set(xlabel="time (s)", ylabel="NIS (log scale)", title="NIS of each update (eqs. 13-15)")
         n.grid(True, alpha=0.3)
         n.legend(loc="upper right", fontsize=7, framealpha=0.8)
-        self.text = fig.suptitle("", family="monospace", fontsize=9.5)
+        # The Table 1 header never changes: a suptitle drawn with the background; the row under
+        # it is data (typesetting monospace text is a good part of a blitted move).
+        self.header = fig.suptitle("", family="monospace", fontsize=TITLE_PT)
+        below = offset_copy(fig.transFigure, fig, y=-TITLE_PT * 1.2, units="points")
+        self.text = fig.text(0.5, 0.98, "", family="monospace", fontsize=TITLE_PT, ha="center",
+                             va="top", transform=below)  # fmt: skip
         self._decades, self._limits_set = (0, 0), False
         data = [self.true_path, self.path, self.true_tags, self.tags, self.start, self.accepted]
         data += [self.rejected, self.gate_line, self.text]
         self.blitter = (
             Blitter(fig, lambda: [*data, *self.ellipses], [ax.get_legend(), n.get_legend()],
                     lambda: (ax.get_xlim(), ax.get_ylim(), n.get_xlim(), n.get_ylim(),
-                             self._decades))
+                             self._decades, self.header.get_text()))
             if (can_blit(fig) if blit is None else blit) else None
         )  # fmt: skip
 
@@ -118,7 +126,10 @@ class TuningView:
                 patch.set(center=tuple(est[k]), width=w, height=hgt, angle=angle)
         self._map_limits(np.vstack([truth, gt_xy]), np.vstack([est, h.pose[:, :2]]))
         self._show_nis(result)
-        self.text.set_text("\n".join(status_text(summary).splitlines()[:2]))
+        header, row = status_text(summary).splitlines()[:2]
+        if self.header.get_text() != header:  # (a new header redraws the background: `key`)
+            self.header.set_text(header)
+        self.text.set_text(row)
 
     def _map_limits(self, truth: np.ndarray, estimate: np.ndarray) -> None:
         # Follow a diverging estimate only so far (twice the true scene): the map stays readable.

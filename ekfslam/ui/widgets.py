@@ -7,12 +7,15 @@ projector serve the notebook as an app: ``voila notebooks/08-live-tuning.ipynb``
 
 from __future__ import annotations
 
+import base64
 import html
+import io
 import math
 import traceback
 from collections.abc import Mapping
 from functools import partial
 
+from IPython.display import HTML, display  # (ipywidgets needs IPython: no extra dependency)
 from matplotlib.figure import Figure
 
 from ekfslam.analysis.evaluation import SEED_TABLE1, seed_experiment
@@ -30,6 +33,16 @@ from ekfslam.ui.tuning import (
 )
 from ekfslam.ui.view import status_text
 
+#: The static fallback's class, and the rule that hides it next to a live ipympl canvas (the
+#: output areas of JupyterLab and Voila, ``.jp-OutputArea``, and of the classic notebook).
+STATIC_CLASS = "ekfslam-static"
+STATIC_CSS = (
+    ":is(.jp-OutputArea,.output):has(.jupyter-matplotlib-canvas-div) "
+    f".{STATIC_CLASS}{{display:none}}"
+)
+
+TABLE_STYLE = "font:15px monospace;margin:4px 0"
+
 
 class TuningPanel:
     """The ipywidgets + ipympl face of a `Tuner` (build it with `tuning_panel`).
@@ -44,7 +57,7 @@ class TuningPanel:
 
         self.tuner, s = tuner, tuner.settings
         tuner.raise_errors, tuner.on_update, tuner.on_error = False, self._updated, self._failed
-        self._quiet = False
+        self._quiet, self._table = False, ""
         wide = {"description_width": "110px"}
         self.sliders = {
             spec.field: w.FloatLogSlider(
@@ -103,8 +116,28 @@ class TuningPanel:
         self._show_values(changes)
         return self.tuner.apply(**changes)
 
-    def _repr_mimebundle_(self, **kwargs):
-        return self.widget._repr_mimebundle_(**kwargs)
+    def _ipython_display_(self) -> None:
+        """Show the live widget and, after it, `static_html` (the fallback for a static export).
+
+        A frontend that renders the widget hides the fallback by CSS (`STATIC_CSS`): the rule
+        matches only an output area that holds a live ipympl canvas, which a notebook exported to
+        HTML (``jupyter nbconvert --execute --to html``) never has, so there the PNG shows.
+        """
+        display(self.widget)
+        display(HTML(self.static_html()))
+
+    def static_html(self) -> str:
+        """The figure as it is now as a base64 PNG, and the Table 1 text, for a page without
+        a kernel (`STATIC_CSS` hides it where the live figure is shown)."""
+        buf = io.BytesIO()
+        self.tuner.figure.savefig(buf, format="png", dpi="figure")
+        png = base64.b64encode(buf.getvalue()).decode("ascii")
+        return (
+            f'<div class="{STATIC_CLASS}"><style>{STATIC_CSS}</style>'
+            f'<img src="data:image/png;base64,{png}" alt="the tuning panel\'s figure"'
+            ' style="max-width:100%"/>'
+            f'<pre style="{TABLE_STYLE}">{self._table}</pre></div>'
+        )
 
     def _changed(self, name: str, change: dict) -> None:
         if self._quiet:
@@ -146,9 +179,9 @@ class TuningPanel:
         # by its simulation config as on the command line, not by its name
         trajectory = seed_experiment(self.tuner.load(state.settings.run).meta.simulation)
         seed = None if trajectory is None else SEED_TABLE1[trajectory]
+        self._table = html.escape(status_text(state.summary, seed))
         self.status.value = (
-            '<pre class="ekfslam-table1" style="font:15px monospace;margin:4px 0">'
-            f"{html.escape(status_text(state.summary, seed))}</pre>"
+            f'<pre class="ekfslam-table1" style="{TABLE_STYLE}">{self._table}</pre>'
             '<div class="ekfslam-timing" style="color:#666">'
             f"replay {state.replay_seconds * 1e3:.0f} ms, "
             f"with the figure update {state.update_seconds * 1e3:.0f} ms; "

@@ -187,6 +187,8 @@ def _move_q_slider(page, prefix: str) -> None:
     _wait_until(lambda: _canvas_drawn(page), EXECUTE_S, "the figure to be drawn", page)
     text0, png0 = _panel_state(page)
     replays0, changes0 = _counters(page)
+    static = page.locator(".ekfslam-static")  # the PNG left for a static export: hidden here
+    assert static.count() == 1 and not static.is_visible()
     assert "square-2laps" in text0 and re.search(r"rejected 0\b", text0), text0
     panel.evaluate("e => e.scrollIntoView({block: 'end'})")  # clear of JupyterLab's toolbar
     panel.screenshot(path=str(ARTIFACTS / f"{prefix}-before.png"))

@@ -4,14 +4,18 @@ the axes change, and a full draw request while ipympl's view is not live yet."""
 from __future__ import annotations
 
 import asyncio
+import io
 import time
 
 import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.backends.backend_webagg_core import FigureCanvasWebAggCore
 from matplotlib.figure import Figure
+from PIL import Image
 
 from ekfslam.logs.runlog import read_run
+from ekfslam.ui.blit import PNG_COMPRESS_LEVEL
 from ekfslam.ui.coalescer import COALESCE_DELAY, Coalescer
 from ekfslam.ui.latency import benchmark
 from ekfslam.ui.tuning import DEFAULT_FIGSIZE, RUNS_DIR, Tuner
@@ -105,3 +109,46 @@ def test_after_an_idle_spell_a_change_runs_at_once():
 def test_the_in_process_benchmark_times_the_blitted_move(runs):
     report = benchmark({"square": runs["square"]}, repeats=2)["square"]
     assert 0 < report["replay_ms"] < report["blit_ms"]
+
+
+def _frame(canvas, get_diff_image) -> tuple[str, np.ndarray]:
+    """One frame from `get_diff_image` without moving the canvas's diff state on."""
+    state = (canvas._png_is_old, canvas._force_full, canvas._last_buff.copy())
+    png = get_diff_image()
+    canvas._png_is_old, canvas._force_full, canvas._last_buff = state
+    return canvas._current_image_mode, np.asarray(Image.open(io.BytesIO(png)))
+
+
+class Webagg(FigureCanvasWebAggCore):
+    """webagg's canvas without a browser: a draw or a blit only marks the frame as new."""
+
+    def draw(self) -> None:
+        self._png_is_old = True
+        FigureCanvasAgg.draw(self)
+
+    def blit(self, bbox=None) -> None:
+        self._png_is_old = True
+
+    def draw_idle(self, *args, **kwargs) -> None:
+        pass
+
+
+def test_frames_are_encoded_faster_with_the_same_pixels(runs):
+    tuner = blitting_tuner(runs, Webagg)
+    canvas = tuner.figure.canvas
+    assert "get_diff_image" in vars(canvas)  # installed on this canvas, not on the class
+    tuner.apply()
+    canvas.draw()
+    canvas.get_diff_image()  # the first frame is full
+    canvas.syncing_data_url = False
+    tuner.apply(sigma_range=0.01)  # blitted: only the data changed
+    for mode in ("diff", "full"):
+        canvas._force_full = mode == "full"
+        canvas._png_is_old = True
+        ours = _frame(canvas, canvas.get_diff_image)
+        webagg = _frame(canvas, lambda: FigureCanvasWebAggCore.get_diff_image(canvas))
+        assert ours[0] == webagg[0] == mode
+        np.testing.assert_array_equal(ours[1], webagg[1])
+        if mode == "diff":
+            assert 0 < (ours[1][..., 3] > 0).mean() < 0.2  # the changed pixels only
+    assert PNG_COMPRESS_LEVEL == 1
