@@ -1,4 +1,5 @@
-"""One EKF correction, eqs. (13)-(16), in block form: the one readable statement of the update.
+"""One EKF prediction (eqs. 6-9) and one correction (eqs. 13-16) in block form: the readable
+statement of each step.
 
 The filter's compiled kernel (`ekfslam.core.filter.kernels.correct`) and the literal F_x,j
 reference (`ekfslam.teaching.reference`) compute the same numbers; the tests hold both to this
@@ -18,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ekfslam.core.models import observation, observation_jacobians
+from ekfslam.core.models import motion, motion_jacobian, observation, observation_jacobians
 from ekfslam.geometry import wrap_angle
 
 Array = NDArray[np.float64]
@@ -97,3 +98,32 @@ def update_steps(
         # Joseph's form expanded: (I-KH)Σ(I-KH)ᵀ + KQKᵀ = Σ - KHΣ - (KHΣ)ᵀ + K S Kᵀ
         Sigma_joseph=Sigma - KHSigma - KHSigma.T + K @ S @ K.T,
     )
+
+
+def predict_step(
+    mu: ArrayLike, Sigma: ArrayLike, u: ArrayLike, R: ArrayLike
+) -> tuple[Array, Array]:
+    """One EKF prediction, eqs. (6), (7) and (9) done right, on the blocks it touches.
+
+    The motion moves only the robot (rows r = 0:3); the landmarks m = 3: stay. With the 3x3 G of
+    eq. (7), evaluated at the pose *before* the motion, the lifted eq. (9) is
+    Σ[r, r] = G Σ[r, r] Gᵀ + R,  Σ[r, m] = G Σ[r, m],  Σ[m, r] = Σ[r, m]ᵀ,  Σ[m, m] unchanged.
+
+    Parameters
+    ----------
+    mu : (d,) mean, d = 3 + 2n; Sigma : (d, d); u : (3,) control increment (eq. 4, body frame);
+    R : (3, 3) motion noise in the state's coordinates (R = V M Vᵀ, Thrun's and the seed's R).
+
+    Returns
+    -------
+    (mu, Sigma) : new arrays (d,) and (d, d); the heading is wrapped to [-π, π).
+    """
+    mu = np.array(mu, dtype=float)
+    Sigma = np.array(Sigma, dtype=float)
+    r, m = slice(0, 3), slice(3, None)
+    G = motion_jacobian(mu[r], u)
+    mu[r] = motion(mu[r], u)
+    Sigma[r, r] = G @ Sigma[r, r] @ G.T + np.asarray(R, dtype=float)
+    Sigma[r, m] = G @ Sigma[r, m]
+    Sigma[m, r] = Sigma[r, m].T
+    return mu, Sigma

@@ -1,9 +1,30 @@
-"""The notebooks' exercises: an answer checked against the expected value, with a verdict."""
+"""The notebooks' exercises and their checks: a verdict that says what is wrong, not the answer.
+
+`check_answer` compares a number a student typed in. The `check_*` functions take a function the
+student wrote in a notebook (exercises 1-3 of the lab: the mecanum twist of eq. (4) and its
+noise; G, V of eq. (7) with sympy and R = V M Vᵀ; the prediction of eq. (9) in block form), run it
+on fixed and random inputs against the package's answer and print one verdict. A stub that still
+raises NotImplementedError gets "not done yet". Each returns True only when every case agrees,
+so the notebook's next cells use the student's function then and the package's otherwise.
+
+Names follow the seed and Thrun: R is the motion noise and Q the measurement noise (Labbe's
+book and filterpy use the reverse).
+"""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
-from numpy.typing import ArrayLike
+import sympy as sp
+from numpy.typing import ArrayLike, NDArray
+
+from ekfslam.core.kinematics import MecanumGeometry, wheel_noise_to_twist_covariance
+from ekfslam.core.models import motion, motion_control_jacobian, motion_jacobian, motion_noise
+from ekfslam.core.steps import predict_step
+from ekfslam.geometry import wrap_angle
+
+Array = NDArray[np.float64]
 
 
 def check_answer(answer: object, expected: ArrayLike, atol: float = 1e-6) -> bool:
@@ -27,3 +48,271 @@ def check_answer(answer: object, expected: ArrayLike, atol: float = 1e-6) -> boo
         return False
     print("Right!" if ok else f"Not yet: off by up to {np.max(np.abs(got - want)):.3g}.")
     return ok
+
+
+# --- write-it-yourself exercises ----------------------------------------------------------------
+# Each check_* runs the student's function on fixed and random inputs against the package's answer
+# and prints one verdict that names what is wrong without giving the right value. It returns True
+# only when every case agrees, so a notebook can fall back to the package's function otherwise.
+
+WHEELS = ("ω1 (front-left)", "ω2 (front-right)", "ω3 (rear-left)", "ω4 (rear-right)")
+TWIST = ("vx", "vy", "ωz")
+POSE_NAMES = ("x", "y", "θ")
+CONTROL_NAMES = ("Δux", "Δuy", "Δθ")
+_RNG_SEED = 15  # random cases are the same on every run: a verdict does not flicker
+
+
+class Wrong(Exception):
+    """An answer that disagrees with the package's; the message says where, not what."""
+
+
+def _attempt(exercise: str, check: Callable[[], None]) -> bool:
+    """Run one check and print its verdict: done, not done yet, wrong (and where), or crashed."""
+    try:
+        check()
+    except NotImplementedError:
+        print(
+            f"Exercise {exercise}: not done yet. Replace the `raise NotImplementedError` with your "
+            "code and run the cell again; until then the cells below use the package's version."
+        )
+        return False
+    except Wrong as wrong:
+        print(f"Exercise {exercise}: not yet: {wrong} The cells below use the package's version.")
+        return False
+    except Exception as error:  # the student's code crashed: say how, without a traceback
+        print(f"Exercise {exercise}: your function raised {type(error).__name__}: {error}")
+        return False
+    print(f"Exercise {exercise}: right on every test case. The cells below use your function.")
+    return True
+
+
+def _as_array(value: object, shape: tuple[int, ...], what: str) -> Array:
+    try:
+        got = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise Wrong(f"{what} is {type(value).__name__}, not an array of numbers.") from None
+    if got.shape != shape:
+        raise Wrong(f"{what} has shape {got.shape}; it should have shape {shape}.")
+    return got
+
+
+def _close(a: ArrayLike, b: ArrayLike, atol: float = 1e-9) -> bool:
+    return bool(np.allclose(a, b, rtol=1e-9, atol=atol))
+
+
+def _entry_verdict(got: Array, want: Array, name: str, rows: tuple, cols: tuple) -> None:
+    """Raise Wrong naming the first entry of a matrix that differs (and whether by its sign)."""
+    bad = [(i, j) for i in range(want.shape[0]) for j in range(want.shape[1])]
+    bad = [(i, j) for i, j in bad if not _close(got[i, j], want[i, j])]
+    if not bad:
+        return
+    i, j = bad[0]
+    others = f" ({len(bad) - 1} other entries are wrong too)" if len(bad) > 1 else ""
+    how = "has the wrong sign" if _close(got[i, j], -want[i, j]) else "is wrong"
+    raise Wrong(f"{name}[{i}, {j}] (row {rows[i]}, column {cols[j]}) {how}{others}.")
+
+
+# --- exercise 1: the mecanum twist, eq. (4) -----------------------------------------------------
+
+
+def _geometries() -> list[MecanumGeometry]:
+    rng = np.random.default_rng(_RNG_SEED)
+    return [MecanumGeometry()] + [
+        MecanumGeometry(*rng.uniform([0.02, 0.05, 0.04], [0.06, 0.15, 0.12])) for _ in range(3)
+    ]
+
+
+def check_twist(twist_from_wheels: Callable[[Array, MecanumGeometry], object]) -> bool:
+    """Exercise 1a: `twist_from_wheels(wheels (4,) rad/s, geometry) -> (vx, vy, ωz)`, eq. (4)."""
+
+    def check() -> None:
+        rng = np.random.default_rng(_RNG_SEED)
+        for k, geometry in enumerate(_geometries()):
+            J = geometry.wheels_to_twist_matrix
+            mine = np.column_stack(
+                [_as_array(twist_from_wheels(w, geometry), (3,), "your twist") for w in np.eye(4)]
+            )
+            if k > 0 and not _close(mine, J):
+                raise Wrong(
+                    "right for the default robot only: use the geometry's wheel_radius, lx "
+                    "and ly, not numbers."
+                )
+            for i, name in enumerate(TWIST):
+                if _close(mine[i], -J[i]):
+                    raise Wrong(f"{name} has the wrong sign for every wheel.")
+                scale = mine[i] @ J[i] / (J[i] @ J[i])
+                if not _close(scale, 1.0) and _close(mine[i], scale * J[i]):
+                    raise Wrong(f"{name} has the right signs but the wrong factor in front.")
+            _entry_verdict(mine, J, "J", TWIST, WHEELS)
+            w = rng.uniform(-8, 8, 4)
+            if not _close(_as_array(twist_from_wheels(w, geometry), (3,), "your twist"), J @ w):
+                raise Wrong("right for one wheel at a time but not for several: is it linear?")
+
+    return _attempt("1a", check)
+
+
+def check_twist_covariance(twist_covariance: Callable[[object, MecanumGeometry], object]) -> bool:
+    """Exercise 1b: `twist_covariance(wheel_sigma (4,) rad/s, geometry) -> (3, 3)` covariance
+    of (vx, vy, ωz) from independent wheel-speed noise (the seed's Section 2.2)."""
+
+    def check() -> None:
+        rng = np.random.default_rng(_RNG_SEED)
+        for geometry in _geometries():
+            sigma = rng.uniform(0.05, 0.5, 4)
+            want = wheel_noise_to_twist_covariance(sigma, geometry)
+            got = _as_array(twist_covariance(sigma, geometry), (3, 3), "your covariance")
+            J = geometry.wheels_to_twist_matrix
+            if _close(got, J @ np.diag(sigma) @ J.T):
+                raise Wrong(
+                    "the wheel noise enters as standard deviations; a covariance needs variances."
+                )
+            if not _close(got, got.T):
+                raise Wrong("your covariance is not symmetric.")
+            _entry_verdict(got, want, "Cov", TWIST, TWIST)
+
+    return _attempt("1b", check)
+
+
+# --- exercise 2: G and V of eq. (7) with sympy, and R = V M Vᵀ ----------------------------------
+
+
+def _poses_and_controls() -> list[tuple[Array, Array]]:
+    rng = np.random.default_rng(_RNG_SEED)
+    fixed = [(np.array([0.1, -0.2, 0.3]), np.array([0.05, 0.01, 0.02]))]
+    return fixed + [
+        (rng.uniform([-1, -1, -np.pi], [1, 1, np.pi]), rng.uniform(-0.1, 0.1, 3)) for _ in range(4)
+    ]
+
+
+def _evaluate(expr: object, values: dict[str, float], what: str) -> Array:
+    """A sympy matrix at numbers, its symbols matched by name (x y theta du_x du_y dtheta)."""
+    if not isinstance(expr, sp.MatrixBase):
+        raise Wrong(f"{what} is a {type(expr).__name__}; it should be a sympy Matrix.")
+    unknown = sorted(s.name for s in expr.free_symbols if s.name not in values)
+    if unknown:
+        raise Wrong(f"{what} uses {', '.join(unknown)}, which is not a pose or control symbol.")
+    subs = {s: values[s.name] for s in expr.free_symbols}
+    return np.array(expr.subs(subs).evalf(), dtype=float)
+
+
+def check_motion_jacobians(derive: Callable[[], tuple[object, object]]) -> bool:
+    """Exercise 2a: `derive() -> (G, V)`, sympy matrices ∂f/∂pose (eq. 7) and ∂f/∂u of eq. (6),
+    in the symbols x, y, theta, du_x, du_y, dtheta of `ekfslam.teaching.derivations`."""
+
+    def check() -> None:
+        result = derive()
+        if not isinstance(result, tuple) or len(result) != 2:
+            raise Wrong("derive() should return the pair (G, V).")
+        G, V = result
+        for pose, u in _poses_and_controls():
+            names = ("x", "y", "theta", "du_x", "du_y", "dtheta")
+            values = dict(zip(names, [*pose, *u], strict=True))
+            want_G, want_V = motion_jacobian(pose, u), motion_control_jacobian(pose)
+            got_G = _as_array(_evaluate(G, values, "G"), (3, 3), "G")
+            got_V = _as_array(_evaluate(V, values, "V"), (3, 3), "V")
+            if _close(got_G, want_V) and _close(got_V, want_G):
+                raise Wrong("G and V are swapped: G is the derivative by the pose.")
+            if not _close(got_G, want_G) and _close(got_G.T, want_G):
+                raise Wrong("G is transposed: row i is f_i, column j the derivative by pose_j.")
+            _entry_verdict(got_G, want_G, "G", POSE_NAMES, POSE_NAMES)
+            _entry_verdict(got_V, want_V, "V", POSE_NAMES, CONTROL_NAMES)
+
+    return _attempt("2a", check)
+
+
+def check_motion_noise(motion_noise_R: Callable[[Array, Array], object]) -> bool:
+    """Exercise 2b: `motion_noise_R(pose (3,), M (3, 3)) -> R = V M Vᵀ (3, 3)`: the control
+    noise M (robot frame, u-space) in the state's coordinates (the seed's and Thrun's R)."""
+
+    def check() -> None:
+        rng = np.random.default_rng(_RNG_SEED)
+        for pose, _ in _poses_and_controls():
+            A = rng.normal(size=(3, 3))
+            M = A @ A.T * 1e-4 + np.diag([1e-4, 4e-4, 1e-3])  # correlated, so V M Vᵀ ≠ M
+            got = _as_array(motion_noise_R(pose, M.copy()), (3, 3), "your R")
+            V = motion_control_jacobian(pose)
+            if not _close(got, motion_noise(pose, M)):
+                if _close(got, M):
+                    raise Wrong("R equals M: M is in the robot's frame, R in the world's.")
+                if _close(got, V.T @ M @ V):
+                    raise Wrong("the rotation is on the wrong side (Vᵀ M V instead of V M Vᵀ).")
+                if not _close(got, got.T):
+                    raise Wrong("your R is not symmetric.")
+                _entry_verdict(got, motion_noise(pose, M), "R", POSE_NAMES, POSE_NAMES)
+
+    return _attempt("2b", check)
+
+
+# --- exercise 3: the prediction in block form, eq. (9) ------------------------------------------
+
+
+def _states(rng: np.random.Generator) -> list[tuple[Array, Array, Array, Array]]:
+    """(mu, Sigma, u, R) with 0, 1 and 3 landmarks; the first heading is near π so that a
+    missing wrap shows, and every Σ is a random full covariance so that every block matters."""
+    cases = []
+    for n, heading in ((1, 3.1), (0, -0.5), (3, 1.0), (2, -3.1)):
+        d = 3 + 2 * n
+        mu = np.concatenate([[*rng.uniform(-1, 1, 2), heading], rng.uniform(-1, 1, 2 * n)])
+        A = rng.normal(size=(d, d))
+        Sigma = 1e-3 * (A @ A.T + np.eye(d))
+        u = np.array([0.08, 0.02, 0.1 * np.sign(heading)])
+        B = rng.normal(size=(3, 3))
+        cases.append((mu, Sigma, u, 1e-4 * (B @ B.T + np.eye(3))))
+    return cases
+
+
+def check_predict(predict: Callable[[Array, Array, Array, Array], object]) -> bool:
+    """Exercise 3: `predict(mu (d,), Sigma (d, d), u (3,), R (3, 3)) -> (mu, Sigma)`, eq. (9)
+    in block form (the answer is `ekfslam.core.steps.predict_step`)."""
+
+    def check() -> None:
+        for mu, Sigma, u, R in _states(np.random.default_rng(_RNG_SEED)):
+            d = mu.size
+            result = predict(mu.copy(), Sigma.copy(), u.copy(), R.copy())
+            if not isinstance(result, tuple) or len(result) != 2:
+                raise Wrong("predict should return the pair (mu, Sigma).")
+            got_mu = _as_array(result[0], (d,), f"mu (with {(d - 3) // 2} landmarks)")
+            got_S = _as_array(result[1], (d, d), f"Sigma (with {(d - 3) // 2} landmarks)")
+            want_mu, want_S = predict_step(mu, Sigma, u, R)
+            _check_predicted_mean(got_mu, want_mu, mu)
+            _check_predicted_covariance(got_S, want_S, Sigma, mu, u, R)
+
+    return _attempt("3", check)
+
+
+def _check_predicted_mean(got: Array, want: Array, before: Array) -> None:
+    if not _close(got[3:], before[3:]):
+        raise Wrong("the landmarks in mu moved: a prediction leaves them where they are.")
+    if not _close(got[:2], want[:2]):
+        raise Wrong("the predicted position (x, y) is wrong (eq. 6).")
+    if not _close(got[2], want[2]):
+        if _close(wrap_angle(float(got[2])), want[2]):
+            raise Wrong("your heading is not wrapped to [-π, π).")
+        raise Wrong("the predicted heading θ is wrong (eq. 6).")
+
+
+def _check_predicted_covariance(
+    got: Array, want: Array, before: Array, mu: Array, u: Array, R: Array
+) -> None:
+    r, m = slice(0, 3), slice(3, None)
+    if not _close(got[m, m], before[m, m]):
+        raise Wrong("Σ[m, m] changed: a prediction does not touch the landmark block.")
+    if not _close(got[r, r], want[r, r]):
+        G = motion_jacobian(mu[:3], u)
+        G_after = motion_jacobian(motion(mu[:3], u), u)
+        if _close(got[r, r], want[r, r] - R):
+            raise Wrong("the motion noise R is missing from Σ[r, r].")
+        if _close(got[r, r], G_after @ before[r, r] @ G_after.T + R):
+            raise Wrong(
+                "G is evaluated at the pose after the motion; eq. (7) takes the one before."
+            )
+        if _close(got[r, r], G.T @ before[r, r] @ G + R):
+            raise Wrong("Σ[r, r] has G and Gᵀ the wrong way round.")
+        raise Wrong("Σ[r, r] is wrong.")
+    if got.shape[0] > 3:
+        if _close(got[r, m], before[r, m]):
+            raise Wrong("the robot-landmark cross-covariance Σ[r, m] is not updated.")
+        if not _close(got[r, m], want[r, m]):
+            raise Wrong("the robot-landmark cross-covariance Σ[r, m] is wrong.")
+        if not _close(got[m, r], want[m, r]):
+            raise Wrong("Σ[m, r] does not match Σ[r, m]ᵀ: Σ must stay symmetric.")
