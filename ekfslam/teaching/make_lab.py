@@ -40,18 +40,18 @@ def strip_solutions(source: str, where: str = "cell") -> str:
     for number, line in enumerate(source.split("\n"), start=1):
         begin = BEGIN.match(line)
         if begin and exercise is not None:
-            raise InputError(f"{where}, line {number}: BEGIN SOLUTION inside exercise {exercise}")
+            raise InputError(where, number, f"BEGIN SOLUTION inside exercise {exercise}")
         if begin:
             indent, exercise = begin.groups()
             out.append(f'{indent}raise NotImplementedError("exercise {exercise}")')
         elif END.match(line):
             if exercise is None:
-                raise InputError(f"{where}, line {number}: END SOLUTION without a BEGIN")
+                raise InputError(where, number, "END SOLUTION without a BEGIN")
             exercise = None
         elif exercise is None:
             out.append(line)
     if exercise is not None:
-        raise InputError(f"{where}: exercise {exercise} has no END SOLUTION")
+        raise InputError(where, None, f"exercise {exercise} has no END SOLUTION")
     return "\n".join(out).replace(*RUNS_LINE)
 
 
@@ -61,7 +61,7 @@ def student_notebook(solution: Path) -> str:
         nb = json.loads(solution.read_text(encoding="utf-8"))
         cells = nb["cells"]
     except (OSError, ValueError, KeyError, TypeError) as error:
-        raise InputError(f"{solution.name}: not a readable notebook ({error})") from None
+        raise InputError(solution.name, None, f"not a readable notebook ({error})") from None
     for i, cell in enumerate(cells):
         if cell.get("cell_type") == "code":
             text = "".join(cell["source"]) if isinstance(cell["source"], list) else cell["source"]
