@@ -8,8 +8,10 @@ because it is the one that runs as it is: an instructor edits and executes one f
 markers are plain comments, so there is no third copy to keep in step.
 
 In a code cell of the source, the lines from ``# BEGIN SOLUTION exercise N`` to ``# END SOLUTION``
-become ``raise NotImplementedError("exercise N")`` at the marker's indentation. The only other
-change is the path to the seed's runs: the source is one folder deeper than the student notebook.
+become ``raise NotImplementedError("exercise N")`` at the marker's indentation. A block that
+opens with ``# BEGIN SOLUTION answer`` (a value typed into a cell, checked by `check_answer`)
+becomes instead its ``# STUB: ...`` lines, uncommented (``# STUB: x = None`` -> ``x = None``).
+The only other change is the path to the seed's runs: the source is one folder deeper.
 """
 
 from __future__ import annotations
@@ -24,7 +26,8 @@ from ekfslam.errors import InputError
 
 NOTEBOOKS = Path(__file__).resolve().parents[2] / "notebooks"
 SOLUTIONS = NOTEBOOKS / "solutions"
-BEGIN = re.compile(r"^(\s*)# BEGIN SOLUTION exercise (\w+)\s*$")
+BEGIN = re.compile(r"^(\s*)# BEGIN SOLUTION (?:exercise (\w+)|(answer))\s*$")
+STUB = re.compile(r"^(\s*)# STUB: (.*)$")
 END = re.compile(r"^\s*# END SOLUTION\s*$")
 #: (in the source, in the student notebook): notebooks/solutions/ is one folder below notebooks/
 RUNS_LINE = (
@@ -36,22 +39,30 @@ RUNS_LINE = (
 def strip_solutions(source: str, where: str = "cell") -> str:
     """A code cell's source with every marked solution block replaced by its stub."""
     out: list[str] = []
-    exercise = None
+    block: str | None = None  # the exercise whose block we are in
+    stubs: list[str] = []
     for number, line in enumerate(source.split("\n"), start=1):
         begin = BEGIN.match(line)
-        if begin and exercise is not None:
-            raise InputError(where, number, f"BEGIN SOLUTION inside exercise {exercise}")
+        if begin and block is not None:
+            raise InputError(where, number, f"BEGIN SOLUTION inside the block of {block}")
         if begin:
-            indent, exercise = begin.groups()
-            out.append(f'{indent}raise NotImplementedError("exercise {exercise}")')
+            indent, exercise, answer = begin.groups()
+            block, stubs = (exercise and f"exercise {exercise}") or answer, []
+            if exercise:
+                out.append(f'{indent}raise NotImplementedError("exercise {exercise}")')
         elif END.match(line):
-            if exercise is None:
+            if block is None:
                 raise InputError(where, number, "END SOLUTION without a BEGIN")
-            exercise = None
-        elif exercise is None:
+            if block == "answer" and not stubs:
+                raise InputError(where, number, "an answer block needs its # STUB: lines")
+            out += stubs
+            block = None
+        elif block is None:
             out.append(line)
-    if exercise is not None:
-        raise InputError(where, None, f"exercise {exercise} has no END SOLUTION")
+        elif stub := STUB.match(line):
+            stubs.append(stub.group(1) + stub.group(2))
+    if block is not None:
+        raise InputError(where, None, f"{block} has no END SOLUTION")
     return "\n".join(out).replace(*RUNS_LINE)
 
 

@@ -252,14 +252,18 @@ def test_notebook_executes(path: Path, monkeypatch, record_property, data_missin
     judge_exercises(path, nb)
 
 
-def exercise_verdicts(nb) -> list[str]:
-    """The lines the exercise checks printed ("Exercise 1a: ..."), in order."""
+def _stdout_lines(nb) -> list[str]:
     lines = []
     for cell in _code_cells(nb):
         for out in cell.get("outputs", []):
             if out.get("output_type") == "stream" and out.get("name") == "stdout":
-                lines += [x for x in out["text"].splitlines() if x.startswith("Exercise ")]
+                lines += out["text"].splitlines()
     return lines
+
+
+def exercise_verdicts(nb) -> list[str]:
+    """The lines the exercise checks printed ("Exercise 1a: ..."), in order."""
+    return [line for line in _stdout_lines(nb) if line.startswith("Exercise ")]
 
 
 def judge_exercises(path: Path, nb) -> None:
@@ -270,6 +274,8 @@ def judge_exercises(path: Path, nb) -> None:
         return
     exercises = re.findall(r"# BEGIN SOLUTION exercise (\w+)", source.read_text(encoding="utf-8"))
     verdicts = exercise_verdicts(nb)
+    if solved:  # the values typed in (check_answer) are answered too
+        assert not [v for v in _stdout_lines(nb) if v.startswith("Not ")], _stdout_lines(nb)
     assert [v.split(":")[0] for v in verdicts] == [f"Exercise {n}" for n in exercises], verdicts
     expected = "right on every test case" if solved else "not done yet"
     assert all(expected in v for v in verdicts), verdicts

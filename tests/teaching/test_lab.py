@@ -75,6 +75,10 @@ def test_strip_solutions_keeps_the_indentation_and_refuses_unmatched_markers() -
     assert make_lab.strip_solutions(source) == (
         "def f():\n    '''doc'''\n    raise NotImplementedError(\"exercise 7\")\nf"
     )
+    answer = "# BEGIN SOLUTION answer\n# STUB: a = None  # m\na = 3.0\n# END SOLUTION\ncheck(a)"
+    assert make_lab.strip_solutions(answer) == "a = None  # m\ncheck(a)"
+    with pytest.raises(InputError, match="cell:2: an answer block needs its # STUB: lines"):
+        make_lab.strip_solutions("# BEGIN SOLUTION answer\n# END SOLUTION")
     with pytest.raises(InputError, match="exercise 7 has no END SOLUTION"):
         make_lab.strip_solutions("# BEGIN SOLUTION exercise 7\nx = 1")
     with pytest.raises(InputError, match="cell:1: END SOLUTION without a BEGIN"):
