@@ -1,10 +1,11 @@
 """The notebooks' exercises and their checks: a verdict that says what is wrong, not the answer.
 
 `check_answer` compares a number a student typed in. The `check_*` functions take a function the
-student wrote in a notebook (exercises 1-3 of the lab: the mecanum twist of eq. (4) and its
-noise; G, V of eq. (7) with sympy and R = V M Vᵀ; the prediction of eq. (9) in block form), run it
-on fixed and random inputs against the package's answer and print one verdict. A stub that still
-raises NotImplementedError gets "not done yet". Each returns True only when every case agrees,
+student wrote in a notebook (exercises 1-4 of the lab: the mecanum twist of eq. (4) and its
+noise; G, V of eq. (7) with sympy and R = V M Vᵀ; the prediction of eq. (9) in block form; ẑ
+of eq. (13) with atan2 and H of eq. (14) with sympy), run it on fixed and random inputs against
+the package's answer and print one verdict. A stub that still raises NotImplementedError gets
+"not done yet". Each returns True only when every case agrees,
 so the notebook's next cells use the student's function then and the package's otherwise.
 
 Names follow the seed and Thrun: R is the motion noise and Q the measurement noise (Labbe's
@@ -20,7 +21,14 @@ import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.kinematics import MecanumGeometry, wheel_noise_to_twist_covariance
-from ekfslam.core.models import motion, motion_control_jacobian, motion_jacobian, motion_noise
+from ekfslam.core.models import (
+    motion,
+    motion_control_jacobian,
+    motion_jacobian,
+    motion_noise,
+    observation,
+    observation_jacobians,
+)
 from ekfslam.core.steps import predict_step
 from ekfslam.geometry import wrap_angle
 
@@ -316,3 +324,68 @@ def _check_predicted_covariance(
             raise Wrong("the robot-landmark cross-covariance Σ[r, m] is wrong.")
         if not _close(got[m, r], want[m, r]):
             raise Wrong("Σ[m, r] does not match Σ[r, m]ᵀ: Σ must stay symmetric.")
+
+
+# --- exercise 4: the predicted observation (eq. 13, atan2) and H (eq. 14) -----------------------
+
+
+def _poses_and_landmarks() -> list[tuple[Array, Array]]:
+    """The first landmark is behind the robot's x (δx < 0), where arctan(δy/δx) is off by π."""
+    rng = np.random.default_rng(_RNG_SEED)
+    fixed = [(np.array([0.2, -0.1, 2.5]), np.array([-0.75, 0.375]))]
+    fixed.append((np.array([-0.375, -0.375, 0.0]), np.array([0.375, 0.75])))
+    return fixed + [
+        (rng.uniform([-0.5, -0.5, -np.pi], [0.5, 0.5, np.pi]), rng.uniform(-0.75, 0.75, 2))
+        for _ in range(4)
+    ]
+
+
+def _check_bearing(got: float, want: float, dx: float, wrapped: bool) -> None:
+    off = wrap_angle(got - want)
+    if abs(abs(off) - np.pi) < 1e-6 and dx < 0:
+        raise Wrong("your bearing is off by π when the landmark is behind (δx < 0): use atan2.")
+    if abs(off) > 1e-9:
+        raise Wrong("the bearing ẑ[1] is wrong (eq. 13).")
+    if wrapped and not _close(got, want):
+        raise Wrong("your bearing is not wrapped to [-π, π).")
+
+
+def check_observation_model(derive: Callable[[], tuple[object, object, object]]) -> bool:
+    """Exercise 4a: `derive() -> (z_hat, H_pose, H_landmark)`, sympy: ẑ of eq. (13) (2x1) and
+    its Jacobians (2x3, 2x2) of eq. (14), in the symbols x, y, theta, m_x, m_y."""
+
+    def check() -> None:
+        result = derive()
+        if not isinstance(result, tuple) or len(result) != 3:
+            raise Wrong("derive() should return (z_hat, H_pose, H_landmark).")
+        z_hat, H_pose, H_landmark = result
+        for pose, landmark in _poses_and_landmarks():
+            values = dict(zip(("x", "y", "theta", "m_x", "m_y"), [*pose, *landmark], strict=True))
+            got = _evaluate(z_hat, values, "z_hat").reshape(-1)
+            want = observation(pose, landmark)
+            _as_array(got, (2,), "z_hat")
+            if not _close(got[0], want[0]):
+                raise Wrong("the range ẑ[0] is wrong (eq. 13).")
+            _check_bearing(got[1], want[1], landmark[0] - pose[0], wrapped=False)
+            want_p, want_l = observation_jacobians(pose, landmark)
+            got_p = _as_array(_evaluate(H_pose, values, "H_pose"), (2, 3), "H_pose")
+            got_l = _as_array(_evaluate(H_landmark, values, "H_landmark"), (2, 2), "H_landmark")
+            _entry_verdict(got_p, want_p, "H_pose", ("r", "φ"), POSE_NAMES)
+            _entry_verdict(got_l, want_l, "H_landmark", ("r", "φ"), ("μx", "μy"))
+
+    return _attempt("4a", check)
+
+
+def check_predicted_observation(predict_z: Callable[[Array, Array], object]) -> bool:
+    """Exercise 4b: `predict_z(pose (3,), landmark (2,)) -> (r, φ)`, eq. (13) in numpy, the
+    bearing wrapped to [-π, π) (the answer is `ekfslam.core.models.observation`)."""
+
+    def check() -> None:
+        for pose, landmark in _poses_and_landmarks():
+            got = _as_array(predict_z(pose.copy(), landmark.copy()), (2,), "your ẑ")
+            want = observation(pose, landmark)
+            if not _close(got[0], want[0]):
+                raise Wrong("the range ẑ[0] is wrong (eq. 13).")
+            _check_bearing(got[1], want[1], landmark[0] - pose[0], wrapped=True)
+
+    return _attempt("4b", check)

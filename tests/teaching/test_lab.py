@@ -16,7 +16,7 @@ from ekfslam.core.steps import predict_step
 from ekfslam.errors import InputError
 from ekfslam.teaching import exercises as ex
 from ekfslam.teaching import make_lab
-from ekfslam.teaching.derivations import dtheta, du_x, du_y, theta, x, y
+from ekfslam.teaching.derivations import dtheta, du_x, du_y, m_x, m_y, theta, x, y
 from ekfslam.teaching.reference import LiteralEKFSLAM
 
 # exercise -> (the function its cell defines, its check)
@@ -26,6 +26,8 @@ LAB = {
     "2a": ("derive_motion_jacobians", ex.check_motion_jacobians),
     "2b": ("motion_noise_R", ex.check_motion_noise),
     "3": ("predict", ex.check_predict),
+    "4a": ("derive_observation", ex.check_observation_model),
+    "4b": ("predict_z", ex.check_predicted_observation),
 }
 
 
@@ -65,6 +67,7 @@ def test_every_solution_passes_and_every_stub_is_not_done_yet(n: str, capsys) ->
 
 def test_the_jacobians_are_derived_by_sympy_in_the_notebook() -> None:
     assert ".jacobian(" in exercise_cells()["2a"]
+    assert ".jacobian(" in exercise_cells()["4a"]
 
 
 def test_strip_solutions_keeps_the_indentation_and_refuses_unmatched_markers() -> None:
@@ -223,3 +226,29 @@ def test_make_lab_refuses_a_broken_source_in_one_line(monkeypatch, tmp_path, cap
     err = capsys.readouterr().err
     assert err == "make_lab: 04-x.ipynb cell 0: exercise 4 has no END SOLUTION\n"
     assert not (tmp_path / "04-x.ipynb").exists()  # nothing written half-way
+
+
+def test_check_observation_model_catches_the_seeds_arctan(capsys) -> None:
+    def seed():  # eq. (13) as printed: arctan(δy/δx)
+        dx, dy = m_x - x, m_y - y
+        z = sp.Matrix([sp.sqrt(dx**2 + dy**2), sp.atan(dy / dx) - theta])
+        return z, z.jacobian([x, y, theta]), z.jacobian([m_x, m_y])
+
+    out = verdict(ex.check_observation_model, seed, capsys)
+    assert "off by π when the landmark is behind (δx < 0): use atan2" in out
+
+    def sign():  # +θ: the bearing and H_pose[1, 2] are off
+        dx, dy = m_x - x, m_y - y
+        z = sp.Matrix([sp.sqrt(dx**2 + dy**2), sp.atan2(dy, dx) + theta])
+        return z, z.jacobian([x, y, theta]), z.jacobian([m_x, m_y])
+
+    assert "the bearing ẑ[1] is wrong" in verdict(ex.check_observation_model, sign, capsys)
+
+
+def test_check_predicted_observation_catches_the_missing_wrap(capsys) -> None:
+    def unwrapped(pose, m):
+        dx, dy = m[0] - pose[0], m[1] - pose[1]
+        return np.array([np.hypot(dx, dy), np.arctan2(dy, dx) - pose[2]])
+
+    out = verdict(ex.check_predicted_observation, unwrapped, capsys)
+    assert "your bearing is not wrapped to [-π, π)" in out
