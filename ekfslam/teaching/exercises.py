@@ -1,9 +1,9 @@
 """The notebooks' exercises and their checks: a verdict that says what is wrong, not the answer.
 
 `check_answer` compares a number a student typed in. The `check_*` functions take a function the
-student wrote in a notebook (exercises 1-4 of the lab: the mecanum twist of eq. (4) and its
-noise; G, V of eq. (7) with sympy and R = V M Vᵀ; the prediction of eq. (9) in block form; ẑ
-of eq. (13) with atan2 and H of eq. (14) with sympy), run it on fixed and random inputs against
+student wrote in a notebook (exercises 1-3 of the lab: the mecanum twist of eq. (4) and its
+noise; G, V of eq. (7) with sympy and R = V M Vᵀ; the prediction of eq. (9) in block form; the
+map's exercises are in `ekfslam.teaching.map_exercises`), run it on fixed and random inputs against
 the package's answer and print one verdict. A stub that still raises NotImplementedError gets
 "not done yet". Each returns True only when every case agrees,
 so the notebook's next cells use the student's function then and the package's otherwise.
@@ -17,8 +17,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-import sympy as sp
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from ekfslam.core.kinematics import MecanumGeometry, wheel_noise_to_twist_covariance
 from ekfslam.core.models import (
@@ -26,13 +25,23 @@ from ekfslam.core.models import (
     motion_control_jacobian,
     motion_jacobian,
     motion_noise,
-    observation,
-    observation_jacobians,
 )
 from ekfslam.core.steps import predict_step
 from ekfslam.geometry import wrap_angle
-
-Array = NDArray[np.float64]
+from ekfslam.teaching.verdicts import (
+    CONTROL_NAMES,
+    POSE_NAMES,
+    RNG_SEED,
+    TWIST,
+    WHEELS,
+    Array,
+    Wrong,
+    as_array,
+    attempt,
+    close,
+    entry_verdict,
+    evaluate,
+)
 
 
 def check_answer(answer: object, expected: ArrayLike, atol: float = 1e-6) -> bool:
@@ -63,68 +72,12 @@ def check_answer(answer: object, expected: ArrayLike, atol: float = 1e-6) -> boo
 # and prints one verdict that names what is wrong without giving the right value. It returns True
 # only when every case agrees, so a notebook can fall back to the package's function otherwise.
 
-WHEELS = ("ω1 (front-left)", "ω2 (front-right)", "ω3 (rear-left)", "ω4 (rear-right)")
-TWIST = ("vx", "vy", "ωz")
-POSE_NAMES = ("x", "y", "θ")
-CONTROL_NAMES = ("Δux", "Δuy", "Δθ")
-_RNG_SEED = 15  # random cases are the same on every run: a verdict does not flicker
-
-
-class Wrong(Exception):
-    """An answer that disagrees with the package's; the message says where, not what."""
-
-
-def _attempt(exercise: str, check: Callable[[], None]) -> bool:
-    """Run one check and print its verdict: done, not done yet, wrong (and where), or crashed."""
-    try:
-        check()
-    except NotImplementedError:
-        print(
-            f"Exercise {exercise}: not done yet. Replace the `raise NotImplementedError` with your "
-            "code and run the cell again; until then the cells below use the package's version."
-        )
-        return False
-    except Wrong as wrong:
-        print(f"Exercise {exercise}: not yet: {wrong} The cells below use the package's version.")
-        return False
-    except Exception as error:  # the student's code crashed: say how, without a traceback
-        print(f"Exercise {exercise}: your function raised {type(error).__name__}: {error}")
-        return False
-    print(f"Exercise {exercise}: right on every test case. The cells below use your function.")
-    return True
-
-
-def _as_array(value: object, shape: tuple[int, ...], what: str) -> Array:
-    try:
-        got = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise Wrong(f"{what} is {type(value).__name__}, not an array of numbers.") from None
-    if got.shape != shape:
-        raise Wrong(f"{what} has shape {got.shape}; it should have shape {shape}.")
-    return got
-
-
-def _close(a: ArrayLike, b: ArrayLike, atol: float = 1e-9) -> bool:
-    return bool(np.allclose(a, b, rtol=1e-9, atol=atol))
-
-
-def _entry_verdict(got: Array, want: Array, name: str, rows: tuple, cols: tuple) -> None:
-    """Raise Wrong naming the first entry of a matrix that differs (and whether by its sign)."""
-    bad = [(i, j) for i in range(want.shape[0]) for j in range(want.shape[1])]
-    bad = [(i, j) for i, j in bad if not _close(got[i, j], want[i, j])]
-    if not bad:
-        return
-    i, j = bad[0]
-    others = f" ({len(bad) - 1} other entries are wrong too)" if len(bad) > 1 else ""
-    how = "has the wrong sign" if _close(got[i, j], -want[i, j]) else "is wrong"
-    raise Wrong(f"{name}[{i}, {j}] (row {rows[i]}, column {cols[j]}) {how}{others}.")
-
 
 # --- exercise 1: the mecanum twist, eq. (4) -----------------------------------------------------
 
 
 def _geometries() -> list[MecanumGeometry]:
-    rng = np.random.default_rng(_RNG_SEED)
+    rng = np.random.default_rng(RNG_SEED)
     return [MecanumGeometry()] + [
         MecanumGeometry(*rng.uniform([0.02, 0.05, 0.04], [0.06, 0.15, 0.12])) for _ in range(3)
     ]
@@ -134,29 +87,29 @@ def check_twist(twist_from_wheels: Callable[[Array, MecanumGeometry], object]) -
     """Exercise 1a: `twist_from_wheels(wheels (4,) rad/s, geometry) -> (vx, vy, ωz)`, eq. (4)."""
 
     def check() -> None:
-        rng = np.random.default_rng(_RNG_SEED)
+        rng = np.random.default_rng(RNG_SEED)
         for k, geometry in enumerate(_geometries()):
             J = geometry.wheels_to_twist_matrix
             mine = np.column_stack(
-                [_as_array(twist_from_wheels(w, geometry), (3,), "your twist") for w in np.eye(4)]
+                [as_array(twist_from_wheels(w, geometry), (3,), "your twist") for w in np.eye(4)]
             )
-            if k > 0 and not _close(mine, J):
+            if k > 0 and not close(mine, J):
                 raise Wrong(
                     "right for the default robot only: use the geometry's wheel_radius, lx "
                     "and ly, not numbers."
                 )
             for i, name in enumerate(TWIST):
-                if _close(mine[i], -J[i]):
+                if close(mine[i], -J[i]):
                     raise Wrong(f"{name} has the wrong sign for every wheel.")
                 scale = mine[i] @ J[i] / (J[i] @ J[i])
-                if not _close(scale, 1.0) and _close(mine[i], scale * J[i]):
+                if not close(scale, 1.0) and close(mine[i], scale * J[i]):
                     raise Wrong(f"{name} has the right signs but the wrong factor in front.")
-            _entry_verdict(mine, J, "J", TWIST, WHEELS)
+            entry_verdict(mine, J, "J", TWIST, WHEELS)
             w = rng.uniform(-8, 8, 4)
-            if not _close(_as_array(twist_from_wheels(w, geometry), (3,), "your twist"), J @ w):
+            if not close(as_array(twist_from_wheels(w, geometry), (3,), "your twist"), J @ w):
                 raise Wrong("right for one wheel at a time but not for several: is it linear?")
 
-    return _attempt("1a", check)
+    return attempt("1a", check)
 
 
 def check_twist_covariance(twist_covariance: Callable[[object, MecanumGeometry], object]) -> bool:
@@ -164,43 +117,32 @@ def check_twist_covariance(twist_covariance: Callable[[object, MecanumGeometry],
     of (vx, vy, ωz) from independent wheel-speed noise (the seed's Section 2.2)."""
 
     def check() -> None:
-        rng = np.random.default_rng(_RNG_SEED)
+        rng = np.random.default_rng(RNG_SEED)
         for geometry in _geometries():
             sigma = rng.uniform(0.05, 0.5, 4)
             want = wheel_noise_to_twist_covariance(sigma, geometry)
-            got = _as_array(twist_covariance(sigma, geometry), (3, 3), "your covariance")
+            got = as_array(twist_covariance(sigma, geometry), (3, 3), "your covariance")
             J = geometry.wheels_to_twist_matrix
-            if _close(got, J @ np.diag(sigma) @ J.T):
+            if close(got, J @ np.diag(sigma) @ J.T):
                 raise Wrong(
                     "the wheel noise enters as standard deviations; a covariance needs variances."
                 )
-            if not _close(got, got.T):
+            if not close(got, got.T):
                 raise Wrong("your covariance is not symmetric.")
-            _entry_verdict(got, want, "Cov", TWIST, TWIST)
+            entry_verdict(got, want, "Cov", TWIST, TWIST)
 
-    return _attempt("1b", check)
+    return attempt("1b", check)
 
 
 # --- exercise 2: G and V of eq. (7) with sympy, and R = V M Vᵀ ----------------------------------
 
 
 def _poses_and_controls() -> list[tuple[Array, Array]]:
-    rng = np.random.default_rng(_RNG_SEED)
+    rng = np.random.default_rng(RNG_SEED)
     fixed = [(np.array([0.1, -0.2, 0.3]), np.array([0.05, 0.01, 0.02]))]
     return fixed + [
         (rng.uniform([-1, -1, -np.pi], [1, 1, np.pi]), rng.uniform(-0.1, 0.1, 3)) for _ in range(4)
     ]
-
-
-def _evaluate(expr: object, values: dict[str, float], what: str) -> Array:
-    """A sympy matrix at numbers, its symbols matched by name (x y theta du_x du_y dtheta)."""
-    if not isinstance(expr, sp.MatrixBase):
-        raise Wrong(f"{what} is a {type(expr).__name__}; it should be a sympy Matrix.")
-    unknown = sorted(s.name for s in expr.free_symbols if s.name not in values)
-    if unknown:
-        raise Wrong(f"{what} uses {', '.join(unknown)}, which is not a pose or control symbol.")
-    subs = {s: values[s.name] for s in expr.free_symbols}
-    return np.array(expr.subs(subs).evalf(), dtype=float)
 
 
 def check_motion_jacobians(derive: Callable[[], tuple[object, object]]) -> bool:
@@ -216,16 +158,16 @@ def check_motion_jacobians(derive: Callable[[], tuple[object, object]]) -> bool:
             names = ("x", "y", "theta", "du_x", "du_y", "dtheta")
             values = dict(zip(names, [*pose, *u], strict=True))
             want_G, want_V = motion_jacobian(pose, u), motion_control_jacobian(pose)
-            got_G = _as_array(_evaluate(G, values, "G"), (3, 3), "G")
-            got_V = _as_array(_evaluate(V, values, "V"), (3, 3), "V")
-            if _close(got_G, want_V) and _close(got_V, want_G):
+            got_G = as_array(evaluate(G, values, "G"), (3, 3), "G")
+            got_V = as_array(evaluate(V, values, "V"), (3, 3), "V")
+            if close(got_G, want_V) and close(got_V, want_G):
                 raise Wrong("G and V are swapped: G is the derivative by the pose.")
-            if not _close(got_G, want_G) and _close(got_G.T, want_G):
+            if not close(got_G, want_G) and close(got_G.T, want_G):
                 raise Wrong("G is transposed: row i is f_i, column j the derivative by pose_j.")
-            _entry_verdict(got_G, want_G, "G", POSE_NAMES, POSE_NAMES)
-            _entry_verdict(got_V, want_V, "V", POSE_NAMES, CONTROL_NAMES)
+            entry_verdict(got_G, want_G, "G", POSE_NAMES, POSE_NAMES)
+            entry_verdict(got_V, want_V, "V", POSE_NAMES, CONTROL_NAMES)
 
-    return _attempt("2a", check)
+    return attempt("2a", check)
 
 
 def check_motion_noise(motion_noise_R: Callable[[Array, Array], object]) -> bool:
@@ -233,22 +175,22 @@ def check_motion_noise(motion_noise_R: Callable[[Array, Array], object]) -> bool
     noise M (robot frame, u-space) in the state's coordinates (the seed's and Thrun's R)."""
 
     def check() -> None:
-        rng = np.random.default_rng(_RNG_SEED)
+        rng = np.random.default_rng(RNG_SEED)
         for pose, _ in _poses_and_controls():
             A = rng.normal(size=(3, 3))
             M = A @ A.T * 1e-4 + np.diag([1e-4, 4e-4, 1e-3])  # correlated, so V M Vᵀ ≠ M
-            got = _as_array(motion_noise_R(pose, M.copy()), (3, 3), "your R")
+            got = as_array(motion_noise_R(pose, M.copy()), (3, 3), "your R")
             V = motion_control_jacobian(pose)
-            if not _close(got, motion_noise(pose, M)):
-                if _close(got, M):
+            if not close(got, motion_noise(pose, M)):
+                if close(got, M):
                     raise Wrong("R equals M: M is in the robot's frame, R in the world's.")
-                if _close(got, V.T @ M @ V):
+                if close(got, V.T @ M @ V):
                     raise Wrong("the rotation is on the wrong side (Vᵀ M V instead of V M Vᵀ).")
-                if not _close(got, got.T):
+                if not close(got, got.T):
                     raise Wrong("your R is not symmetric.")
-                _entry_verdict(got, motion_noise(pose, M), "R", POSE_NAMES, POSE_NAMES)
+                entry_verdict(got, motion_noise(pose, M), "R", POSE_NAMES, POSE_NAMES)
 
-    return _attempt("2b", check)
+    return attempt("2b", check)
 
 
 # --- exercise 3: the prediction in block form, eq. (9) ------------------------------------------
@@ -274,27 +216,27 @@ def check_predict(predict: Callable[[Array, Array, Array, Array], object]) -> bo
     in block form (the answer is `ekfslam.core.steps.predict_step`)."""
 
     def check() -> None:
-        for mu, Sigma, u, R in _states(np.random.default_rng(_RNG_SEED)):
+        for mu, Sigma, u, R in _states(np.random.default_rng(RNG_SEED)):
             d = mu.size
             result = predict(mu.copy(), Sigma.copy(), u.copy(), R.copy())
             if not isinstance(result, tuple) or len(result) != 2:
                 raise Wrong("predict should return the pair (mu, Sigma).")
-            got_mu = _as_array(result[0], (d,), f"mu (with {(d - 3) // 2} landmarks)")
-            got_S = _as_array(result[1], (d, d), f"Sigma (with {(d - 3) // 2} landmarks)")
+            got_mu = as_array(result[0], (d,), f"mu (with {(d - 3) // 2} landmarks)")
+            got_S = as_array(result[1], (d, d), f"Sigma (with {(d - 3) // 2} landmarks)")
             want_mu, want_S = predict_step(mu, Sigma, u, R)
             _check_predicted_mean(got_mu, want_mu, mu)
             _check_predicted_covariance(got_S, want_S, Sigma, mu, u, R)
 
-    return _attempt("3", check)
+    return attempt("3", check)
 
 
 def _check_predicted_mean(got: Array, want: Array, before: Array) -> None:
-    if not _close(got[3:], before[3:]):
+    if not close(got[3:], before[3:]):
         raise Wrong("the landmarks in mu moved: a prediction leaves them where they are.")
-    if not _close(got[:2], want[:2]):
+    if not close(got[:2], want[:2]):
         raise Wrong("the predicted position (x, y) is wrong (eq. 6).")
-    if not _close(got[2], want[2]):
-        if _close(wrap_angle(float(got[2])), want[2]):
+    if not close(got[2], want[2]):
+        if close(wrap_angle(float(got[2])), want[2]):
             raise Wrong("your heading is not wrapped to [-π, π).")
         raise Wrong("the predicted heading θ is wrong (eq. 6).")
 
@@ -303,89 +245,24 @@ def _check_predicted_covariance(
     got: Array, want: Array, before: Array, mu: Array, u: Array, R: Array
 ) -> None:
     r, m = slice(0, 3), slice(3, None)
-    if not _close(got[m, m], before[m, m]):
+    if not close(got[m, m], before[m, m]):
         raise Wrong("Σ[m, m] changed: a prediction does not touch the landmark block.")
-    if not _close(got[r, r], want[r, r]):
+    if not close(got[r, r], want[r, r]):
         G = motion_jacobian(mu[:3], u)
         G_after = motion_jacobian(motion(mu[:3], u), u)
-        if _close(got[r, r], want[r, r] - R):
+        if close(got[r, r], want[r, r] - R):
             raise Wrong("the motion noise R is missing from Σ[r, r].")
-        if _close(got[r, r], G_after @ before[r, r] @ G_after.T + R):
+        if close(got[r, r], G_after @ before[r, r] @ G_after.T + R):
             raise Wrong(
                 "G is evaluated at the pose after the motion; eq. (7) takes the one before."
             )
-        if _close(got[r, r], G.T @ before[r, r] @ G + R):
+        if close(got[r, r], G.T @ before[r, r] @ G + R):
             raise Wrong("Σ[r, r] has G and Gᵀ the wrong way round.")
         raise Wrong("Σ[r, r] is wrong.")
     if got.shape[0] > 3:
-        if _close(got[r, m], before[r, m]):
+        if close(got[r, m], before[r, m]):
             raise Wrong("the robot-landmark cross-covariance Σ[r, m] is not updated.")
-        if not _close(got[r, m], want[r, m]):
+        if not close(got[r, m], want[r, m]):
             raise Wrong("the robot-landmark cross-covariance Σ[r, m] is wrong.")
-        if not _close(got[m, r], want[m, r]):
+        if not close(got[m, r], want[m, r]):
             raise Wrong("Σ[m, r] does not match Σ[r, m]ᵀ: Σ must stay symmetric.")
-
-
-# --- exercise 4: the predicted observation (eq. 13, atan2) and H (eq. 14) -----------------------
-
-
-def _poses_and_landmarks() -> list[tuple[Array, Array]]:
-    """The first landmark is behind the robot's x (δx < 0), where arctan(δy/δx) is off by π."""
-    rng = np.random.default_rng(_RNG_SEED)
-    fixed = [(np.array([0.2, -0.1, 2.5]), np.array([-0.75, 0.375]))]
-    fixed.append((np.array([-0.375, -0.375, 0.0]), np.array([0.375, 0.75])))
-    return fixed + [
-        (rng.uniform([-0.5, -0.5, -np.pi], [0.5, 0.5, np.pi]), rng.uniform(-0.75, 0.75, 2))
-        for _ in range(4)
-    ]
-
-
-def _check_bearing(got: float, want: float, dx: float, wrapped: bool) -> None:
-    off = wrap_angle(got - want)
-    if abs(abs(off) - np.pi) < 1e-6 and dx < 0:
-        raise Wrong("your bearing is off by π when the landmark is behind (δx < 0): use atan2.")
-    if abs(off) > 1e-9:
-        raise Wrong("the bearing ẑ[1] is wrong (eq. 13).")
-    if wrapped and not _close(got, want):
-        raise Wrong("your bearing is not wrapped to [-π, π).")
-
-
-def check_observation_model(derive: Callable[[], tuple[object, object, object]]) -> bool:
-    """Exercise 4a: `derive() -> (z_hat, H_pose, H_landmark)`, sympy: ẑ of eq. (13) (2x1) and
-    its Jacobians (2x3, 2x2) of eq. (14), in the symbols x, y, theta, m_x, m_y."""
-
-    def check() -> None:
-        result = derive()
-        if not isinstance(result, tuple) or len(result) != 3:
-            raise Wrong("derive() should return (z_hat, H_pose, H_landmark).")
-        z_hat, H_pose, H_landmark = result
-        for pose, landmark in _poses_and_landmarks():
-            values = dict(zip(("x", "y", "theta", "m_x", "m_y"), [*pose, *landmark], strict=True))
-            got = _evaluate(z_hat, values, "z_hat").reshape(-1)
-            want = observation(pose, landmark)
-            _as_array(got, (2,), "z_hat")
-            if not _close(got[0], want[0]):
-                raise Wrong("the range ẑ[0] is wrong (eq. 13).")
-            _check_bearing(got[1], want[1], landmark[0] - pose[0], wrapped=False)
-            want_p, want_l = observation_jacobians(pose, landmark)
-            got_p = _as_array(_evaluate(H_pose, values, "H_pose"), (2, 3), "H_pose")
-            got_l = _as_array(_evaluate(H_landmark, values, "H_landmark"), (2, 2), "H_landmark")
-            _entry_verdict(got_p, want_p, "H_pose", ("r", "φ"), POSE_NAMES)
-            _entry_verdict(got_l, want_l, "H_landmark", ("r", "φ"), ("μx", "μy"))
-
-    return _attempt("4a", check)
-
-
-def check_predicted_observation(predict_z: Callable[[Array, Array], object]) -> bool:
-    """Exercise 4b: `predict_z(pose (3,), landmark (2,)) -> (r, φ)`, eq. (13) in numpy, the
-    bearing wrapped to [-π, π) (the answer is `ekfslam.core.models.observation`)."""
-
-    def check() -> None:
-        for pose, landmark in _poses_and_landmarks():
-            got = _as_array(predict_z(pose.copy(), landmark.copy()), (2,), "your ẑ")
-            want = observation(pose, landmark)
-            if not _close(got[0], want[0]):
-                raise Wrong("the range ẑ[0] is wrong (eq. 13).")
-            _check_bearing(got[1], want[1], landmark[0] - pose[0], wrapped=True)
-
-    return _attempt("4b", check)

@@ -11,11 +11,12 @@ import pytest
 import sympy as sp
 
 from ekfslam import EKFSLAM
-from ekfslam.core.models import motion, motion_jacobian
+from ekfslam.core.models import motion, motion_control_jacobian, motion_jacobian
 from ekfslam.core.steps import predict_step
 from ekfslam.errors import InputError
 from ekfslam.teaching import exercises as ex
 from ekfslam.teaching import make_lab
+from ekfslam.teaching import map_exercises as mx
 from ekfslam.teaching.derivations import dtheta, du_x, du_y, m_x, m_y, theta, x, y
 from ekfslam.teaching.reference import LiteralEKFSLAM
 
@@ -26,8 +27,8 @@ LAB = {
     "2a": ("derive_motion_jacobians", ex.check_motion_jacobians),
     "2b": ("motion_noise_R", ex.check_motion_noise),
     "3": ("predict", ex.check_predict),
-    "4a": ("derive_observation", ex.check_observation_model),
-    "4b": ("predict_z", ex.check_predicted_observation),
+    "4a": ("derive_observation", mx.check_observation_model),
+    "4b": ("predict_z", mx.check_predicted_observation),
 }
 
 
@@ -153,7 +154,7 @@ def test_check_motion_noise_catches_the_unrotated_and_the_transposed(capsys) -> 
     assert "R equals M" in verdict(ex.check_motion_noise, lambda pose, M: M, capsys)
 
     def transposed(pose, M):
-        V = ex.motion_control_jacobian(pose)
+        V = motion_control_jacobian(pose)
         return V.T @ M @ V
 
     assert "Vᵀ M V instead of V M Vᵀ" in verdict(ex.check_motion_noise, transposed, capsys)
@@ -234,7 +235,7 @@ def test_check_observation_model_catches_the_seeds_arctan(capsys) -> None:
         z = sp.Matrix([sp.sqrt(dx**2 + dy**2), sp.atan(dy / dx) - theta])
         return z, z.jacobian([x, y, theta]), z.jacobian([m_x, m_y])
 
-    out = verdict(ex.check_observation_model, seed, capsys)
+    out = verdict(mx.check_observation_model, seed, capsys)
     assert "off by π when the landmark is behind (δx < 0): use atan2" in out
 
     def sign():  # +θ: the bearing and H_pose[1, 2] are off
@@ -242,7 +243,7 @@ def test_check_observation_model_catches_the_seeds_arctan(capsys) -> None:
         z = sp.Matrix([sp.sqrt(dx**2 + dy**2), sp.atan2(dy, dx) + theta])
         return z, z.jacobian([x, y, theta]), z.jacobian([m_x, m_y])
 
-    assert "the bearing ẑ[1] is wrong" in verdict(ex.check_observation_model, sign, capsys)
+    assert "the bearing ẑ[1] is wrong" in verdict(mx.check_observation_model, sign, capsys)
 
 
 def test_check_predicted_observation_catches_the_missing_wrap(capsys) -> None:
@@ -250,5 +251,5 @@ def test_check_predicted_observation_catches_the_missing_wrap(capsys) -> None:
         dx, dy = m[0] - pose[0], m[1] - pose[1]
         return np.array([np.hypot(dx, dy), np.arctan2(dy, dx) - pose[2]])
 
-    out = verdict(ex.check_predicted_observation, unwrapped, capsys)
+    out = verdict(mx.check_predicted_observation, unwrapped, capsys)
     assert "your bearing is not wrapped to [-π, π)" in out
