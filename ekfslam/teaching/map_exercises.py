@@ -1,5 +1,6 @@
-"""The lab's exercises on the map: the predicted observation (exercise 4, notebook 04) and the
-new landmark (exercise 5, notebook 04); the machinery is `ekfslam.teaching.verdicts`."""
+"""The lab's exercises on the map: the predicted observation, eqs. (13)-(14) (exercise 4), and
+the new landmark, eq. (12) (exercise 5), both in notebook 04; the machinery is
+`ekfslam.teaching.verdicts`."""
 
 from __future__ import annotations
 
@@ -7,7 +8,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ekfslam.core.models import observation, observation_jacobians
+from ekfslam.core.models import inverse_observation_jacobians, observation, observation_jacobians
+from ekfslam.core.steps import new_landmark_step
 from ekfslam.geometry import wrap_angle
 from ekfslam.teaching.verdicts import (
     POSE_NAMES,
@@ -84,3 +86,61 @@ def check_predicted_observation(predict_z: Callable[[Array, Array], object]) -> 
             _check_bearing(got[1], want[1], landmark[0] - pose[0], wrapped=True)
 
     return attempt("4b", check)
+
+
+# --- exercise 5: the new landmark, eq. (12), with its cross-covariance --------------------------
+
+
+def check_new_landmark(add_landmark: Callable[[Array, Array, Array, Array], object]) -> bool:
+    """Exercise 5: `add_landmark(mu (d,), Sigma (d, d), z (2,), Q (2, 2)) -> (mu, Sigma)` of
+    size d + 2 (the answer is `ekfslam.core.steps.new_landmark_step`)."""
+
+    def check() -> None:
+        rng = np.random.default_rng(RNG_SEED)
+        for n in (0, 1, 3):
+            d = 3 + 2 * n
+            mu = np.concatenate(
+                [[*rng.uniform(-0.5, 0.5, 2), rng.uniform(-3, 3)], rng.normal(size=2 * n)]
+            )
+            A = rng.normal(size=(d, d))
+            Sigma = 1e-3 * (A @ A.T + np.eye(d))
+            z, Q = np.array([rng.uniform(0.3, 1.2), rng.uniform(-1.5, 1.5)]), np.diag([9e-4, 4e-3])
+            result = add_landmark(mu.copy(), Sigma.copy(), z.copy(), Q.copy())
+            if not isinstance(result, tuple) or len(result) != 2:
+                raise Wrong("add_landmark should return the pair (mu, Sigma).")
+            what = f"(with {n} landmarks before)"
+            got_mu = as_array(result[0], (d + 2,), f"mu {what}")
+            got = as_array(result[1], (d + 2, d + 2), f"Sigma {what}")
+            want_mu, want = new_landmark_step(mu, Sigma, z, Q)
+            _check_new_landmark(got_mu, got, want_mu, want, mu, Sigma, z, Q)
+
+    return attempt("5", check)
+
+
+def _check_new_landmark(
+    got_mu: Array, got: Array, want_mu: Array, want: Array, mu: Array, Sigma: Array, z, Q
+) -> None:
+    d, r, l = mu.size, slice(0, 3), slice(mu.size, mu.size + 2)
+    if not close(got_mu[:d], mu) or not close(got[:d, :d], Sigma):
+        raise Wrong("the old state changed: adding a landmark only appends rows and columns.")
+    if not close(got_mu[d:], want_mu[d:]):
+        raise Wrong(
+            "the new landmark's position is wrong (eq. 12: the bearing is from the heading)."
+        )
+    G_p, G_z = inverse_observation_jacobians(mu[r], z)
+    if not close(got[l, l], want[l, l]):
+        if close(got[l, l], G_z @ Q @ G_z.T):
+            raise Wrong("the new landmark's covariance ignores the robot's uncertainty.")
+        if close(got[l, l], G_p @ Sigma[r, r] @ G_p.T):
+            raise Wrong("the new landmark's covariance ignores the measurement noise Q.")
+        raise Wrong("the new landmark's covariance Σ[l, l] is wrong.")
+    if close(got[l, :d], 0.0):
+        raise Wrong("the cross-covariance of the new landmark is missing.")
+    if not close(got[l, r], want[l, r]):
+        raise Wrong("the cross-covariance of the new landmark with the robot, Σ[l, r], is wrong.")
+    if not close(got[l, :d], want[l, :d]):
+        raise Wrong(
+            "the new landmark's cross-covariance with the older landmarks is missing or wrong."
+        )
+    if not close(got[:d, l], got[l, :d].T):
+        raise Wrong("Σ[:, l] does not match Σ[l, :]ᵀ: Σ must stay symmetric.")

@@ -12,7 +12,7 @@ import sympy as sp
 
 from ekfslam import EKFSLAM
 from ekfslam.core.models import motion, motion_control_jacobian, motion_jacobian
-from ekfslam.core.steps import predict_step
+from ekfslam.core.steps import new_landmark_step, predict_step
 from ekfslam.errors import InputError
 from ekfslam.teaching import exercises as ex
 from ekfslam.teaching import make_lab
@@ -29,6 +29,7 @@ LAB = {
     "3": ("predict", ex.check_predict),
     "4a": ("derive_observation", mx.check_observation_model),
     "4b": ("predict_z", mx.check_predicted_observation),
+    "5": ("add_landmark", mx.check_new_landmark),
 }
 
 
@@ -253,3 +254,34 @@ def test_check_predicted_observation_catches_the_missing_wrap(capsys) -> None:
 
     out = verdict(mx.check_predicted_observation, unwrapped, capsys)
     assert "your bearing is not wrapped to [-π, π)" in out
+
+
+def test_check_new_landmark_names_the_missing_cross_covariance(capsys) -> None:
+    def zero(mu, S, z, Q):  # PythonRobotics #191
+        mu2, S2 = new_landmark_step(mu, S, z, Q)
+        d = mu.size
+        S2[d:, :d], S2[:d, d:] = 0.0, 0.0
+        return mu2, S2
+
+    def robot_only(mu, S, z, Q):
+        mu2, S2 = new_landmark_step(mu, S, z, Q)
+        d = mu.size
+        S2[d:, 3:d], S2[3:d, d:] = 0.0, 0.0
+        return mu2, S2
+
+    check = mx.check_new_landmark
+    assert "the cross-covariance of the new landmark is missing" in verdict(check, zero, capsys)
+    out = verdict(check, robot_only, capsys)
+    assert "cross-covariance with the older landmarks is missing or wrong" in out
+
+
+def test_new_landmark_step_is_the_filters_initialisation() -> None:
+    Q = np.diag([9e-4, 4e-3])
+    fast = EKFSLAM([0.1, -0.2, 0.4], np.diag([1e-4, 2e-4, 1e-3]))
+    fast.update(0, [1.0, 0.2], Q)
+    fast.predict([0.05, 0.01, 0.1], np.diag([1e-5, 1e-5, 4e-5]))
+    mu, Sigma = fast.mu.copy(), fast.Sigma.copy()
+    fast.update(1, [0.8, -0.5], Q)  # init="inverse": placed, not corrected
+    mu2, Sigma2 = new_landmark_step(mu, Sigma, [0.8, -0.5], Q)
+    np.testing.assert_allclose(mu2, fast.mu, atol=1e-12)
+    np.testing.assert_allclose(Sigma2, fast.Sigma, atol=1e-12)
