@@ -1,5 +1,6 @@
-"""The lab's exercises on the map: the predicted observation, eqs. (13)-(14) (exercise 4), and
-the new landmark, eq. (12) (exercise 5), both in notebook 04; the machinery is
+"""The lab's exercises on the map: the predicted observation, eqs. (13)-(14) (exercise 4), the
+new landmark, eq. (12) (exercise 5), both in notebook 04, and the update, eqs. (15)-(16)
+(exercise 6, notebook 05); the machinery is
 `ekfslam.teaching.verdicts`."""
 
 from __future__ import annotations
@@ -9,7 +10,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ekfslam.core.models import inverse_observation_jacobians, observation, observation_jacobians
-from ekfslam.core.steps import new_landmark_step
+from ekfslam.core.steps import new_landmark_step, update_steps
 from ekfslam.geometry import wrap_angle
 from ekfslam.teaching.verdicts import (
     POSE_NAMES,
@@ -144,3 +145,70 @@ def _check_new_landmark(
         )
     if not close(got[:d, l], got[l, :d].T):
         raise Wrong("Σ[:, l] does not match Σ[l, :]ᵀ: Σ must stay symmetric.")
+
+
+# --- exercise 6: the update, eqs. (15)-(16), bearing innovation wrapped, Joseph's form ----------
+
+
+def _update_cases(rng: np.random.Generator) -> list[tuple[Array, Array, int, Array, Array]]:
+    """(mu, Sigma, j, z, Q); the first sees its landmark right behind the robot, where ẑ's
+    bearing is near +π and z's near -π, so an unwrapped innovation is off by 2π."""
+    Q = np.diag([9e-4, 4e-3])
+    cases = []
+    for n, j in ((1, 0), (2, 1), (3, 1)):
+        d = 3 + 2 * n
+        mu = np.concatenate(
+            [[*rng.uniform(-0.3, 0.3, 2), rng.uniform(-3, 3)], rng.normal(size=2 * n)]
+        )
+        A = rng.normal(size=(d, d))
+        Sigma = 1e-3 * (A @ A.T + np.eye(d))
+        z = observation(mu[:3], mu[3 + 2 * j : 5 + 2 * j]) + rng.normal(0, [0.03, 0.05])
+        z[1] = wrap_angle(float(z[1]))
+        cases.append((mu, Sigma, j, z, Q))
+    mu, Sigma, j, _, Q = cases[0]
+    mu[:3], mu[3:5] = [0.0, 0.0, 0.0], [-1.0, 0.002]  # bearing π - 0.002
+    cases[0] = (mu, Sigma, j, np.array([1.02, wrap_angle(np.pi + 0.004)]), Q)
+    return cases
+
+
+def check_update(update: Callable[[Array, Array, int, Array, Array], object]) -> bool:
+    """Exercise 6: `update(mu (d,), Sigma (d, d), j, z (2,), Q (2, 2)) -> (mu, Sigma)`, one
+    correction with landmark slot j, eqs. (13)-(16) in Joseph's form (the answer is
+    `ekfslam.core.steps.update_steps`: its mu_post and Sigma_joseph)."""
+
+    def check() -> None:
+        for mu, Sigma, j, z, Q in _update_cases(np.random.default_rng(RNG_SEED)):
+            d = mu.size
+            result = update(mu.copy(), Sigma.copy(), j, z.copy(), Q.copy())
+            if not isinstance(result, tuple) or len(result) != 2:
+                raise Wrong("update should return the pair (mu, Sigma).")
+            got_mu = as_array(result[0], (d,), "mu")
+            got = as_array(result[1], (d, d), "Sigma")
+            want = update_steps(mu, Sigma, j, z, Q)
+            unwrapped = want.mu_prior + want.K @ (z - want.z_hat)
+            if not close(got_mu, want.mu_post):
+                if close(got_mu[3:], unwrapped[3:]):
+                    raise Wrong(
+                        "your bearing innovation z - ẑ is not wrapped (the seed forgets "
+                        "it too): behind the robot it is off by 2π."
+                    )
+                if close(wrap_angle(float(got_mu[2])), want.mu_post[2]) and close(
+                    got_mu[3:], want.mu_post[3:]
+                ):
+                    raise Wrong("your heading is not wrapped to [-π, π).")
+                others = [k for k in range((d - 3) // 2) if k != j]
+                if others and close(got_mu, update_steps(mu, Sigma, others[0], z, Q).mu_post):
+                    raise Wrong(
+                        f"you updated another landmark: slot {j} is rows {3 + 2 * j}, {4 + 2 * j}."
+                    )
+                if close(got_mu, update_steps(mu, Sigma, j, z, 0 * Q).mu_post):
+                    raise Wrong("the measurement noise Q is missing from S = H Σ Hᵀ + Q.")
+                raise Wrong("the posterior mean is wrong (eqs. 15-16).")
+            if not close(got, want.Sigma_joseph):
+                if close(got, Sigma):
+                    raise Wrong("Σ is not updated.")
+                if not close(got, got.T):
+                    raise Wrong("your posterior Σ is not symmetric.")
+                raise Wrong("the posterior covariance is wrong (eq. 16, Joseph's form).")
+
+    return attempt("6", check)

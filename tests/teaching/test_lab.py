@@ -12,8 +12,9 @@ import sympy as sp
 
 from ekfslam import EKFSLAM
 from ekfslam.core.models import motion, motion_control_jacobian, motion_jacobian
-from ekfslam.core.steps import new_landmark_step, predict_step
+from ekfslam.core.steps import new_landmark_step, predict_step, update_steps
 from ekfslam.errors import InputError
+from ekfslam.geometry import wrap_angle
 from ekfslam.teaching import exercises as ex
 from ekfslam.teaching import make_lab
 from ekfslam.teaching import map_exercises as mx
@@ -30,6 +31,7 @@ LAB = {
     "4a": ("derive_observation", mx.check_observation_model),
     "4b": ("predict_z", mx.check_predicted_observation),
     "5": ("add_landmark", mx.check_new_landmark),
+    "6": ("update", mx.check_update),
 }
 
 
@@ -285,3 +287,19 @@ def test_new_landmark_step_is_the_filters_initialisation() -> None:
     mu2, Sigma2 = new_landmark_step(mu, Sigma, [0.8, -0.5], Q)
     np.testing.assert_allclose(mu2, fast.mu, atol=1e-12)
     np.testing.assert_allclose(Sigma2, fast.Sigma, atol=1e-12)
+
+
+def test_check_update_names_the_unwrapped_innovation_and_the_missing_Q(capsys) -> None:
+    def unwrapped(mu, S, j, z, Q):  # the seed's eq. (16)
+        s = update_steps(mu, S, j, z, Q)
+        mu2 = mu + s.K @ (z - s.z_hat)
+        mu2[2] = wrap_angle(float(mu2[2]))
+        return mu2, s.Sigma_joseph
+
+    def no_Q(mu, S, j, z, Q):
+        s = update_steps(mu, S, j, z, 0 * Q)
+        return s.mu_post, s.Sigma_joseph
+
+    check = mx.check_update
+    assert "bearing innovation z - ẑ is not wrapped" in verdict(check, unwrapped, capsys)
+    assert "Q is missing from S = H Σ Hᵀ + Q" in verdict(check, no_Q, capsys)
