@@ -1,7 +1,6 @@
 """The lab's exercises on the map: the predicted observation, eqs. (13)-(14) (exercise 4), the
 new landmark, eq. (12) (exercise 5), both in notebook 04, and the update, eqs. (15)-(16)
-(exercise 6, notebook 05); the machinery is
-`ekfslam.teaching.verdicts`."""
+(exercise 6, notebook 05); the machinery is `ekfslam.teaching.verdicts`."""
 
 from __future__ import annotations
 
