@@ -1,4 +1,5 @@
-"""One EKF correction, eqs. (13)-(16), in block form: the one readable statement of the update.
+"""One EKF prediction (eqs. 6-9), one new landmark (eq. 12) and one correction (eqs. 13-16) in
+block form: the readable statement of each step.
 
 The filter's compiled kernel (`ekfslam.core.filter.kernels.correct`) and the literal F_x,j
 reference (`ekfslam.teaching.reference`) compute the same numbers; the tests hold both to this
@@ -18,7 +19,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ekfslam.core.models import observation, observation_jacobians
+from ekfslam.core.models import (
+    inverse_observation,
+    inverse_observation_jacobians,
+    motion,
+    motion_jacobian,
+    observation,
+    observation_jacobians,
+)
 from ekfslam.geometry import wrap_angle
 
 Array = NDArray[np.float64]
@@ -97,3 +105,63 @@ def update_steps(
         # Joseph's form expanded: (I-KH)Σ(I-KH)ᵀ + KQKᵀ = Σ - KHΣ - (KHΣ)ᵀ + K S Kᵀ
         Sigma_joseph=Sigma - KHSigma - KHSigma.T + K @ S @ K.T,
     )
+
+
+def predict_step(
+    mu: ArrayLike, Sigma: ArrayLike, u: ArrayLike, R: ArrayLike
+) -> tuple[Array, Array]:
+    """One EKF prediction, eqs. (6), (7) and (9) done right, on the blocks it touches.
+
+    The motion moves only the robot (rows r = 0:3); the landmarks m = 3: stay. With the 3x3 G of
+    eq. (7), evaluated at the pose *before* the motion, the lifted eq. (9) is
+    Σ[r, r] = G Σ[r, r] Gᵀ + R,  Σ[r, m] = G Σ[r, m],  Σ[m, r] = Σ[r, m]ᵀ,  Σ[m, m] unchanged.
+
+    Parameters
+    ----------
+    mu : (d,) mean, d = 3 + 2n; Sigma : (d, d); u : (3,) control increment (eq. 4, body frame);
+    R : (3, 3) motion noise in the state's coordinates (R = V M Vᵀ, Thrun's and the seed's R).
+
+    Returns
+    -------
+    (mu, Sigma) : new arrays (d,) and (d, d); the heading is wrapped to [-π, π).
+    """
+    mu = np.array(mu, dtype=float)
+    Sigma = np.array(Sigma, dtype=float)
+    r, m = slice(0, 3), slice(3, None)
+    G = motion_jacobian(mu[r], u)
+    mu[r] = motion(mu[r], u)
+    Sigma[r, r] = G @ Sigma[r, r] @ G.T + np.asarray(R, dtype=float)
+    Sigma[r, m] = G @ Sigma[r, m]
+    Sigma[m, r] = Sigma[r, m].T
+    return mu, Sigma
+
+
+def new_landmark_step(
+    mu: ArrayLike, Sigma: ArrayLike, z: ArrayLike, Q: ArrayLike
+) -> tuple[Array, Array]:
+    """A landmark first seen at z = (r, φ) appended to the state, eq. (12), with its covariance.
+
+    With the Jacobians G_p = ∂m/∂pose (2x3) and G_z = ∂m/∂z (2x2) of eq. (12), the new rows
+    l = d : d+2 are Σ[l, l] = G_p Σ[r, r] G_pᵀ + G_z Q G_zᵀ and the cross-covariance with the
+    whole old state Σ[l, :d] = G_p Σ[r, :d] (the robot *and* the landmarks already in the map);
+    `FilterConfig(init="inverse")`, the filter's default.
+
+    Parameters
+    ----------
+    mu : (d,); Sigma : (d, d); z : (2,) range (m) and bearing (rad); Q : (2, 2), eq. (11).
+
+    Returns
+    -------
+    (mu, Sigma) : new arrays (d+2,) and (d+2, d+2).
+    """
+    mu = np.asarray(mu, dtype=float)
+    Sigma = np.asarray(Sigma, dtype=float)
+    d, r = mu.size, slice(0, 3)
+    G_p, G_z = inverse_observation_jacobians(mu[r], z)
+    cross = G_p @ Sigma[r, :]  # (2, d)
+    new = np.zeros((d + 2, d + 2))
+    new[:d, :d] = Sigma
+    new[d:, :d] = cross
+    new[:d, d:] = cross.T
+    new[d:, d:] = G_p @ Sigma[r, r] @ G_p.T + G_z @ np.asarray(Q, dtype=float) @ G_z.T
+    return np.concatenate([mu, inverse_observation(mu[r], z)]), new

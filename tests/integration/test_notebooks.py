@@ -1,8 +1,11 @@
 """The classroom notebooks: stored clean, executed without error, importing only public API.
 
-Every ``notebooks/*.ipynb`` is picked up automatically. Each is executed in memory (nothing is
-written back) in a fresh kernel whose working directory is ``notebooks/``, as Jupyter would run
-it, with ``MPLBACKEND=Agg`` so that a notebook without a ``%matplotlib`` line never opens a window.
+Every ``notebooks/*.ipynb`` and ``notebooks/solutions/*.ipynb`` is picked up automatically: the
+student version of a lab notebook and its solved source are both executed, and their exercise
+checks must say "not done yet" (every stub) and "right" (every solution). Each is executed in
+memory (nothing is written back) in a fresh kernel whose working directory is the notebook's own
+folder, as Jupyter would run it, with ``MPLBACKEND=Agg`` so that a notebook without a
+``%matplotlib`` line never opens a window.
 A notebook fails on any error output: in a cell, in an Output widget (where errors inside widget
 callbacks end up) or a "Traceback" on stderr. Run times are printed (``pytest -s``) and
 recorded as the test's ``runtime_s`` property; ``--durations=0`` lists them under xdist too.
@@ -21,8 +24,13 @@ nbformat = pytest.importorskip("nbformat")
 nbclient = pytest.importorskip("nbclient")
 
 NOTEBOOK_DIR = Path(__file__).resolve().parents[2] / "notebooks"
-NOTEBOOKS = sorted(NOTEBOOK_DIR.glob("*.ipynb"))
+SOLUTION_DIR = NOTEBOOK_DIR / "solutions"
+NOTEBOOKS = sorted(NOTEBOOK_DIR.glob("*.ipynb")) + sorted(SOLUTION_DIR.glob("*.ipynb"))
 KERNEL_TIMEOUT_S = 300
+
+
+def _name(path: Path) -> str:
+    return path.relative_to(NOTEBOOK_DIR).as_posix()  # solutions/NN-... apart from NN-...
 
 
 def _code_cells(nb) -> list:
@@ -48,7 +56,7 @@ def test_notebooks_are_stored_without_outputs() -> None:
         nb = nbformat.read(path, as_version=4)
         cells = _dirty_cells(nb)
         if cells:
-            offenders[path.name] = cells
+            offenders[_name(path)] = cells
     assert not offenders, f"notebooks stored with outputs or execution counts (cells): {offenders}"
 
 
@@ -159,7 +167,7 @@ def test_private_name_detector() -> None:
     assert private_ekfslam_names("%matplotlib inline\nfrom ekfslam import replay\nx._y") == []
 
 
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=_name)
 def test_notebook_imports_only_public_api(path: Path) -> None:
     nb = nbformat.read(path, as_version=4)
     private = {i: private_ekfslam_names(c.source) for i, c in enumerate(nb.cells)}
@@ -174,7 +182,7 @@ def test_first_code_cell_sets_the_backend() -> None:
     for path in NOTEBOOKS:
         cells = _code_cells(nbformat.read(path, as_version=4))
         if not cells or not cells[0].source.lstrip().startswith("%matplotlib"):
-            wrong.append(path.name)
+            wrong.append(_name(path))
     assert not wrong, f"first code cell must start with %matplotlib inline/widget: {wrong}"
 
 
@@ -191,7 +199,7 @@ def _reads_shared_data(path: Path) -> bool:
 
 def _executable(path: Path):
     marks = [pytest.mark.slow] + ([pytest.mark.shared_data] if _reads_shared_data(path) else [])
-    return pytest.param(path, marks=marks, id=path.name)
+    return pytest.param(path, marks=marks, id=_name(path))
 
 
 def execute_notebook(path: Path) -> tuple[object, float]:
@@ -202,7 +210,7 @@ def execute_notebook(path: Path) -> tuple[object, float]:
         timeout=KERNEL_TIMEOUT_S,
         kernel_name="python3",
         allow_errors=True,  # collect every error, then fail with all of them
-        resources={"metadata": {"path": str(NOTEBOOK_DIR)}},
+        resources={"metadata": {"path": str(path.parent)}},
     )
     started = time.perf_counter()
     client.execute()
@@ -239,8 +247,38 @@ def test_notebook_executes(path: Path, monkeypatch, record_property, data_missin
     monkeypatch.setenv("MPLBACKEND", "Agg")  # the kernel inherits it
     nb, seconds = execute_notebook(path)
     record_property("runtime_s", round(seconds, 1))
-    print(f"\n{path.name}: executed in {seconds:.1f} s")
-    judge_execution(path.name, nb, seconds, data_missing)
+    print(f"\n{_name(path)}: executed in {seconds:.1f} s")
+    judge_execution(_name(path), nb, seconds, data_missing)
+    judge_exercises(path, nb)
+
+
+def _stdout_lines(nb) -> list[str]:
+    lines = []
+    for cell in _code_cells(nb):
+        for out in cell.get("outputs", []):
+            if out.get("output_type") == "stream" and out.get("name") == "stdout":
+                lines += out["text"].splitlines()
+    return lines
+
+
+def exercise_verdicts(nb) -> list[str]:
+    """The lines the exercise checks printed ("Exercise 1a: ..."), in order."""
+    return [line for line in _stdout_lines(nb) if line.startswith("Exercise ")]
+
+
+def judge_exercises(path: Path, nb) -> None:
+    """A solution notebook passes every check; its student version is "not done yet" in each."""
+    solved = path.parent == SOLUTION_DIR
+    source = SOLUTION_DIR / path.name
+    if not source.exists():
+        return
+    exercises = re.findall(r"# BEGIN SOLUTION exercise (\w+)", source.read_text(encoding="utf-8"))
+    verdicts = exercise_verdicts(nb)
+    if solved:  # the values typed in (check_answer) are answered too
+        assert not [v for v in _stdout_lines(nb) if v.startswith("Not ")], _stdout_lines(nb)
+    assert [v.split(":")[0] for v in verdicts] == [f"Exercise {n}" for n in exercises], verdicts
+    expected = "right on every test case" if solved else "not done yet"
+    assert all(expected in v for v in verdicts), verdicts
 
 
 def test_notebooks_reach_mrclam_only_through_the_stopping_helper() -> None:
