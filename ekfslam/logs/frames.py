@@ -19,7 +19,6 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -74,6 +73,8 @@ def iter_frames(
     folder: str | Path, meta: RunMeta, index: FrameIndex
 ) -> Iterator[NDArray[np.uint8]]:
     """The frames listed in `index`, in order, as 8-bit grayscale (height, width) images."""
+    import cv2  # lazy: OpenCV (~20 ms) only to read or write frames, not to sniff a run
+
     folder = Path(folder)
     spec, camera = meta.frames, meta.camera
     if spec is None or camera is None:
@@ -129,6 +130,8 @@ def write_frames(
     fps: float,
 ) -> FrameIndex:
     """Write 8-bit grayscale frames as `spec` says, and frames.csv with their times `t` (s)."""
+    import cv2  # lazy: OpenCV (~20 ms) only to read or write frames, not to sniff a run
+
     folder = Path(folder)
     times = np.asarray(t, dtype=float)
     writer = None
