@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ekfslam.analysis.timing import median_time
 from ekfslam.core.association import AssociationConfig, jcbb
 from ekfslam.core.filter.associating import AssociatingFilter
 from ekfslam.core.filter.ekf import EKFSLAM
@@ -84,21 +85,12 @@ def _step(m: int, repeats: int) -> dict:
 
     found = joint()
     return {
-        "nn": 1e3 * _median(nn, repeats),
-        "jcbb": 1e3 * _median(joint, repeats),
+        "nn": 1e3 * median_time(nn, repeats),
+        "jcbb": 1e3 * median_time(joint, repeats),
         "jcbb_nodes": found.nodes,
         "budget_hit": found.budget_hit,
         "jcbb_correct": bool((found.pairing == seen).all()),
     }
-
-
-def _median(fn, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def association_lines(r: dict) -> list[str]:

@@ -29,7 +29,6 @@ import platform
 import statistics
 import time
 import tracemalloc
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -37,6 +36,7 @@ import numpy as np
 
 from ekfslam.analysis.association_bench import bench_association
 from ekfslam.analysis.startup import startup_times
+from ekfslam.analysis.timing import median_time
 from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.models import observation_noise
 from ekfslam.core.noise import default_noise
@@ -118,16 +118,6 @@ def default_mrclam_dir() -> Path | None:
     return None
 
 
-def _median_time(fn: Callable[[], object], repeats: int) -> float:
-    """Median wall time of `fn()` over `repeats` calls, s."""
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
-
-
 # ------------------------------------------------------------------------------------ replays
 def bench_replays(config: BenchConfig) -> dict:
     """Median replay times of the seed's runs (ms), events/s, and FEJ's cost on the octagon."""
@@ -171,7 +161,7 @@ def bench_mrclam(config: BenchConfig) -> dict:
     run, _ = load_mrclam(folder, MRCLAM_ROBOT)
     noise = default_noise(run)
     events = len(replay(run, noise).history.t)
-    s = _median_time(lambda: replay(run, noise), config.mrclam_repeats)
+    s = median_time(lambda: replay(run, noise), config.mrclam_repeats)
     return {
         "mrclam_replay_s": s, "mrclam_events_per_s": events / s, "mrclam_events": events,
         "mrclam_note": None,
@@ -305,7 +295,7 @@ def floor_times(n: int, repeats: int) -> tuple[float, float]:
         nonlocal Sigma
         Sigma *= 1.0
 
-    return _median_time(floor, repeats), _median_time(one_pass, repeats)
+    return median_time(floor, repeats), median_time(one_pass, repeats)
 
 
 def peak_memory_mb(n: int, steps: int = 50) -> float:
