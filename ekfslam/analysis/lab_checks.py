@@ -61,7 +61,9 @@ def check_replay(
             )
         if ekf.mu.shape != want.mu.shape or not close(ekf.mu[:3], want.mu[:3]):
             raise Wrong(
-                "your final pose differs from the replay's: check each piece's u = twist·dt."
+                "your final pose differs from the replay's: is each detection applied once the "
+                "pose is predicted up to its time, each piece with u = twist·dt and its own R "
+                "(a wrong R changes the gains, so the means too)?"
             )
         if not close(ekf.mu, want.mu):
             raise Wrong("your map differs from the replay's: is each detection fed at its time?")
