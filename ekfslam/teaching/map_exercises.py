@@ -211,3 +211,62 @@ def check_update(update: Callable[[Array, Array, int, Array, Array], object]) ->
                 raise Wrong("the posterior covariance is wrong (eq. 16, Joseph's form).")
 
     return attempt("6", check)
+
+
+# --- exercise 7: the NIS gate, νᵀ S⁻¹ ν against the chi-square quantile of 2 dof ---------------
+
+
+def _gate_cases(rng: np.random.Generator) -> list[tuple[Array, Array, Array, float]]:
+    """(z, ẑ, S, p); the first sees its tag right behind the robot (ẑ's bearing near +π, z's
+    near -π), and every S has a large off-diagonal term, so dropping it or not inverting S shows."""
+    cases = [(np.array([1.02, -np.pi + 0.004]), np.array([1.0, np.pi - 0.002]), None, 0.99)]
+    cases += [(rng.uniform([0.3, -np.pi], [1.5, np.pi]), None, None, p) for p in (0.95, 0.999, 0.5)]
+    out = []
+    for z, z_hat, _, p in cases:
+        if z_hat is None:
+            z_hat = z + rng.normal(0, [0.04, 0.06])
+            z_hat[1] = wrap_angle(float(z_hat[1]))
+        A = rng.normal(size=(2, 2)) * [[0.03, 0.0], [0.02, 0.05]]
+        out.append((z, z_hat, A @ A.T + np.diag([4e-4, 1e-3]), p))
+    return out
+
+
+def check_nis_gate(nis_gate: Callable[[Array, Array, Array, float], object]) -> bool:
+    """Exercise 7: `nis_gate(z (2,), z_hat (2,), S (2, 2), p) -> (nis, threshold)`: the NIS
+    νᵀ S⁻¹ ν of the innovation ν = z - ẑ (bearing wrapped, eq. 13) and the chi-square quantile
+    of 2 degrees of freedom at probability p, -2 ln(1 - p) (the answer is
+    `ekfslam.core.filter.config.chi2_2dof_quantile`; the filter accepts when nis <= threshold)."""
+
+    def check() -> None:
+        for z, z_hat, S, p in _gate_cases(np.random.default_rng(RNG_SEED)):
+            result = nis_gate(z.copy(), z_hat.copy(), S.copy(), p)
+            if not isinstance(result, tuple) or len(result) != 2:
+                raise Wrong("nis_gate should return the pair (nis, threshold).")
+            nis, threshold = (
+                float(as_array(v, (), w)) for v, w in zip(result, ("nis", "threshold"), strict=True)
+            )
+            nu = z - z_hat
+            raw = nu.copy()
+            nu[1] = wrap_angle(float(nu[1]))
+            want = float(nu @ np.linalg.solve(S, nu))
+            if not close(nis, want):
+                if close(nis, raw @ np.linalg.solve(S, raw)):
+                    raise Wrong(
+                        "your innovation's bearing is not wrapped: behind the robot ν is off by 2π."
+                    )
+                if close(nis, nu @ S @ nu):
+                    raise Wrong("your NIS multiplies by S: it divides by it, νᵀ S⁻¹ ν.")
+                if close(nis, float(np.sum(nu**2 / np.diag(S)))):
+                    raise Wrong("your NIS ignores the off-diagonal of S: use all of S⁻¹.")
+                if close(nis, np.sqrt(want)):
+                    raise Wrong("the NIS is the squared Mahalanobis distance: no square root.")
+                raise Wrong("the NIS is wrong.")
+            want_gate = -2.0 * np.log1p(-p)
+            if not close(threshold, want_gate):
+                if close(threshold, -2.0 * np.log(p)):
+                    raise Wrong(f"your threshold at p = {p} uses ln p; the tail is 1 - p.")
+                if close(threshold, np.sqrt(want_gate)):
+                    raise Wrong("your threshold is a distance; the NIS is a squared one.")
+                raise Wrong(f"your threshold at p = {p} is not the 2-dof chi-square quantile.")
+
+    return attempt("7", check)

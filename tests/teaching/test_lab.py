@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import re
 
@@ -11,10 +12,12 @@ import pytest
 import sympy as sp
 
 from ekfslam import EKFSLAM
+from ekfslam.analysis import lab_checks as lc
 from ekfslam.core.models import motion, motion_control_jacobian, motion_jacobian
 from ekfslam.core.steps import new_landmark_step, predict_step, update_steps
 from ekfslam.errors import InputError
 from ekfslam.geometry import wrap_angle
+from ekfslam.logs.runlog import read_run
 from ekfslam.teaching import exercises as ex
 from ekfslam.teaching import make_lab
 from ekfslam.teaching import map_exercises as mx
@@ -32,7 +35,16 @@ LAB = {
     "4b": ("predict_z", mx.check_predicted_observation),
     "5": ("add_landmark", mx.check_new_landmark),
     "6": ("update", mx.check_update),
+    "7": ("nis_gate", mx.check_nis_gate),
+    "8": ("replay_loop", lambda loop: lc.check_replay(loop, octagon())),
+    "9": ("align_map", lc.check_alignment),
 }
+
+
+@functools.cache
+def octagon():
+    """The seed's octagon run, whose Table 1 row exercise 8 reproduces."""
+    return read_run(make_lab.NOTEBOOKS.parent / "data" / "runs" / "octagon-2laps")
 
 
 def exercise_cells() -> dict[str, str]:
