@@ -12,9 +12,10 @@ One sub-command per study, each with only its own options:
 - ``association [--runs N]``: nn against jcbb with the ids hidden on the stress scenario, and a
   picture of the wrong associations (`ekfslam.analysis.association_stress`).
 
-The Monte Carlo studies (nees, outliers, association) run their runs on every local core by
-default; ``--jobs 1`` runs them in this process, ``--dask tcp://host:8786`` on a Dask cluster
-(`ekfslam.analysis.parallel`). The numbers are the same for the same seeds whatever the backend.
+The Monte Carlo studies (nees, outliers, association) and the robots of ``mrclam`` run on every
+local core by default; ``--jobs 1`` runs them in this process, ``--dask tcp://host:8786`` on a
+Dask cluster (`ekfslam.analysis.parallel`). The numbers are the same for the same seeds whatever
+the backend.
 """
 
 from __future__ import annotations
@@ -102,6 +103,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     )  # fmt: skip
     _linearization(p, "both")
     _gate(p)
+    _parallel(p)
     ca.add_json_argument(
         p,
         "print one JSON object; keys: robots.<N>.<linearization>.{mean, median, "
@@ -237,7 +239,9 @@ def cmd_mrclam(args: argparse.Namespace) -> int:
     folder = mrclam_folder(args.dataset)
     lins = LINEARIZATIONS if args.linearization == "both" else (args.linearization,)
     config = dataclasses.replace(MRCLAM_CONFIG, gate=None if args.gate == 0 else args.gate)
-    study = mrclam_consistency(folder, args.noise, tuple(args.robots), lins, config)
+    study = mrclam_consistency(
+        folder, args.noise, tuple(args.robots), lins, config, jobs=args.jobs, dask=args.dask
+    )
     out = study.as_dict()
     if args.plot is not None:
         save_figure(plot_mrclam_nees(study), args.plot)

@@ -9,6 +9,7 @@ import pytest
 
 from ekfslam.analysis import association_stress, parallel, robustness
 from ekfslam.analysis.consistency import compare
+from ekfslam.analysis.mrclam_consistency import mrclam_consistency
 from ekfslam.analysis.parallel import run_tasks
 from ekfslam.cli.main import main
 from ekfslam.errors import ConfigError
@@ -97,3 +98,16 @@ def test_monte_carlo_is_the_same_on_a_dask_cluster():
     for a, b in zip(here, on_dask, strict=True):
         _same_consistency(a, b)
     assert stress.cases == association_stress.stress_study(2, 2, jobs=1).cases
+
+
+@pytest.mark.shared_data
+def test_mrclam_robots_are_the_same_on_one_and_two_processes(mrclam7):
+    one = mrclam_consistency(mrclam7, "map", (2, 4), ("standard", "fej"), jobs=1)
+    two = mrclam_consistency(mrclam7, "map", (2, 4), ("standard", "fej"), jobs=2)
+    assert [(r.robot, r.linearization) for r in two.runs] == [
+        (2, "standard"), (2, "fej"), (4, "standard"), (4, "fej")
+    ]  # fmt: skip
+    assert one.as_dict() == two.as_dict()
+    for a, b in zip(one.runs, two.runs, strict=True):
+        np.testing.assert_array_equal(a.nees, b.nees)
+        np.testing.assert_array_equal(a.error, b.error)
