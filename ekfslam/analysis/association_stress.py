@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from ekfslam.analysis import association as assoc
 from ekfslam.analysis.evaluation import summarize
+from ekfslam.analysis.parallel import run_tasks
 from ekfslam.core.association import UNPAIRED, AssociationConfig
 from ekfslam.pipeline import replay
 from ekfslam.sim.scenarios import noise_for_simulation, scenario
@@ -81,46 +82,59 @@ class StressStudy:
         return out
 
 
-def stress_study(runs: int = 1, first_seed: int = 2) -> StressStudy:
-    """Replay `runs` stress runs (seeds first_seed, first_seed + 1 ...) with known, nn, jcbb."""
+def stress_study(
+    runs: int = 1, first_seed: int = 2, jobs: int | None = 1, dask: str | None = None
+) -> StressStudy:
+    """Replay `runs` stress runs (seeds first_seed, first_seed + 1 ...) with known, nn, jcbb.
+
+    jobs, dask : where the runs go (`ekfslam.analysis.parallel.run_tasks`, one task per seed;
+    the same numbers whatever the backend).
+    """
     if runs < 1:
         raise ValueError(f"runs must be at least 1, got {runs}")
     seeds = list(range(first_seed, first_seed + runs))
-    cases: dict[str, list[StressCase]] = {m: [] for m in METHODS}
-    detections: list[int] = []
+    done = run_tasks(_stress_run, [(seed, k == 0) for k, seed in enumerate(seeds)], jobs, dask)
+    cases = {m: [d[0][m] for d in done] for m in METHODS}
+    detections = [d[1] for d in done]
+    wrong, tags, path = done[0][2]
+    return StressStudy(seeds, cases, detections, tags, path, wrong)
+
+
+def _stress_run(seed: int, first: bool):
+    """One task of `stress_study`: ({method: StressCase}, detections, the first run's picture).
+
+    The picture (wrong segments per method, tag map, true path) only when `first`, else empty.
+    """
+    config, arena = scenario("stress", seed=seed)
+    run = simulate(config, arena)
+    noise = noise_for_simulation(config)
+    cases: dict[str, StressCase] = {}
     wrong: dict[str, Array] = {}
+    for method in METHODS:
+        if method == "known":
+            result = replay(run, noise)
+            found = None
+        else:
+            result = replay(run, noise, association=AssociationConfig(method=method))
+            result, found = assoc.score(run, result)
+            if first:
+                wrong[method] = wrong_segments(run, result.association.estimated, found.mapping)
+        alignment = summarize(run, result).alignment
+        cases[method] = StressCase(
+            method=method,
+            correct_fraction=1.0 if found is None else found.correct_fraction,
+            correct=len(run.detections.t) if found is None else found.correct,
+            wrong=0 if found is None else found.wrong,
+            missed=0 if found is None else found.missed,
+            aligned_error=None if alignment is None else float(alignment.mean_error),
+            landmarks=len(result.landmarks),
+        )
     tags: dict[int, Array] = {}
     path = np.zeros((0, 2))
-    for k, seed in enumerate(seeds):
-        config, arena = scenario("stress", seed=seed)
-        run = simulate(config, arena)
-        noise = noise_for_simulation(config)
-        detections.append(len(run.detections.t))
-        for method in METHODS:
-            if method == "known":
-                result = replay(run, noise)
-                found = None
-            else:
-                result = replay(run, noise, association=AssociationConfig(method=method))
-                result, found = assoc.score(run, result)
-                if k == 0:
-                    wrong[method] = wrong_segments(run, result.association.estimated, found.mapping)
-            alignment = summarize(run, result).alignment
-            cases[method].append(
-                StressCase(
-                    method=method,
-                    correct_fraction=1.0 if found is None else found.correct_fraction,
-                    correct=len(run.detections.t) if found is None else found.correct,
-                    wrong=0 if found is None else found.wrong,
-                    missed=0 if found is None else found.missed,
-                    aligned_error=None if alignment is None else float(alignment.mean_error),
-                    landmarks=len(result.landmarks),
-                )
-            )
-        if k == 0:
-            tags = {int(i): np.asarray(p, dtype=float) for i, p in run.meta.tag_map.items()}
-            path = np.asarray(run.groundtruth.pose[:, :2], dtype=float)
-    return StressStudy(seeds, cases, detections, tags, path, wrong)
+    if first:
+        tags = {int(i): np.asarray(p, dtype=float) for i, p in run.meta.tag_map.items()}
+        path = np.asarray(run.groundtruth.pose[:, :2], dtype=float)
+    return cases, len(run.detections.t), (wrong, tags, path)
 
 
 def wrong_segments(run, estimated, mapping: dict[int, int]) -> Array:

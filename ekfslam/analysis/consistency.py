@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import gammaincinv
 
+from ekfslam.analysis.parallel import run_tasks
 from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig, FilterCounts
 from ekfslam.core.filter.history import Outcome
 from ekfslam.core.noise import NoiseConfig
@@ -225,6 +226,8 @@ def monte_carlo(
     gate: float | None = CHI2_2DOF_99,
     first_seed: int = 0,
     wheel_noise_sigma: float | None = None,
+    jobs: int | None = 1,
+    dask: str | None = None,
 ) -> Consistency:
     """Simulate `runs` runs of a scenario (seeds first_seed, first_seed + 1, ...) and average.
 
@@ -232,7 +235,7 @@ def monte_carlo(
     starting at the true start with zero covariance. See `Consistency` for what comes back.
     """
     return compare(name, runs, (linearization,), gate=gate, first_seed=first_seed,
-                   wheel_noise_sigma=wheel_noise_sigma)[0]  # fmt: skip
+                   wheel_noise_sigma=wheel_noise_sigma, jobs=jobs, dask=dask)[0]  # fmt: skip
 
 
 def compare(
@@ -243,28 +246,46 @@ def compare(
     gate: float | None = CHI2_2DOF_99,
     first_seed: int = 0,
     wheel_noise_sigma: float | None = None,
+    jobs: int | None = 1,
+    dask: str | None = None,
 ) -> tuple[Consistency, ...]:
-    """`monte_carlo` for several linearizations on the very same simulated runs."""
+    """`monte_carlo` for several linearizations on the very same simulated runs.
+
+    jobs, dask : where the runs go (`ekfslam.analysis.parallel.run_tasks`): one task per seed,
+    the same numbers whatever the backend (only `seconds` differs).
+    """
     if runs < 1:
         raise ValueError(f"runs must be at least 1, got {runs}")
     configs = [FilterConfig(linearization=lin, gate=gate) for lin in linearizations]
-    errors = [[] for _ in configs]
-    counts = [dict.fromkeys((f.name for f in fields(FilterCounts)), 0) for _ in configs]
-    seconds = [0.0] * len(configs)
-    for i in range(runs):
-        sim, arena = scenario(name, first_seed + i, wheel_noise_sigma)
-        run, noise = simulate(sim, arena), noise_for_simulation(sim)
-        for c, config in enumerate(configs):
-            started = time.perf_counter()
-            result = replay(run, noise, config, start_pose=run.groundtruth.pose[0])
-            errors[c].append(run_errors(run, result))
-            seconds[c] += time.perf_counter() - started
-            for key in counts[c]:
-                counts[c][key] += getattr(result.counts, key)
-    return tuple(
-        _average(name, errors[c], config, counts[c], noise, seconds[c])
-        for c, config in enumerate(configs)
-    )
+    tasks = [(name, first_seed + i, wheel_noise_sigma, configs) for i in range(runs)]
+    done = run_tasks(_one_run, tasks, jobs, dask)
+    noise = done[-1][1]
+    out = []
+    for c, config in enumerate(configs):
+        counts = dict.fromkeys((f.name for f in fields(FilterCounts)), 0)
+        for per_config, _ in done:
+            for key in counts:
+                counts[key] += getattr(per_config[c][1], key)
+        errors = [per_config[c][0] for per_config, _ in done]
+        seconds = sum(per_config[c][2] for per_config, _ in done)
+        out.append(_average(name, errors, config, counts, noise, seconds))
+    return tuple(out)
+
+
+def _one_run(name: str, seed: int, wheel_noise_sigma: float | None, configs: list[FilterConfig]):
+    """One Monte Carlo task: simulate seed, replay it with each config.
+
+    Returns ([(RunErrors, FilterCounts, seconds) per config], the noise the filter got).
+    """
+    sim, arena = scenario(name, seed, wheel_noise_sigma)
+    run, noise = simulate(sim, arena), noise_for_simulation(sim)
+    per_config = []
+    for config in configs:
+        started = time.perf_counter()
+        result = replay(run, noise, config, start_pose=run.groundtruth.pose[0])
+        errors = run_errors(run, result)
+        per_config.append((errors, result.counts, time.perf_counter() - started))
+    return per_config, noise
 
 
 def _average(name, errors, config, counts, noise, seconds) -> Consistency:

@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from ekfslam.analysis.consistency import CONFIDENCE, chi2_band, nees
 from ekfslam.analysis.evaluation import interpolate_poses, summarize
 from ekfslam.analysis.mrclam_tuning import load_robot
+from ekfslam.analysis.parallel import run_tasks
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.mrclam.defaults import MRCLAM_CONFIG, MRCLAM_NOISE
@@ -260,10 +261,13 @@ def mrclam_consistency(
     robots: tuple[int, ...] = ROBOTS,
     linearizations: tuple[str, ...] = LINEARIZATIONS,
     config: FilterConfig = MRCLAM_CONFIG,
+    jobs: int | None = 1,
+    dask: str | None = None,
 ) -> MrclamConsistency:
     """Pose NEES against Vicon for each robot and linearization (0.2-0.6 s per replay).
 
     noise : a NoiseConfig, or a name in `NOISE_SETTINGS` ("map" is `MRCLAM_NOISE`).
+    jobs, dask : where the robots go (`ekfslam.analysis.parallel.run_tasks`, one task each).
     Raises `ekfslam.errors.InputError` for a folder that is not a readable MRCLAM dataset.
     """
     name = noise if isinstance(noise, str) else "custom"
@@ -271,12 +275,14 @@ def mrclam_consistency(
         if noise not in NOISE_SETTINGS:
             raise ValueError(f"noise must be one of {sorted(NOISE_SETTINGS)}, got {noise!r}")
         noise = NOISE_SETTINGS[noise]
-    runs = tuple(
-        robot_nees(load_robot(dataset_dir, robot), noise, lin, config)
-        for robot in robots
-        for lin in linearizations
-    )
+    tasks = [(str(dataset_dir), robot, noise, linearizations, config) for robot in robots]
+    runs = tuple(r for rs in run_tasks(_robot_task, tasks, jobs, dask) for r in rs)
     return MrclamConsistency(str(dataset_dir), name, noise, runs)
+
+
+def _robot_task(dataset_dir, robot, noise, linearizations, config):
+    run = load_robot(dataset_dir, robot)
+    return [robot_nees(run, noise, lin, config) for lin in linearizations]
 
 
 # --------------------------------------------------------------------- tuning for consistency

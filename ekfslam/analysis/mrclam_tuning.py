@@ -9,7 +9,6 @@ closing notes. The optional correction of the logged commands is the dataset's k
 
 from __future__ import annotations
 
-import concurrent.futures  # its ProcessPoolExecutor (and multiprocessing) loads on first use
 import dataclasses
 import itertools
 import math
@@ -21,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ekfslam.analysis.evaluation import summarize
+from ekfslam.analysis.parallel import run_tasks
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.logs.mrclam.calibration import CommandCalibration, calibrate_commands
 from ekfslam.logs.mrclam.defaults import MRCLAM_CONFIG, MRCLAM_NOISE
@@ -146,7 +146,8 @@ def tune_noise(
     base: NoiseConfig | None = None,
     robots: tuple[int, ...] = ROBOTS,
     calibration: CommandCalibration | None = None,
-    workers: int = 1,
+    jobs: int | None = 1,
+    dask: str | None = None,
 ) -> list[TuningRow]:
     """Grid search of the noise on one dataset, minimising the robots' average aligned error.
 
@@ -154,24 +155,23 @@ def tune_noise(
     every robot with the same noise: one setting for all robots, never one per robot. `base`
     gives the fields the grid does not vary (default: sigma_y 0.005 m/√s, the rest NoiseConfig's).
 
+    jobs, dask : where the grid points go (`ekfslam.analysis.parallel.run_tasks`, one task per
+    point; a worker loads each robot once and keeps it for its next points).
+
     Returns the rows sorted best first (by the average over the robots).
     """
     grid = TUNING_GRID if grid is None else grid
     base = base or NoiseConfig(sigma_y=0.005)
     names = list(grid)
     points = [dict(zip(names, values, strict=True)) for values in itertools.product(*grid.values())]
-    jobs = [(str(dataset_dir), dataclasses.replace(base, **p), robots, calibration) for p in points]
-    if workers > 1:
-        with concurrent.futures.ProcessPoolExecutor(workers) as pool:
-            errors = list(pool.map(_grid_point, jobs))
-    else:
-        errors = [_grid_point(job) for job in jobs]
+    folder = str(dataset_dir)
+    tasks = [(folder, dataclasses.replace(base, **p), robots, calibration) for p in points]
+    errors = run_tasks(_grid_point, tasks, jobs, dask)
     rows = [TuningRow(p, e) for p, e in zip(points, errors, strict=True)]
     return sorted(rows, key=lambda r: r.mean)
 
 
-def _grid_point(job: tuple) -> tuple[float, ...]:
-    dataset_dir, noise, robots, calibration = job
+def _grid_point(dataset_dir, noise, robots, calibration) -> tuple[float, ...]:
     return tuple(s.aligned_error for s in score_robots(dataset_dir, noise, robots, calibration))
 
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ekfslam.analysis.alignment import align
+from ekfslam.analysis.parallel import run_tasks
 from ekfslam.core.filter.ekf import CHI2_2DOF_99, EKFSLAM, FilterConfig, FilterCounts
 from ekfslam.geometry import wrap_angle
 from ekfslam.pipeline import replay
@@ -81,6 +82,8 @@ def outlier_study(
     gate: float = CHI2_2DOF_99,
     gate_after: int = FilterConfig.gate_after,
     first_seed: int = 0,
+    jobs: int | None = 1,
+    dask: str | None = None,
 ) -> OutlierStudy:
     """Map error with outliers at `rate`, gate on and off, against the clean run (gate on).
 
@@ -88,7 +91,8 @@ def outlier_study(
     (its range is scaled by U(1.5, 3) or its inverse with probability `rate`); mixed (each at
     rate/2). Each seed gives the same underlying run in every case (the simulator draws the same
     random numbers whatever the rates), so the comparison is paired. The filter gets the
-    scenario's true noise and starts at the true start.
+    scenario's true noise and starts at the true start. jobs, dask : where the runs go
+    (`ekfslam.analysis.parallel.run_tasks`, one task per case and seed; same numbers anywhere).
     """
     kinds = {
         "clean": (0.0, 0.0),
@@ -96,23 +100,20 @@ def outlier_study(
         "range": (0.0, rate),
         "mixed": (rate / 2, rate / 2),
     }
+    gates = (gate, None)
+    tasks = [
+        (name, first_seed + i, wrong, gross, gates, gate_after)
+        for wrong, gross in kinds.values()
+        for i in range(runs)
+    ]
+    done = run_tasks(_outlier_run, tasks, jobs, dask)
     cases: list[OutlierCase] = []
-    for label, (wrong, gross) in kinds.items():
-        prepared = []
-        for i in range(runs):
-            sim, arena = scenario(
-                name, first_seed + i, outlier_wrong_id_rate=wrong, outlier_range_rate=gross
-            )
-            prepared.append((simulate(sim, arena), noise_for_simulation(sim), arena.tag_map()))
-        for g in (gate, None):
-            config = FilterConfig(gate=g, gate_after=gate_after)
-            errors, injected, accepted, rejected = [], 0, 0, 0
-            for run, noise, tags in prepared:
-                result = replay(run, noise, config, start_pose=run.groundtruth.pose[0])
-                errors.append(align(result.landmarks, tags).mean_error)
-                injected += sum(run.meta.simulation["outliers"].values())
-                accepted += result.counts.accepted
-                rejected += result.counts.rejected
+    for k, (label, (wrong, gross)) in enumerate(kinds.items()):
+        per_seed = done[k * runs : (k + 1) * runs]
+        for j, g in enumerate(gates):
+            rows = [seed_rows[j] for seed_rows in per_seed]
+            errors = [r[0] for r in rows]
+            injected, accepted, rejected = (sum(r[m] for r in rows) for m in (1, 2, 3))
             error = float(np.mean(errors))
             clean = cases[0].map_error if cases else error  # the first case is clean, gate on
             cases.append(
@@ -130,6 +131,25 @@ def outlier_study(
                 )
             )
     return OutlierStudy(name, runs, rate, gate_after, tuple(cases))
+
+
+def _outlier_run(name, seed, wrong, gross, gates, gate_after) -> list[tuple[float, int, int, int]]:
+    """One task of `outlier_study`: per gate (map error, injected, accepted, rejected)."""
+    sim, arena = scenario(name, seed, outlier_wrong_id_rate=wrong, outlier_range_rate=gross)
+    run, noise, tags = simulate(sim, arena), noise_for_simulation(sim), arena.tag_map()
+    rows = []
+    for g in gates:
+        config = FilterConfig(gate=g, gate_after=gate_after)
+        result = replay(run, noise, config, start_pose=run.groundtruth.pose[0])
+        rows.append(
+            (
+                align(result.landmarks, tags).mean_error,
+                sum(run.meta.simulation["outliers"].values()),
+                result.counts.accepted,
+                result.counts.rejected,
+            )
+        )
+    return rows
 
 
 # ------------------------------------------------------------------------------------ long run

@@ -11,6 +11,11 @@ One sub-command per study, each with only its own options:
   (`ekfslam.analysis.mrclam_consistency`);
 - ``association [--runs N]``: nn against jcbb with the ids hidden on the stress scenario, and a
   picture of the wrong associations (`ekfslam.analysis.association_stress`).
+
+The Monte Carlo studies (nees, outliers, association) and the robots of ``mrclam`` run on every
+local core by default; ``--jobs 1`` runs them in this process, ``--dask tcp://host:8786`` on a
+Dask cluster (`ekfslam.analysis.parallel`). The numbers are the same for the same seeds whatever
+the backend.
 """
 
 from __future__ import annotations
@@ -55,6 +60,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     _gate(p)
     p.add_argument("--wheel-noise", type=ca.non_negative(10.0, why="rad/s"),
                    help="override the scenario's wheel noise, rad/s")  # fmt: skip
+    _parallel(p)
     ca.add_json_argument(p)
     ca.add_plot_argument(p, "draw the averages and their bands to FILE")
     p.set_defaults(func=cmd_nees)
@@ -70,6 +76,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         "--gate-after", type=ca.whole(1, 10**6), default=FilterConfig.gate_after,
         help="gate_after (default: the filter's, %(default)s)",
     )  # fmt: skip
+    _parallel(p)
     ca.add_json_argument(p)
     p.set_defaults(func=cmd_outliers)
 
@@ -96,6 +103,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     )  # fmt: skip
     _linearization(p, "both")
     _gate(p)
+    _parallel(p)
     ca.add_json_argument(
         p,
         "print one JSON object; keys: robots.<N>.<linearization>.{mean, median, "
@@ -113,6 +121,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
                    help="simulated runs, 1 to 1000 (default 1)")  # fmt: skip
     p.add_argument("--seed", type=ca.seed(), default=2,
                    help="seed of the first run (then +1, +2...; default 2)")  # fmt: skip
+    _parallel(p)
     ca.add_json_argument(p)
     ca.add_plot_argument(p, "draw the first run's wrong associations to FILE")
     p.set_defaults(func=cmd_association)
@@ -122,6 +131,27 @@ def _runs_and_trajectory(p: argparse.ArgumentParser) -> None:
     p.add_argument("--runs", type=ca.whole(1, 10_000), default=50,
                    help="Monte Carlo runs, 1 to 10000 (default 50)")  # fmt: skip
     p.add_argument("--trajectory", choices=SCENARIOS, default="octagon", help="the scenario")
+
+
+def _dask_address(text: str) -> str:
+    scheme, sep, rest = text.partition("://")
+    if not sep or not rest or scheme not in DASK_SCHEMES:
+        raise argparse.ArgumentTypeError(
+            f"a Dask scheduler address is {'|'.join(DASK_SCHEMES)}://HOST:PORT, got {text!r}"
+        )
+    return text
+
+
+DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "inproc")
+
+
+def _parallel(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--jobs", type=ca.whole(1, 4096), default=None, metavar="N",
+                   help="local processes for the runs; 1 runs in this process "
+                   "(default: every core)")  # fmt: skip
+    p.add_argument("--dask", type=ca._name(_dask_address, "address"), metavar="ADDRESS",
+                   help="run on the Dask cluster at ADDRESS (tcp://host:8786; needs "
+                   "pip install 'ekfslam[dask]'); --jobs is then ignored")  # fmt: skip
 
 
 def _linearization(p: argparse.ArgumentParser, default: str) -> None:
@@ -154,7 +184,7 @@ def cmd_nees(args: argparse.Namespace) -> int:
     lins = _linearizations(args)
     results = compare(
         args.trajectory, args.runs, lins, gate=None if args.gate == 0 else args.gate,
-        first_seed=args.seed, wheel_noise_sigma=args.wheel_noise,
+        first_seed=args.seed, wheel_noise_sigma=args.wheel_noise, jobs=args.jobs, dask=args.dask,
     )  # fmt: skip
     out = {r.linearization: r.as_dict() for r in results}
     if args.plot is not None:
@@ -169,7 +199,7 @@ def cmd_outliers(args: argparse.Namespace) -> int:
     gate = None if args.gate == 0 else args.gate
     study = robustness.outlier_study(
         args.trajectory, args.runs, args.rate, gate=gate or CHI2_2DOF_99,
-        gate_after=args.gate_after, first_seed=args.seed,
+        gate_after=args.gate_after, first_seed=args.seed, jobs=args.jobs, dask=args.dask,
     )  # fmt: skip
     lines = [
         f"outliers at {study.rate:.0%} on {study.scenario}, {study.runs} runs: aligned map "
@@ -209,7 +239,9 @@ def cmd_mrclam(args: argparse.Namespace) -> int:
     folder = mrclam_folder(args.dataset)
     lins = LINEARIZATIONS if args.linearization == "both" else (args.linearization,)
     config = dataclasses.replace(MRCLAM_CONFIG, gate=None if args.gate == 0 else args.gate)
-    study = mrclam_consistency(folder, args.noise, tuple(args.robots), lins, config)
+    study = mrclam_consistency(
+        folder, args.noise, tuple(args.robots), lins, config, jobs=args.jobs, dask=args.dask
+    )
     out = study.as_dict()
     if args.plot is not None:
         save_figure(plot_mrclam_nees(study), args.plot)
@@ -222,7 +254,7 @@ def cmd_mrclam(args: argparse.Namespace) -> int:
 
 def cmd_association(args: argparse.Namespace) -> int:
     """known, nn and jcbb on the stress scenario: correct fraction and aligned error."""
-    study = association_stress.stress_study(args.runs, args.seed)
+    study = association_stress.stress_study(args.runs, args.seed, args.jobs, args.dask)
     out = study.as_dict()
     if args.plot is not None:
         out["plot"] = str(save_figure(plot_wrong_associations(study), args.plot))

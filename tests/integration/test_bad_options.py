@@ -160,6 +160,10 @@ CASES: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "convert mrclam dataset ninety-nine": ("convert mrclam 99 --robot 1 --out {tmp}/mr99",
                                            "dataset", ("{tmp}/mr99",)),
     "consistency two modes": ("consistency outliers 0.1 --steps 5", "--steps", ()),
+    "consistency jobs zero": ("consistency nees --jobs 0", "--jobs", ()),
+    "consistency dask without scheme": ("consistency outliers 0.1 --dask localhost:8786", "--dask",
+                                        ()),
+    "consistency dask empty host": ("consistency association --dask tcp://", "--dask", ()),
     # bench
     "bench sizes negative": ("bench --sizes -5 --out {tmp}/bench", "--sizes", ("bench",)),
     "bench sizes zero": ("bench --sizes 0 --out {tmp}/bench", "--sizes", ("bench",)),
