@@ -7,8 +7,10 @@ MRCLAM dataset folder with ``--robot``) and the same noise options (`args.add_no
 from __future__ import annotations
 
 import argparse
+import importlib
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -20,7 +22,9 @@ from ekfslam.errors import InputError
 from ekfslam.logs.frames import has_frames_only
 from ekfslam.logs.mrclam.load import BARCODES, MrclamLoadReport, find_dataset, load_mrclam
 from ekfslam.logs.runlog import RunLog, read_run
-from ekfslam.vision.frames_run import FramesReport, read_frames_run
+
+if TYPE_CHECKING:
+    from ekfslam.vision.frames_run import FramesReport
 
 
 def mrclam_folder(dataset: Path | int) -> Path:
@@ -65,7 +69,9 @@ def load_run(args: argparse.Namespace) -> tuple[RunLog, FramesReport | MrclamLoa
     if getattr(args, "max_range", None) is not None:
         raise InputError(folder, None, "--max-range is only for MRCLAM datasets (no Barcodes.dat)")
     if has_frames_only(folder):
-        run, frames = read_frames_run(folder)
+        # vision.frames_run loads OpenCV (~25 ms): only for a run logged as frames, not every run
+        frames_run = importlib.import_module("ekfslam.vision.frames_run")
+        run, frames = frames_run.read_frames_run(folder)
         return with_start(run, args), frames
     return with_start(read_run(folder), args), None
 

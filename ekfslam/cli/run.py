@@ -6,6 +6,7 @@ import argparse
 import importlib
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ekfslam import pipeline
 from ekfslam.analysis import association as assoc
@@ -16,8 +17,10 @@ from ekfslam.core.association import METHODS, AssociationConfig
 from ekfslam.files import save_figure
 from ekfslam.logs.mrclam.load import MrclamLoadReport
 from ekfslam.logs.runlog import RunLog
-from ekfslam.vision.frames_run import FramesReport
 from ekfslam.viz.tables import association_line, table1_lines
+
+if TYPE_CHECKING:
+    from ekfslam.vision.frames_run import FramesReport
 
 
 def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) -> None:
@@ -102,10 +105,10 @@ def _seed_report(run: RunLog) -> dict | None:
 
 def _detections_source(run: RunLog, report: FramesReport | MrclamLoadReport | None) -> str:
     """Which detections a replay used: detected from frames now, or read from which file."""
-    if isinstance(report, FramesReport):
-        return "frames (detected now)"
     if isinstance(report, MrclamLoadReport):
         return f"Robot{report.robot}_Measurement.dat"
+    if report is not None:  # `load_run` reports only for MRCLAM and for frames detected now
+        return "frames (detected now)"
     if run.meta.frames is not None:  # `detect --in-place` wrote it: the frames are not looked at
         return "detections.csv (not the run's frames; delete it to detect from them)"
     return "detections.csv"
