@@ -4,14 +4,12 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import subprocess
-import sys
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+from ekfslam_cli import run_ekfslam
 
 from ekfslam import FilterConfig, replay, simulate, write_run
 from ekfslam.analysis.consistency import (
@@ -30,12 +28,7 @@ from ekfslam.viz.consistency import plot_consistency
 REPO = Path(__file__).resolve().parents[2]
 
 
-def cli(*args: str) -> subprocess.CompletedProcess:
-    env = {**os.environ, "MPLBACKEND": "Agg"}
-    return subprocess.run(
-        [sys.executable, "-m", "ekfslam", *args],
-        cwd=REPO, capture_output=True, text=True, env=env, timeout=300,
-    )  # fmt: skip
+cli = run_ekfslam
 
 
 # ------------------------------------------------------------------------------ chi-square bands

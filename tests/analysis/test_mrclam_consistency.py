@@ -9,14 +9,12 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import subprocess
-import sys
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from ekfslam_cli import run_ekfslam
 
 from ekfslam.analysis.mrclam_consistency import (
     INTERVAL,
@@ -33,12 +31,9 @@ from ekfslam.viz.consistency import plot_mrclam_nees
 REPO = Path(__file__).resolve().parents[2]
 
 
-def cli(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
-    env = {**os.environ, "MPLBACKEND": "Agg", **(env or {})}
-    return subprocess.run(
-        [sys.executable, "-m", "ekfslam", "consistency", *args],
-        cwd=REPO, capture_output=True, text=True, env=env, timeout=300,
-    )  # fmt: skip
+def cli(*args: str, env: dict | None = None):
+    """``python -m ekfslam consistency ARGS``."""
+    return run_ekfslam("consistency", *args, env=env)
 
 
 # --------------------------------------------------------------- matching Vicon to the filter

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from ekfslam_cli import run_ekfslam
 
 from ekfslam import read_run
 
@@ -18,16 +19,7 @@ REPO = Path(__file__).resolve().parents[2]
 RUNS = REPO / "data" / "runs"
 
 
-def cli(*args: str, cwd: Path = REPO) -> subprocess.CompletedProcess:
-    env = {**os.environ, "MPLBACKEND": "Agg"}
-    return subprocess.run(
-        [sys.executable, "-m", "ekfslam", *args],
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=300,
-    )
+cli = run_ekfslam
 
 
 @pytest.mark.slow

@@ -3,21 +3,15 @@
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
+
+from ekfslam_cli import run_ekfslam
 
 REPO = Path(__file__).resolve().parents[2]
 OCTAGON = REPO / "data" / "runs" / "octagon-2laps"
 
 
-def cli(*args: str) -> subprocess.CompletedProcess:
-    env = {**os.environ, "MPLBACKEND": "Agg"}
-    return subprocess.run(
-        [sys.executable, "-m", "ekfslam", *args],
-        cwd=REPO, capture_output=True, text=True, env=env, timeout=300,
-    )  # fmt: skip
+cli = run_ekfslam
 
 
 def test_jcbb_adds_the_association_block_and_known_does_not():
