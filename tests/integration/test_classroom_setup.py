@@ -43,7 +43,7 @@ def run_cell(monkeypatch, cwd: Path, importable: bool) -> list[list[str]]:
     ran: list[list[str]] = []
     monkeypatch.setattr(subprocess, "run", lambda cmd, **kw: ran.append(cmd))
     real = importlib.util.find_spec
-    fake = lambda name, *a: (real(name, *a) if importable or name != "ekfslam" else None)  # noqa: E731
+    fake = lambda name, *a: real(name, *a) if importable or name != "ekfslam" else None  # noqa: E731
     monkeypatch.setattr(importlib.util, "find_spec", fake)
     monkeypatch.chdir(cwd)
     monkeypatch.setattr("os.chdir", lambda path: None)  # the cell's move into the clone
