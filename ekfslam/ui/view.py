@@ -70,7 +70,7 @@ class TuningView:
         ax.locator_params(nbins=5)  # every tick label is typeset again on every redraw
         ax.set(xlabel="x (m)", ylabel="y (m)", title="map and path (Figure 2)")
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
+        ax.legend(loc="upper right", fontsize=11, framealpha=0.8)
         n = self.nis_ax
         (self.accepted,) = n.plot([], [], ".", color="tab:blue", ms=3, label="accepted")
         (self.rejected,) = n.plot([], [], "x", color="tab:red", ms=4, label="rejected by gate")
@@ -78,7 +78,7 @@ class TuningView:
         n.axhline(math.log10(2.0), color="k", ls="--", lw=1, label="χ²(2) mean = 2")
         n.set(xlabel="time (s)", ylabel="NIS (log scale)", title="NIS of each update (eqs. 13-15)")
         n.grid(True, alpha=0.3)
-        n.legend(loc="upper right", fontsize=7, framealpha=0.8)
+        n.legend(loc="upper right", fontsize=11, framealpha=0.8)
         # The Table 1 header never changes: a suptitle drawn with the background; the row under
         # it is data (typesetting monospace text is a good part of a blitted move).
         self.header = fig.suptitle("", family="monospace", fontsize=TITLE_PT)

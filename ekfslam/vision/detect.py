@@ -293,6 +293,27 @@ def observations_table(
     return np.array(t), np.array(i, dtype=np.int64), np.array(rng), np.array(b)
 
 
+#: Hershey font scale of the overlay labels: about 15 px capitals on a 640 px frame, which a
+#: 9-inch figure shows at 11 pt or more (white on black, readable on a projector)
+LABEL_SCALE = 0.6
+
+
+def label_box(image: NDArray[np.uint8], lines: tuple[str, ...], at: tuple[int, int],
+              size: float) -> None:  # fmt: skip
+    """Draw `lines` white on a black box whose bottom-left is `at` (px), kept inside `image`."""
+    font, pad = cv2.FONT_HERSHEY_SIMPLEX, 3
+    sizes = [cv2.getTextSize(line, font, size, 1) for line in lines]
+    step = max(h + b for (_, h), b in sizes) + pad
+    width = max(w for (w, _), _ in sizes) + 2 * pad
+    height = step * len(lines) + pad
+    x = min(max(0, at[0]), image.shape[1] - width)
+    top = min(max(0, at[1] - 4 - height), image.shape[0] - height)
+    cv2.rectangle(image, (x, top), (x + width, top + height), (0, 0, 0), -1)
+    for k, line in enumerate(lines):
+        baseline = top + step * (k + 1) - sizes[k][1]
+        cv2.putText(image, line, (x + pad, baseline), font, size, (255, 255, 255), 1, cv2.LINE_AA)
+
+
 def annotate(gray: NDArray[np.uint8], result: FrameResult, scale: int = 1) -> NDArray[np.uint8]:
     """An RGB copy of a frame with each accepted tag's corners, id, range and bearing drawn.
 
@@ -311,13 +332,6 @@ def annotate(gray: NDArray[np.uint8], result: FrameResult, scale: int = 1) -> ND
             cv2.circle(image, tuple(p), (3 if k == 0 else 2) << shift, (255, 60, 0),
                        -1 if k == 0 else 1, cv2.LINE_AA, shift)  # fmt: skip
         x, y = px.min(axis=0)
-        label = f"{o.tag_id}: {o.range:.3f} m {math.degrees(o.bearing):+.1f} deg"
-        at, size = (int(x), max(12, int(y) - 6)), 0.4 * max(1, scale / 2)
-        for colour, width in (
-            ((0, 0, 0), 3),
-            ((255, 255, 0), 1),
-        ):  # dark outline: readable on paper
-            cv2.putText(
-                image, label, at, cv2.FONT_HERSHEY_SIMPLEX, size, colour, width, cv2.LINE_AA
-            )
+        lines = (f"tag {o.tag_id}", f"{o.range:.3f} m {math.degrees(o.bearing):+.1f} deg")
+        label_box(image, lines, (int(x), int(y)), LABEL_SCALE * max(1, scale / 2))
     return image

@@ -55,7 +55,7 @@ def plot_consistency(
         ax.yaxis.set_major_formatter(ScalarFormatter())  # 3, not 3 x 10^0
         ax.yaxis.set_minor_formatter(ScalarFormatter())
         ax.grid(True, alpha=0.3, which="both")
-        ax.legend(loc="upper left", fontsize=9)
+        ax.legend(loc="upper left", fontsize=11)
     axes[-1].set_xlabel("time (s)")
     fig.suptitle(title or f"Consistency on the {results[0].scenario} scenario")
     return fig
@@ -85,7 +85,7 @@ def plot_mrclam_nees(study: MrclamConsistency, figsize=None, floor: float = 0.01
         ax.set_yscale("log")
         ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
         ax.set_ylabel("pose NEES")
-        ax.set_title(f"robot {robot}: " + "; ".join(stats), loc="left", fontsize=9)
+        ax.set_title(f"robot {robot}: " + "; ".join(stats), loc="left", fontsize=11)
         ax.grid(True, alpha=0.3, which="major")
     axes[0].set_ylim(bottom=floor)
     axes[-1].set_xlabel("time since the first command (min)")

@@ -138,7 +138,7 @@ def plot_map(
             if alignment is None:  # aligned, they sit on the true ids' dots
                 ax.annotate(
                     str(i), tuple(mean), xytext=(6, 6), textcoords="offset points",
-                    color="tab:red", fontsize=10,
+                    color="tab:red", fontsize=11,
                 )  # fmt: skip
         ax.plot([], [], "-", color="tab:blue", label=f"{confidence:.0%} covariance ellipses")
     if true_start is not None:
@@ -287,8 +287,8 @@ def plot_covariance_matrix(
         limit = float(np.abs(S).max()) or 1.0
         image = ax.imshow(S, cmap="RdBu_r", vmin=-limit, vmax=limit)
     names = state_labels(landmark_ids)[: len(S)]
-    ax.set_xticks(range(len(S)), names, rotation=90, fontsize=7)
-    ax.set_yticks(range(len(S)), names, fontsize=7)
+    ax.set_xticks(range(len(S)), names, rotation=90, fontsize=11)
+    ax.set_yticks(range(len(S)), names, fontsize=11)
     ax.set_xlabel("state entry (eq. 1)")
     ax.set_ylabel("state entry (eq. 1)")
     if title is not None:
@@ -328,7 +328,7 @@ def update_figure(
         if alpha == 1.0 and style == "-":
             for k, i in enumerate(landmark_ids):
                 ax.annotate(str(i), mu[3 + 2 * k : 5 + 2 * k], xytext=(8, 8),
-                            textcoords="offset points", fontsize=9)  # fmt: skip
+                            textcoords="offset points", fontsize=11)  # fmt: skip
         ax.plot([], [], ls=style, color="tab:red", label=f"robot, {tag} (95%)")
         ax.plot([], [], ls=style, color="tab:blue", label=f"landmark {landmark_ids[j]}, {tag}")
 
@@ -368,5 +368,5 @@ def update_figure(
     state(d, mu1, S1, "-", "posterior")
     d.set_title("(d) posterior (eq. 16, Joseph form): ellipses shrink")
     for ax in (a, b, c, d):
-        ax.legend(loc="best", fontsize=8, framealpha=0.85)
+        ax.legend(loc="best", fontsize=11, framealpha=0.85)
     return fig
