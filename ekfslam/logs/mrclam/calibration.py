@@ -1,9 +1,10 @@
 """MRCLAM's logged commands against what the robots did: an optional, documented correction.
 
-The odometry commands of MRCLAM lag the motion Vicon saw and overshoot it. `fit_command_calibration`
-measures one lag and two scales against the ground truth; `calibrate_commands` applies them to a
-run (``python -m ekfslam convert mrclam --calibrate``); `MRCLAM_CALIBRATION` is the fit on
-Dataset 7. Off by default: the filter replays the commands as logged.
+The robots of MRCLAM move after their logged odometry commands, and less far than they say (the
+motion Vicon saw lags the commands and falls short of them). `fit_command_calibration` measures
+one lag and two scales against the ground truth; `calibrate_commands` applies them to a run
+(``python -m ekfslam convert mrclam --calibrate``); `MRCLAM_CALIBRATION` is the fit on Dataset 7.
+Off by default: the filter replays the commands as logged.
 """
 
 from __future__ import annotations

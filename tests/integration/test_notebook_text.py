@@ -1,0 +1,51 @@
+"""The notebooks' prose, read as a student reads it: no word of our own issues or targets, and
+no claim that the code beside it contradicts."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb")) + sorted(
+    (ROOT / "notebooks" / "solutions").glob("*.ipynb")
+)
+
+
+def prose(path: Path) -> str:
+    cells = json.loads(path.read_text(encoding="utf-8"))["cells"]
+    return "\n".join("".join(c["source"]) for c in cells if c["cell_type"] == "markdown")
+
+
+def notebook(name: str) -> str:
+    return prose(ROOT / "notebooks" / name)
+
+
+def test_no_notebook_speaks_of_our_issues_or_targets() -> None:
+    for path in NOTEBOOKS:
+        text = prose(path)
+        found = re.findall(r"[^\n]*\b(?:the issue's|our issue|targets?)\b[^\n]*", text, re.I)
+        assert not found, f"{path.name}: {found}"
+
+
+def test_the_motion_lags_the_commands_not_the_other_way_round() -> None:
+    """calibrate_commands shifts the commands *later*: the motion comes after them."""
+    for path in NOTEBOOKS:
+        assert not re.search(r"commands\s+lag", prose(path)), path.name
+    assert "motion lags" in notebook("09-trust-the-ellipses.ipynb")
+
+
+def test_notebook_10_states_no_lag_its_cells_compute() -> None:
+    assert not re.search(r"\b\d\.\d+\s*s later", notebook("10-real-robots.ipynb"))
+
+
+def test_notebook_11_puts_the_robot_where_its_code_does() -> None:
+    text = notebook("11-pixels-to-range-bearing.ipynb")
+    assert "stands at the arena's centre" not in text and "stands at `pose`" in text
+
+
+def test_notebook_07_does_not_call_its_translations_the_seeds_size() -> None:
+    assert "of the seed's size" not in prose(
+        ROOT / "notebooks" / "solutions" / "07-alignment.ipynb"
+    )
