@@ -49,3 +49,9 @@ def test_notebook_07_does_not_call_its_translations_the_seeds_size() -> None:
     assert "of the seed's size" not in prose(
         ROOT / "notebooks" / "solutions" / "07-alignment.ipynb"
     )
+
+
+def test_notebook_03_says_what_sigma_0_of_eq_2_means() -> None:
+    text = prose(ROOT / "notebooks" / "solutions" / "03-motion-and-prediction.ipynb")
+    assert "eq. (2)" in text and "gauge" in text and "rigid transform" in text
+    assert "eq. (17)" in text and "eq. (12)" in text  # recovered by 17; landmarks enter by 12
