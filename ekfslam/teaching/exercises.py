@@ -1,6 +1,8 @@
 """The notebooks' exercises and their checks: a verdict that says what is wrong, not the answer.
 
-`check_answer` compares a number a student typed in. The `check_*` functions take a function the
+`check_answer` compares a number a student typed in; `check_prediction` compares an outcome the
+student predicted (a word, typed in before the experiment runs) with what the experiment gave, and
+explains it either way. The `check_*` functions take a function the
 student wrote in a notebook (exercises 1-3 of the lab: the mecanum twist of eq. (4) and its
 noise; G, V of eq. (7) with sympy and R = V M Vᵀ; the prediction of eq. (9) in block form; the
 map's exercises are in `ekfslam.teaching.map_exercises`), run it on fixed and random inputs against
@@ -14,7 +16,7 @@ book and filterpy use the reverse).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -65,6 +67,30 @@ def check_answer(answer: object, expected: ArrayLike, atol: float = 1e-6) -> boo
         return False
     print("Right!" if ok else f"Not yet: off by up to {np.max(np.abs(got - want)):.3g}.")
     return ok
+
+
+def check_prediction(prediction: object, outcome: str, choices: Sequence[str], why: str) -> bool:
+    """Compare a predicted outcome with the one the experiment gave, and say why it happened.
+
+    `prediction` is what the student wrote before running the experiment (one of `choices`, or
+    None while unanswered); `outcome` is the choice the experiment's numbers give; `why` is the
+    explanation, shown once a prediction is made, whether it was right or not. Returns True when
+    the prediction matches.
+    """
+    if outcome not in choices:
+        raise ValueError(f"outcome {outcome!r} is not one of {list(choices)}")
+    listed = " or ".join(repr(c) for c in choices)
+    if prediction is None:
+        print(f"Not answered yet: write your prediction ({listed}) before you run the experiment.")
+        return False
+    if prediction not in choices:
+        print(f"Not yet: {prediction!r} is not one of the choices ({listed}).")
+        return False
+    if prediction == outcome:
+        print(f"Right: {outcome}. {why}")
+        return True
+    print(f"Not what happened: you predicted {prediction!r}; the experiment: {outcome!r}. {why}")
+    return False
 
 
 # --- write-it-yourself exercises ----------------------------------------------------------------
