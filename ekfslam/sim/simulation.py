@@ -26,8 +26,9 @@ How a run is made, and why:
    distances `range_scale` times too long and stamps each frame `camera_latency` after it saw.
 
 Random numbers come from `numpy.random.default_rng` children of one `SeedSequence(config.seed)`,
-one child per stage (start, motion, camera, tag placement, slip), and every stage draws the same arrays whatever the rates: the same config
-gives identical arrays, and turning one noise off leaves the others' draws unchanged.
+one child per stage (start, motion, camera, tag placement, slip), and every stage draws the
+same arrays whatever the rates: the same config gives identical arrays, and turning one noise
+off leaves the others' draws unchanged.
 """
 
 from __future__ import annotations
