@@ -20,9 +20,9 @@ How a run is made, and why:
    range and not too edge-on, is detected (unless dropped out) with noisy range and bearing
    (eq. 10). Optional outliers (wrong id, gross range) exercise robust filters.
 4. **Err like a real robot** (all off by default; `ekfslam.sim.config.REALISTIC` turns them on
-   at defensible values). The tags stand off their tag_map places (`true_arena`; run.json
-   keeps the measured map, the truth goes to ``simulation.true_tags``); the wheels have the
-   true radius and wheelbase (`true_robot`), slip and lag their commands; the camera reports
+   at defensible values; `ekfslam.sim.systematic`). The tags stand off their tag_map places
+   (run.json keeps the measured map, the truth goes to ``simulation.true_tags``); the wheels
+   have the true radius and wheelbase, slip and lag their commands; the camera reports
    distances `range_scale` times too long and stamps each frame `camera_latency` after it saw.
 
 Random numbers come from `numpy.random.default_rng` children of one `SeedSequence(config.seed)`,
@@ -33,18 +33,17 @@ off leaves the others' draws unchanged.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ekfslam.core.arena import SEED_ARENA, Arena, Tag
+from ekfslam.core.arena import SEED_ARENA, Arena
 from ekfslam.core.camera import (
     tags_in_view,
 )
-from ekfslam.core.kinematics import MecanumGeometry, twist_to_wheels, wheels_to_twist
+from ekfslam.core.kinematics import twist_to_wheels, wheels_to_twist
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta
 from ekfslam.sim.config import (  # noqa: F401  (re-exported: callers import them from here)
@@ -54,6 +53,7 @@ from ekfslam.sim.config import (  # noqa: F401  (re-exported: callers import the
     SimulationConfig,
     config_from_dict,
 )
+from ekfslam.sim.systematic import first_order, scaled_from_camera, true_arena, true_robot
 
 Array = NDArray[np.float64]
 
@@ -218,18 +218,6 @@ def visible(pose: ArrayLike, arena: Arena, config: SimulationConfig) -> NDArray[
     return in_view & (r >= c.camera_min_range) & (r <= c.camera_max_range)
 
 
-def true_robot(config: SimulationConfig) -> MecanumGeometry:
-    """The robot's true geometry: the nominal one (run.json's) times the radius and wheelbase
-    scales (`wheel_radius_scale`, `wheelbase_scale`)."""
-    c = config
-    if c.wheel_radius_scale == 1.0 and c.wheelbase_scale == 1.0:
-        return c.robot
-    r = c.robot
-    return MecanumGeometry(
-        r.wheel_radius * c.wheel_radius_scale, r.lx * c.wheelbase_scale, r.ly * c.wheelbase_scale
-    )
-
-
 def _true_motion(config: SimulationConfig, plan: CommandPlan, true_start: Array, rng, slip_rng,
                  t_cam):  # fmt: skip
     """True poses at the control times and at the camera times, and the noisy wheel speeds."""
@@ -241,7 +229,7 @@ def _true_motion(config: SimulationConfig, plan: CommandPlan, true_start: Array,
     moving = np.any(cmd != 0.0, axis=1, keepdims=True)
     true_wheels = np.where(moving, cmd * scale + std * normal, 0.0)
     if c.motor_lag:
-        true_wheels = _first_order(true_wheels, c.motor_lag * c.controls_hz)
+        true_wheels = first_order(true_wheels, c.motor_lag * c.controls_hz)
     twist = wheels_to_twist(true_wheels, true_robot(c))
     lost = 2.0 * c.slip_fraction * slip_rng.random((len(cmd), 1))  # drawn whatever the fraction
     if c.slip_fraction:
@@ -265,7 +253,7 @@ def _detect(config: SimulationConfig, arena: Arena, poses: Array, t_cam: Array, 
     r_true = np.hypot(d[..., 0], d[..., 1])
     b_true = np.arctan2(d[..., 1], d[..., 0]) - poses[:, None, 2]
     if c.range_scale != 1.0:
-        r_true, b_true = _scaled_from_camera(r_true, b_true, c.camera_mounting, c.range_scale)
+        r_true, b_true = scaled_from_camera(r_true, b_true, c.camera_mounting, c.range_scale)
     r = r_true + np.hypot(c.range_noise_sigma, c.range_noise_fraction * r_true) * n_range
     b = wrap_angle(b_true + c.bearing_noise_sigma * n_bearing)
     gross = u_range < c.outlier_range_rate
@@ -292,43 +280,6 @@ def _detect(config: SimulationConfig, arena: Arena, poses: Array, t_cam: Array, 
     )
     counts = {"wrong_id": int(wrong.sum()), "range": int((gross & keep).sum())}
     return detections, counts
-
-
-def _first_order(x: Array, tau_steps: float) -> Array:
-    """x (N, k) through a first-order lag of time constant tau_steps control intervals.
-
-    Row k of the result is the lagged value at the end of interval k (the input held over it,
-    from rest), the speed the simulator then holds over that interval.
-    """
-    alpha = 1.0 - math.exp(-1.0 / tau_steps)
-    out = np.empty_like(x)
-    y = np.zeros(x.shape[1])
-    for k, row in enumerate(x):
-        y = y + alpha * (row - y)
-        out[k] = y
-    return out
-
-
-def _scaled_from_camera(r: Array, b: Array, mounting, scale: float) -> tuple[Array, Array]:
-    """Range and bearing from the robot centre of a tag whose distance *from the camera* is
-    reported `scale` times too long, its direction from the camera kept (a tag size or focal
-    length that is off scales the whole camera-frame position: z = f S / s_px)."""
-    mx, my = mounting[0], mounting[1]
-    x, y = r * np.cos(b) - mx, r * np.sin(b) - my  # the tag from the camera, robot axes
-    x, y = mx + scale * x, my + scale * y
-    return np.hypot(x, y), np.arctan2(y, x)
-
-
-def true_arena(config: SimulationConfig, arena: Arena, rng) -> Arena:
-    """Where the tags really are: each tag moved off its map position by N(0, σ²) per axis
-    (σ = `tag_position_sigma`), facing the same way; the arena itself when σ = 0."""
-    offsets = config.tag_position_sigma * rng.standard_normal((len(arena.tags), 2))
-    if config.tag_position_sigma == 0.0:
-        return arena
-    tags = tuple(
-        Tag(t.id, t.position + dxy, t.normal) for t, dxy in zip(arena.tags, offsets, strict=True)
-    )
-    return dataclasses.replace(arena, tags=tags)
 
 
 def simulate(config: SimulationConfig | None = None, arena: Arena = SEED_ARENA) -> RunLog:
