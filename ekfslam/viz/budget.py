@@ -53,8 +53,8 @@ def budget_figure(budgets: Sequence[ErrorBudget], seed_errors: Mapping[str, floa
     """A panel per trajectory: for each source, the map error it makes alone and what fixing it
     saves (realistic minus all but it); the realistic robot's error and the seed's as lines."""
     fig, axes = plt.subplots(
-        1, len(budgets), figsize=(7 * len(budgets), 5.5), layout="constrained", sharey=True,
-        squeeze=False,
+        1, len(budgets), figsize=(7 * len(budgets), 5.5), layout="constrained", sharex=True,
+        sharey=True, squeeze=False,
     )  # fmt: skip
     for ax, b in zip(axes[0], budgets, strict=True):
         names = [r.source for r in b.rows]
