@@ -10,6 +10,12 @@ python -m ekfslam simulate --trajectory square --laps 2 --seed 1 \
     --start-error -0.02 0.05 0.14 --out data/runs/square-2laps --overwrite
 python -m ekfslam simulate --trajectory octagon --laps 2 --seed 2 \
     --start-error -0.04 0.04 0.13 --out data/runs/octagon-2laps --overwrite
+# The same two experiments driven by a realistic robot: the systematic errors of a real
+# classroom robot (ekfslam.sim.config.REALISTIC), whose map errors are the seed's size.
+python -m ekfslam simulate --trajectory square --laps 2 --seed 1 --scenario realistic \
+    --start-error -0.02 0.05 0.14 --out data/runs/square-2laps-realistic --overwrite
+python -m ekfslam simulate --trajectory octagon --laps 2 --seed 2 --scenario realistic \
+    --start-error -0.04 0.04 0.13 --out data/runs/octagon-2laps-realistic --overwrite
 # A run logged as camera frames (see "Runs logged as camera frames" in data/README.md).
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT

@@ -1,5 +1,6 @@
 """The lab's checks that need the replay and the alignment: the replay loop (exercise 8,
-notebook 06) and the alignment of eq. (17) (exercise 9, notebook 07).
+notebook 06) and the alignment of eq. (17) (exercise 9, notebook 07); and notebook 07's
+prediction of the realistic robot's error budget (`check_sources_above`).
 
 They live on the analysis floor because they hold the student's answer to `ekfslam.pipeline.replay`
 and `ekfslam.analysis.alignment`, which the teaching floor may not import; the verdict machinery
@@ -13,6 +14,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ekfslam.analysis.alignment import Alignment, align, align_least_squares, align_mean_distance
+from ekfslam.analysis.error_budget import ErrorBudget
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.noise import NoiseConfig, default_config, default_noise
 from ekfslam.geometry import rotation, wrap_angle
@@ -124,3 +126,31 @@ def check_alignment(align_map: Callable[[Array, Array], object]) -> bool:
             raise Wrong("your transform is not the one of eq. (17): world = R(θ0) X + (x0, y0).")
 
     return attempt("9", check)
+
+
+# --- notebook 07: the realistic robot's error budget, predicted then tested -----------------------
+
+
+def check_sources_above(guess: object, budget: ErrorBudget, threshold: float = 0.01) -> bool:
+    """The prediction of notebook 07: the names of the error sources that alone cost more than
+    `threshold` (m) of map error in `budget`. Told after the budget is shown, so the verdict
+    names each source put on the wrong side with what it costs alone."""
+    if guess is None:
+        print("Not answered yet: put the names you expect above 1 cm in a set and run again.")
+        return False
+    names = {r.source for r in budget.rows}
+    picked = {guess} if isinstance(guess, str) else set(guess)
+    unknown = sorted(str(g) for g in picked - names)
+    if unknown:
+        print(f"Not yet: {unknown} are not sources of the table; they are {sorted(names)}.")
+        return False
+    wrong = [r for r in budget.rows if (r.source in picked) != (r.alone > threshold)]
+    if not wrong:
+        print(f"Right: on the {budget.trajectory} these and only these cost over "
+              f"{100 * threshold:g} cm alone.")  # fmt: skip
+        return True
+    for r in wrong:
+        side = "above" if r.source in picked else "below"
+        print(f"Not quite: you put {r.source} {side} {100 * threshold:g} cm; alone it costs "
+              f"{1000 * r.alone:.0f} mm on the {budget.trajectory}.")  # fmt: skip
+    return False

@@ -8,6 +8,8 @@ import math
 from ekfslam.cli import args as ca
 from ekfslam.core.arena import SEED_ARENA
 from ekfslam.logs.runlog import SIMULATED_DECIMALS, write_run
+from ekfslam.sim.config import REALISTIC_ERRORS
+from ekfslam.sim.scenarios import ROBOTS
 from ekfslam.sim.simulation import SimulationConfig, simulate
 
 #: The simulated path must stay this far inside the seed's arena walls (m).
@@ -36,6 +38,12 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     sim.add_argument(
         "--wheel-scale-sigma", type=ca.non_negative(0.3, why="a 3σ scale must stay positive"),
         help="std of a per-wheel calibration error (a fraction; default 0: none)",
+    )  # fmt: skip
+    sim.add_argument(
+        "--scenario", choices=ROBOTS, default="ideal",
+        help="the robot: ideal (default), or realistic: the systematic errors of a real "
+        "classroom robot (tag placement, range scale, wheel radius and wheelbase, slip, motor "
+        "lag, camera latency; see ekfslam.sim.config.REALISTIC)",
     )  # fmt: skip
     ca.add_run_folder_arguments(sim)
     sim.add_check(_check_path_in_arena)
@@ -68,6 +76,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         kwargs["start_error"] = tuple(args.start_error)
     if args.wheel_scale_sigma is not None:
         kwargs["wheel_scale_sigma"] = args.wheel_scale_sigma
+    if args.scenario == "realistic":
+        kwargs |= REALISTIC_ERRORS
     run = simulate(SimulationConfig(**kwargs))
     write_run(
         run, args.out, overwrite=args.overwrite, overwrite_hint="--overwrite",

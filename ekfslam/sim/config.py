@@ -4,6 +4,7 @@ A run's name says what was simulated ("octagon-2laps" for one of the seed's expe
 `SEED_EXPERIMENTS`, else with what differs); recognising the seed's experiments from a run's
 ``simulation`` block (`seed_experiment`) is the same knowledge, so it lives here too, and the
 scoring (`ekfslam.analysis.evaluation`) asks this module rather than the other way round.
+`REALISTIC` lists the systematic errors of a real classroom robot, each with its value and why.
 `ekfslam.sim.simulation` runs a config and re-exports these names.
 """
 
@@ -31,6 +32,11 @@ from ekfslam.errors import ConfigError
 Array = NDArray[np.float64]
 
 TRAJECTORIES = ("square", "octagon")
+#: The fields of a real robot's systematic errors; at their defaults the robot is ideal.
+SYSTEMATIC_FIELDS = (
+    "tag_position_sigma", "range_scale", "wheel_radius_scale", "wheelbase_scale",
+    "slip_fraction", "camera_latency", "motor_lag",
+)  # fmt: skip
 DEFAULT_SIZE = 0.75  # m: the seed's square side (and octagon size), 1.5 m arena
 
 
@@ -74,6 +80,20 @@ class SimulationConfig:
         range_noise_sigma : m (0.02).  range_noise_fraction : extra std as a fraction of the range
         (0.0); in quadrature.  bearing_noise_sigma : rad (0.02).  dropout : probability that a
         visible tag is missed in a frame (0.1).
+    Systematic errors of a real robot (default off: the ideal robot; `REALISTIC` below gives
+    the values a classroom robot has, and why)
+        tag_position_sigma : std of each tag's true position about its tag_map entry, per axis,
+        m (0.0): the tags were placed, and the map measured, by hand.  range_scale : the
+        camera's distance to a tag is reported this many times too long, along the line of
+        sight from the camera (1.0): a focal length or tag size that is off.
+        wheel_radius_scale : true wheel radius / the nominal one in run.json (1.0).
+        wheelbase_scale : true lx + ly / the nominal one (1.0): how far the rollers' contact
+        points are from the centre.  slip_fraction : mean fraction of the wheels' motion lost
+        to slip while moving, drawn per control interval uniform in [0, 2 slip_fraction] (0.0).
+        camera_latency : s from a frame's exposure to its time stamp (0.0): a detection is
+        stamped later than the robot was where it saw the tag.  motor_lag : s, the time
+        constant of a first-order lag between the commanded wheel speeds (controls.csv) and
+        the wheels' real speeds (0.0).
     Outliers (default off)
         outlier_wrong_id_rate : probability that a detection reports another tag's id, one not
         otherwise reported in that frame (0.0).  outlier_range_rate : probability that its range
@@ -112,6 +132,13 @@ class SimulationConfig:
     dropout: float = 0.1
     outlier_wrong_id_rate: float = 0.0
     outlier_range_rate: float = 0.0
+    tag_position_sigma: float = 0.0
+    range_scale: float = 1.0
+    wheel_radius_scale: float = 1.0
+    wheelbase_scale: float = 1.0
+    slip_fraction: float = 0.0
+    camera_latency: float = 0.0
+    motor_lag: float = 0.0
 
     def __post_init__(self) -> None:
         if self.trajectory not in TRAJECTORIES:
@@ -127,10 +154,13 @@ class SimulationConfig:
         rules = (
             ("laps", lambda v: v == int(v) >= 1, "a positive whole number"),
             ("size controls_hz camera_hz max_speed max_turn_rate max_accel max_angular_accel "
-             "tag_size tag_height camera_max_range max_incidence", lambda v: v > 0, "positive"),
+             "tag_size tag_height camera_max_range max_incidence range_scale wheel_radius_scale "
+             "wheelbase_scale", lambda v: v > 0, "positive"),
             ("heading_gain stop_duration wheel_noise_sigma wheel_noise_fraction wheel_scale_sigma "
              "camera_min_range range_noise_sigma range_noise_fraction bearing_noise_sigma "
-             "view_margin_px", lambda v: v >= 0, "zero or positive"),
+             "view_margin_px tag_position_sigma camera_latency motor_lag", lambda v: v >= 0,
+             "zero or positive"),
+            ("slip_fraction", lambda v: 0 <= v <= 0.5, "a fraction in [0, 0.5]"),
             ("start_error_sigma", lambda v: min(v) >= 0, "zero or positive"),
             ("dropout outlier_wrong_id_rate outlier_range_rate", lambda v: 0 <= v <= 1,
              "a probability in [0, 1]"),
@@ -154,10 +184,16 @@ class SimulationConfig:
         return TagSpec(self.tag_size)
 
     def to_dict(self) -> dict[str, Any]:
-        """Every field as plain JSON types (robot and camera as dicts, tuples as lists)."""
+        """Every field as plain JSON types (robot and camera as dicts, tuples as lists).
+
+        The systematic errors (`SYSTEMATIC_FIELDS`) appear only when they are not ideal, so a
+        run made before they existed is written, and recognised, unchanged.
+        """
         out: dict[str, Any] = {}
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
+            if f.name in SYSTEMATIC_FIELDS and value == f.default:
+                continue
             if isinstance(value, MecanumGeometry | Camera):
                 value = {k: list(v) if isinstance(v, tuple) else v
                          for k, v in dataclasses.asdict(value).items()}  # fmt: skip
@@ -193,6 +229,57 @@ def config_from_dict(data: dict[str, Any]) -> SimulationConfig:
             kwargs[name] = tuple(kwargs[name])
     return SimulationConfig(**kwargs)
 
+
+@dataclass(frozen=True)
+class ErrorSource:
+    """One systematic error of a real robot: the `SimulationConfig` field, its value, and why
+    a student can defend that value."""
+
+    field: str
+    value: float
+    why: str
+
+
+#: The realistic robot: the error sources a classroom robot has, each with a defensible value.
+#: `SimulationConfig(**REALISTIC_ERRORS)` turns them all on; `ekfslam.sim.scenarios.realistic`
+#: builds the seed's experiments with them, and `ekfslam.analysis.error_budget` weighs each.
+REALISTIC: dict[str, ErrorSource] = {
+    "tag placement": ErrorSource(
+        "tag_position_sigma", 0.03,
+        "tags taped to the walls by hand and their map taken with a tape measure: 2-3 cm "
+        "per coordinate",
+    ),
+    "range scale": ErrorSource(
+        "range_scale", 1.05,
+        "a focal length taken from the webcam's datasheet field of view instead of a "
+        "calibration: the distance z = f S / s_px comes out 3-5 % long",
+    ),
+    "wheel radius": ErrorSource(
+        "wheel_radius_scale", 1.015,
+        "the nominal 30 mm radius against the real rollers' rolling radius, read with a "
+        "ruler to half a millimetre: 1-2 %",
+    ),
+    "wheelbase": ErrorSource(
+        "wheelbase_scale", 1.03,
+        "mecanum rollers touch the floor off the wheels' centre planes, so the effective "
+        "lx + ly differs from the ruler's by 2-4 %",
+    ),
+    "wheel slip": ErrorSource(
+        "slip_fraction", 0.02,
+        "mecanum rollers on a smooth classroom floor lose a few % of the motion, at random",
+    ),
+    "motor lag": ErrorSource(
+        "motor_lag", 0.3,
+        "controls.csv holds the commanded wheel speeds, and small gear motors reach a new "
+        "speed in a few tenths of a second: MRCLAM's robots lag their commands by 0.25-0.30 s",
+    ),
+    "camera latency": ErrorSource(
+        "camera_latency", 0.3,
+        "a USB webcam buffers a frame or two (0.1-0.2 s at 10 Hz) and the tag detector on a "
+        "small computer takes about 0.1 s: 0.2-0.3 s from exposure to time stamp",
+    ),
+}  # fmt: skip
+REALISTIC_ERRORS: dict[str, float] = {s.field: s.value for s in REALISTIC.values()}
 
 #: The seed's two experiments as data/runs/generate.sh simulates them: two laps of each path,
 #: with fixed seeds and placement errors of the size the seed's Table 1 reports. Their replays
@@ -247,6 +334,13 @@ def run_name(config: SimulationConfig) -> str:
         parts.append("start" + ",".join(f"{v:g}" for v in c.start_error))
     if c.wheel_scale_sigma != 0.0:
         parts.append(f"wheelscale{c.wheel_scale_sigma:g}")
+    systematic = {k: v for k, v in c.to_dict().items() if k in SYSTEMATIC_FIELDS}
+    if systematic:
+        ideal = dataclasses.replace(c, **{k: getattr(SimulationConfig, k) for k in systematic})
+        realistic = systematic == REALISTIC_ERRORS
+        if realistic and same_experiment(ideal.to_dict(), SEED_EXPERIMENTS.get(base)):
+            return f"{base}-realistic"  # the seed's experiment on the realistic robot
+        parts.append("realistic" if realistic else "systematic")
     return "-".join(parts)
 
 
@@ -254,11 +348,18 @@ def seed_experiment(simulation: dict[str, Any] | None) -> str | None:
     """The trajectory ("square" / "octagon") if a run is one of the seed's experiments, else None.
 
     Decided by the run's ``simulation.config`` (run.json), not by its name: a run renamed, or
-    a different run named like one, is judged by what was simulated.
+    a different run named like one, is judged by what was simulated. The seed's experiment
+    driven by the realistic robot (`REALISTIC_ERRORS`, "square-2laps-realistic") counts too:
+    it is the same experiment on a robot like the seed's.
     """
     config = (simulation or {}).get("config")
     if not isinstance(config, dict):
         return None
+    systematic = {k: config[k] for k in SYSTEMATIC_FIELDS if k in config}
+    if systematic:
+        if not _close(systematic, REALISTIC_ERRORS):
+            return None
+        config = {k: v for k, v in config.items() if k not in systematic}
     for kwargs in SEED_EXPERIMENTS.values():
         if same_experiment(config, kwargs):
             return str(kwargs["trajectory"])

@@ -19,10 +19,16 @@ How a run is made, and why:
    mounting: `ekfslam.core.camera.tags_in_view`, the rule the vision evaluation counts by), within
    range and not too edge-on, is detected (unless dropped out) with noisy range and bearing
    (eq. 10). Optional outliers (wrong id, gross range) exercise robust filters.
+4. **Err like a real robot** (all off by default; `ekfslam.sim.config.REALISTIC` turns them on
+   at defensible values; `ekfslam.sim.systematic`). The tags stand off their tag_map places
+   (run.json keeps the measured map, the truth goes to ``simulation.true_tags``); the wheels
+   have the true radius and wheelbase, slip and lag their commands; the camera reports
+   distances `range_scale` times too long and stamps each frame `camera_latency` after it saw.
 
 Random numbers come from `numpy.random.default_rng` children of one `SeedSequence(config.seed)`,
-one child per stage, and every stage draws the same arrays whatever the rates: the same config
-gives identical arrays, and turning one noise off leaves the others' draws unchanged.
+one child per stage (start, motion, camera, tag placement, slip), and every stage draws the
+same arrays whatever the rates: the same config gives identical arrays, and turning one noise
+off leaves the others' draws unchanged.
 """
 
 from __future__ import annotations
@@ -42,10 +48,12 @@ from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta
 from ekfslam.sim.config import (  # noqa: F401  (re-exported: callers import them from here)
     DEFAULT_SIZE,
+    SYSTEMATIC_FIELDS,
     TRAJECTORIES,
     SimulationConfig,
     config_from_dict,
 )
+from ekfslam.sim.systematic import first_order, scaled_from_camera, true_arena, true_robot
 
 Array = NDArray[np.float64]
 
@@ -210,7 +218,8 @@ def visible(pose: ArrayLike, arena: Arena, config: SimulationConfig) -> NDArray[
     return in_view & (r >= c.camera_min_range) & (r <= c.camera_max_range)
 
 
-def _true_motion(config: SimulationConfig, plan: CommandPlan, true_start: Array, rng, t_cam):
+def _true_motion(config: SimulationConfig, plan: CommandPlan, true_start: Array, rng, slip_rng,
+                 t_cam):  # fmt: skip
     """True poses at the control times and at the camera times, and the noisy wheel speeds."""
     c = config
     cmd = plan.wheels
@@ -219,7 +228,12 @@ def _true_motion(config: SimulationConfig, plan: CommandPlan, true_start: Array,
     std = np.hypot(c.wheel_noise_sigma, c.wheel_noise_fraction * np.abs(cmd))
     moving = np.any(cmd != 0.0, axis=1, keepdims=True)
     true_wheels = np.where(moving, cmd * scale + std * normal, 0.0)
-    twist = wheels_to_twist(true_wheels, c.robot)
+    if c.motor_lag:
+        true_wheels = first_order(true_wheels, c.motor_lag * c.controls_hz)
+    twist = wheels_to_twist(true_wheels, true_robot(c))
+    lost = 2.0 * c.slip_fraction * slip_rng.random((len(cmd), 1))  # drawn whatever the fraction
+    if c.slip_fraction:
+        twist = twist * (1.0 - lost)
     # split the control intervals at camera times, so the camera sees the exact true pose
     events = np.union1d(plan.t, t_cam)
     k = np.searchsorted(plan.t, events[:-1], side="right") - 1
@@ -238,6 +252,8 @@ def _detect(config: SimulationConfig, arena: Arena, poses: Array, t_cam: Array, 
     d = arena.tag_positions()[None, :, :] - poses[:, None, :2]
     r_true = np.hypot(d[..., 0], d[..., 1])
     b_true = np.arctan2(d[..., 1], d[..., 0]) - poses[:, None, 2]
+    if c.range_scale != 1.0:
+        r_true, b_true = scaled_from_camera(r_true, b_true, c.camera_mounting, c.range_scale)
     r = r_true + np.hypot(c.range_noise_sigma, c.range_noise_fraction * r_true) * n_range
     b = wrap_angle(b_true + c.bearing_noise_sigma * n_bearing)
     gross = u_range < c.outlier_range_rate
@@ -282,8 +298,9 @@ def simulate(config: SimulationConfig | None = None, arena: Arena = SEED_ARENA) 
     the outlier counts and the whole config.
     """
     c = config if config is not None else SimulationConfig()
-    start_rng, motion_rng, camera_rng = (
-        np.random.default_rng(s) for s in np.random.SeedSequence(c.seed).spawn(3)
+    # later stages take later children: spawn(5)[:3] are spawn(3), so older runs stay the same
+    start_rng, motion_rng, camera_rng, tag_rng, slip_rng = (
+        np.random.default_rng(s) for s in np.random.SeedSequence(c.seed).spawn(5)
     )
     drawn = np.asarray(c.start_error_sigma) * start_rng.standard_normal(3)
     start_error = np.asarray(c.start_error if c.start_error is not None else drawn, dtype=float)
@@ -292,14 +309,18 @@ def simulate(config: SimulationConfig | None = None, arena: Arena = SEED_ARENA) 
     true_start[2] = wrap_angle(true_start[2])
     plan = plan_commands(c, nominal)
     t_cam = np.arange(math.floor(plan.t[-1] * c.camera_hz + 1e-9) + 1) / c.camera_hz
-    truth, cam_poses = _true_motion(c, plan, true_start, motion_rng, t_cam)
-    detections, outliers = _detect(c, arena, cam_poses, t_cam, camera_rng)
+    # a frame stamped t_cam was exposed camera_latency earlier (not before the log starts)
+    t_exposed = np.maximum(t_cam - c.camera_latency, 0.0) if c.camera_latency else t_cam
+    truth, cam_poses = _true_motion(c, plan, true_start, motion_rng, slip_rng, t_exposed)
+    seen = true_arena(c, arena, tag_rng)
+    detections, outliers = _detect(c, seen, cam_poses, t_cam, camera_rng)
     noise_names = (
         "wheel_noise_sigma", "wheel_noise_fraction", "wheel_scale_sigma", "start_error_sigma",
         "range_noise_sigma", "range_noise_fraction", "bearing_noise_sigma", "dropout",
-        "outlier_wrong_id_rate", "outlier_range_rate",
+        "outlier_wrong_id_rate", "outlier_range_rate", *SYSTEMATIC_FIELDS,
     )  # fmt: skip
-    config_dict = c.to_dict()
+    config_dict = c.to_dict()  # holds the systematic errors only when they are not ideal
+    noise_names = tuple(name for name in noise_names if name in config_dict)
     simulation = {
         "seed": c.seed,
         "trajectory": c.trajectory,
@@ -313,6 +334,8 @@ def simulate(config: SimulationConfig | None = None, arena: Arena = SEED_ARENA) 
         "waypoint_times": plan.t[plan.waypoint_index].tolist(),
         "config": config_dict,
     }
+    if seen is not arena:  # the map in run.json is the measured one; this is the truth
+        simulation["true_tags"] = {str(t.id): t.position.tolist() for t in seen.tags}
     meta = RunMeta(
         name=c.name,
         source="simulated",

@@ -78,6 +78,7 @@ CASES: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "simulate wheel-scale negative": (f"{SIM} --wheel-scale-sigma -0.1", "--wheel-scale-sigma",
                                       ("sim",)),
     "simulate wheel-scale huge": (f"{SIM} --wheel-scale-sigma 5", "--wheel-scale-sigma", ("sim",)),
+    "simulate scenario unknown": (f"{SIM} --scenario perfect", "--scenario", ("sim",)),
     "simulate out is a file": ("simulate --trajectory square --out {file}", "--out", ()),
     "simulate out under a file": ("simulate --trajectory square --out {file}/r", "--out", ()),
     "simulate out not empty": ("simulate --trajectory square --out {run}", "--overwrite", ()),

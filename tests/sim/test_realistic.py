@@ -1,0 +1,165 @@
+"""The realistic robot's systematic errors (ekfslam.sim.config.REALISTIC): each does what it says,
+checked against ground truth with independent code, and all of them off is the ideal robot."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ekfslam.analysis.evaluation import summarize
+from ekfslam.core.arena import SEED_ARENA
+from ekfslam.core.kinematics import wheels_to_twist
+from ekfslam.errors import ConfigError
+from ekfslam.logs.runlog import read_run
+from ekfslam.pipeline import replay
+from ekfslam.sim.config import (
+    REALISTIC,
+    REALISTIC_ERRORS,
+    SEED_EXPERIMENTS,
+    SYSTEMATIC_FIELDS,
+    seed_experiment,
+)
+from ekfslam.sim.scenarios import realistic
+from ekfslam.sim.simulation import SimulationConfig, integrate_twist, simulate, true_robot
+
+RUNS = Path(__file__).resolve().parents[2] / "data" / "runs"
+NOISELESS = dict(
+    trajectory="square", laps=1, seed=4, wheel_noise_sigma=0.0, wheel_noise_fraction=0.0,
+    start_error=(0.0, 0.0, 0.0), range_noise_sigma=0.0, bearing_noise_sigma=0.0, dropout=0.0,
+)  # fmt: skip
+
+
+def _truth_at(run, t):
+    """Ground truth (at the control times) at times t that are control times."""
+    k = np.searchsorted(run.groundtruth.t, t - 1e-9)
+    assert np.allclose(run.groundtruth.t[k], t, atol=1e-9)
+    return run.groundtruth.pose[k]
+
+
+def _range_bearing(pose, tags):
+    d = tags - pose[:, :2]
+    b = np.arctan2(d[:, 1], d[:, 0]) - pose[:, 2]
+    return np.hypot(d[:, 0], d[:, 1]), (b + np.pi) % (2 * np.pi) - np.pi
+
+
+def test_every_source_is_a_documented_field_whose_default_is_the_ideal_robot():
+    ideal = SimulationConfig()
+    assert {s.field for s in REALISTIC.values()} == set(SYSTEMATIC_FIELDS)
+    for source in REALISTIC.values():
+        assert getattr(ideal, source.field) in (0.0, 1.0)
+        assert source.field in SimulationConfig.__doc__ and len(source.why) > 40
+    assert not set(SYSTEMATIC_FIELDS) & set(ideal.to_dict())  # old run.json files unchanged
+    explicit = SimulationConfig(**{f: getattr(ideal, f) for f in SYSTEMATIC_FIELDS})
+    a, b = simulate(ideal), simulate(explicit)
+    assert np.array_equal(a.detections.range, b.detections.range)
+    assert np.array_equal(a.groundtruth.pose, b.groundtruth.pose)
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [("range_scale", 0.0), ("wheel_radius_scale", -1.0), ("wheelbase_scale", 0.0),
+     ("slip_fraction", 0.7), ("camera_latency", -0.1), ("motor_lag", -1.0),
+     ("tag_position_sigma", -0.01)],
+)  # fmt: skip
+def test_a_bad_systematic_error_is_refused_by_name(field, value):
+    with pytest.raises(ConfigError, match=f"SimulationConfig.{field} must be"):
+        SimulationConfig(**{field: value})
+
+
+def test_tags_stand_off_their_map_and_the_camera_sees_where_they_are():
+    run = simulate(SimulationConfig(**NOISELESS, tag_position_sigma=0.03))
+    true_tags = {int(k): np.array(v) for k, v in run.meta.simulation["true_tags"].items()}
+    offsets = np.array([true_tags[i] - run.meta.tag_map[i] for i in sorted(true_tags)])
+    for i, p in SEED_ARENA.tag_map().items():  # run.json keeps the measured (nominal) map
+        assert np.array_equal(run.meta.tag_map[i], p)
+    assert 0.01 < np.sqrt(np.mean(offsets**2)) < 0.06
+    d = run.detections
+    tags = np.array([true_tags[i] for i in d.tag_id])
+    r, b = _range_bearing(_truth_at(run, d.t), tags)
+    np.testing.assert_allclose(d.range, r, atol=1e-9)
+    np.testing.assert_allclose(d.bearing, b, atol=1e-9)
+
+
+def test_a_range_scale_lengthens_the_distance_from_the_camera_not_from_the_centre():
+    run = simulate(SimulationConfig(**NOISELESS, range_scale=1.05))
+    d = run.detections
+    pose = _truth_at(run, d.t)
+    tags = np.array([run.meta.tag_map[i] for i in d.tag_id])
+    cam = pose[:, :2] + 0.06 * np.column_stack([np.cos(pose[:, 2]), np.sin(pose[:, 2])])
+    seen = cam + 1.05 * (tags - cam)  # the tag where the camera reports it
+    r, b = _range_bearing(pose, seen)
+    np.testing.assert_allclose(d.range, r, atol=1e-9)
+    np.testing.assert_allclose(d.bearing, b, atol=1e-9)
+    r0, _ = _range_bearing(pose, tags)
+    assert np.all(d.range > r0) and np.all(d.range < 1.05 * r0)  # the camera is ahead
+
+
+def test_a_late_stamp_shows_the_tags_from_where_the_robot_was_earlier():
+    run = simulate(SimulationConfig(**NOISELESS, camera_latency=0.25))  # 5 control intervals
+    d = run.detections
+    late = d.t >= 0.25
+    tags = np.array([run.meta.tag_map[i] for i in d.tag_id[late]])
+    r, b = _range_bearing(_truth_at(run, d.t[late] - 0.25), tags)
+    np.testing.assert_allclose(d.range[late], r, atol=1e-9)
+    np.testing.assert_allclose(d.bearing[late], b, atol=1e-9)
+
+
+def test_the_true_wheels_carry_the_true_geometry_and_the_nominal_stays_in_run_json():
+    config = SimulationConfig(**NOISELESS, wheel_radius_scale=1.015, wheelbase_scale=1.03)
+    run = simulate(config)
+    robot = true_robot(config)
+    assert run.meta.robot == config.robot
+    assert robot.wheel_radius == pytest.approx(0.030 * 1.015)
+    assert robot.lx + robot.ly == pytest.approx((0.068 + 0.054) * 1.03)
+    twist = wheels_to_twist(run.controls.values, robot)  # noiseless: the commands, executed
+    poses = integrate_twist(run.meta.simulation["true_start"], twist[:-1], np.diff(run.controls.t))
+    np.testing.assert_allclose(run.groundtruth.pose[:, :2], poses[:, :2], atol=1e-9)
+    commanded = np.sum(wheels_to_twist(run.controls.values, config.robot)[:-1, 2] * 0.05)
+    assert commanded == pytest.approx(1.5 * np.pi, abs=0.01)  # a lap of the square: 3 turns
+    turned = np.unwrap(run.groundtruth.pose[:, 2])[-1] - run.groundtruth.pose[0, 2]
+    assert turned == pytest.approx(commanded * 1.015 / 1.03, rel=1e-9)  # yaw: r / (lx + ly)
+
+
+def test_slip_loses_up_to_twice_its_mean_fraction_and_a_motor_lag_trails_the_commands():
+    nominal = simulate(SimulationConfig(**NOISELESS))
+    path = lambda run: np.sum(np.hypot(*np.diff(run.groundtruth.pose[:, :2], axis=0).T))  # noqa: E731
+    slipped = simulate(SimulationConfig(**NOISELESS, slip_fraction=0.02))
+    assert 0.97 < path(slipped) / path(nominal) < 0.995  # mean loss 2 %, drawn in [0, 4 %]
+    lagged = simulate(SimulationConfig(**NOISELESS, motor_lag=0.3))
+    k = np.argmax(np.any(nominal.controls.values != 0, axis=1))  # the first command to move
+    step = lambda run: np.hypot(*(run.groundtruth.pose[k + 1, :2] - run.groundtruth.pose[k, :2]))  # noqa: E731
+    # after one interval of 0.05 s a lag of 0.3 s has reached 1 - exp(-1/6) of the speed
+    assert step(lagged) / step(nominal) == pytest.approx(1 - np.exp(-0.05 / 0.3), rel=1e-6)
+    assert path(lagged) == pytest.approx(path(nominal), rel=0.02)  # late, but the same path
+
+
+def test_the_realistic_robot_is_the_seeds_experiment_and_is_named_so():
+    config = realistic("octagon")
+    assert config.name == "octagon-2laps-realistic"
+    assert config.seed == SEED_EXPERIMENTS["octagon-2laps"]["seed"] == 2
+    sim = {"config": config.to_dict()}
+    assert seed_experiment(sim) == "octagon"  # the seed's row goes beside it
+    other = dataclasses.replace(config, range_scale=1.2)
+    assert other.name == "octagon-2laps-seed2-start-0.04,0.04,0.13-systematic"
+    assert seed_experiment({"config": other.to_dict()}) is None
+    assert realistic("square", ("range scale",)).to_dict()["range_scale"] == 1.05
+    with pytest.raises(ValueError, match="unknown error sources"):
+        realistic("square", ("gremlins",))
+
+
+@pytest.mark.parametrize("trajectory", ["square", "octagon"])
+def test_the_shipped_realistic_runs_make_the_seeds_size_of_map_error(trajectory):
+    """Table 1 of data/runs/*-2laps-realistic: an average aligned error in the seed's
+    0.10-0.20 m (0.153 m square, 0.130 m octagon), where the ideal robot makes 5 mm."""
+    run = read_run(RUNS / f"{trajectory}-2laps-realistic")
+    config = run.meta.simulation["config"]
+    assert {k: config[k] for k in SYSTEMATIC_FIELDS} == REALISTIC_ERRORS
+    a = summarize(run, replay(run)).alignment
+    assert 0.10 <= a.mean_error <= 0.20
+    assert a.mean_error == pytest.approx(0.113, abs=0.002)
+    assert json.loads((RUNS / f"{trajectory}-2laps-realistic" / "run.json").read_text())[
+        "name"] == f"{trajectory}-2laps-realistic"  # fmt: skip
