@@ -11,9 +11,11 @@ from typing import TYPE_CHECKING
 from ekfslam import pipeline
 from ekfslam.analysis import association as assoc
 from ekfslam.analysis.evaluation import SEED_TABLE1, RunSummary, seed_experiment, summarize
+from ekfslam.analysis.laps import lap_times
 from ekfslam.cli import args as ca
 from ekfslam.cli.common import arena_half_size, load_run, noise_from_args
 from ekfslam.core.association import METHODS, AssociationConfig
+from ekfslam.errors import EkfSlamError
 from ekfslam.files import save_figure
 from ekfslam.logs.mrclam.load import MrclamLoadReport
 from ekfslam.logs.runlog import RunLog
@@ -32,6 +34,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     ca.add_robot_argument(run)
     ca.add_replay_start_arguments(run)
     ca.add_plot_argument(run, "write the seed's Figure 2 for the run to FILE")
+    ca.add_animate_arguments(run)
     ca.add_json_argument(run)
     run.add_argument(
         "--align", choices=["mean_distance", "least_squares"], default="mean_distance",
@@ -52,14 +55,17 @@ def cmd_run(args: argparse.Namespace) -> int:
     run, report = load_run(args)
     noise, config = noise_from_args(args, run)
     hidden = getattr(args, "association", "known") != "known"
+    animate = getattr(args, "animate", None)
+    # only an animation needs copies of the whole state (`Keyframes`); a plain replay keeps none
+    frames = {"keyframes": args.frames or DEFAULT_FRAMES} if animate is not None else {}
     # looked up here: tests may replace it (and, with known ids, call it as before)
     if hidden:
         result = pipeline.replay(
-            run, noise, config, association=AssociationConfig(method=args.association)
+            run, noise, config, association=AssociationConfig(method=args.association), **frames
         )
         result, found = assoc.score(run, result)
     else:
-        result = pipeline.replay(run, noise, config)
+        result = pipeline.replay(run, noise, config, **frames)
     summary = summarize(run, result, method=args.align)
     out = summary.as_dict()
     if hidden:
@@ -77,11 +83,30 @@ def cmd_run(args: argparse.Namespace) -> int:
             alignment_note=summary.alignment_note,
         )  # fmt: skip
         out["plot"] = str(save_figure(fig, args.plot))
+    if animate is not None:
+        out["animation"], out["animation_frames"] = _animate(run, result, animate, args.fps)
     if args.json:
         print(json.dumps(out, indent=2, allow_nan=False))
     else:
         print(_table(summary, out, report))
     return 0
+
+
+#: ``--frames``' default: six seconds at the default 10 frames a second.
+DEFAULT_FRAMES = 60
+
+
+def _animate(run: RunLog, result: pipeline.ReplayResult, path: Path, fps: float | None):
+    """Write the replay's animation to `path`; returns (the path written, its frame count)."""
+    animation = importlib.import_module("ekfslam.viz.animation")  # matplotlib: only when asked
+    try:
+        laps = lap_times(run)
+    except EkfSlamError:  # not a simulated run: no laps to name
+        laps = ()
+    frames = animation.ReplayFrames(
+        run, result, arena_half_size=arena_half_size(run), lap_ends=laps
+    )
+    return str(animation.save_animation(frames, path, fps or 10.0)), len(frames)
 
 
 def _seed_report(run: RunLog) -> dict | None:
@@ -147,4 +172,6 @@ def _table(summary: RunSummary, out: dict, report=None) -> str:
     lines.append(f"replay {summary.seconds * 1e3:.1f} ms")
     if "plot" in out:
         lines.append(f"figure written to {out['plot']}")
+    if "animation" in out:
+        lines.append(f"animation written to {out['animation']} ({out['animation_frames']} frames)")
     return "\n".join(lines)
