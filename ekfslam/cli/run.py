@@ -64,8 +64,10 @@ def cmd_run(args: argparse.Namespace) -> int:
             run, noise, config, association=AssociationConfig(method=args.association), **frames
         )
         result, found = assoc.score(run, result)
+        labels = None if animate is None else _true_labels(result, found.mapping)
     else:
         result = pipeline.replay(run, noise, config, **frames)
+        labels = None
     summary = summarize(run, result, method=args.align)
     out = summary.as_dict()
     if hidden:
@@ -84,7 +86,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         )  # fmt: skip
         out["plot"] = str(save_figure(fig, args.plot))
     if animate is not None:
-        out["animation"], out["animation_frames"] = _animate(run, result, animate, args.fps)
+        out["animation"], out["animation_frames"] = _animate(run, result, animate, args.fps, labels)
     if args.json:
         print(json.dumps(out, indent=2, allow_nan=False))
     else:
@@ -92,19 +94,34 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _true_labels(result: pipeline.ReplayResult, mapping: dict[int, int]) -> list[str]:
+    """Each landmark slot's true id: with hidden ids the filter names its landmarks 0, 1, ..."""
+    assert result.keyframes is not None  # asked for with --animate
+    return [str(mapping[e]) if e in mapping else f"new {e}" for e in result.keyframes.landmark_ids]
+
+
 #: ``--frames``' default: six seconds at the default 10 frames a second.
 DEFAULT_FRAMES = 60
 
 
-def _animate(run: RunLog, result: pipeline.ReplayResult, path: Path, fps: float | None):
-    """Write the replay's animation to `path`; returns (the path written, its frame count)."""
+def _animate(
+    run: RunLog,
+    result: pipeline.ReplayResult,
+    path: Path,
+    fps: float | None,
+    labels: list[str] | None = None,
+) -> tuple[str, int]:
+    """Write the replay's animation to `path`; returns (the path written, its frame count).
+
+    labels: one per landmark slot (`ReplayFrames`' ``landmark_labels``), None for their ids.
+    """
     animation = importlib.import_module("ekfslam.viz.animation")  # matplotlib: only when asked
     try:
         laps = lap_times(run)
     except EkfSlamError:  # not a simulated run: no laps to name
         laps = ()
     frames = animation.ReplayFrames(
-        run, result, arena_half_size=arena_half_size(run), lap_ends=laps
+        run, result, arena_half_size=arena_half_size(run), lap_ends=laps, landmark_labels=labels
     )
     return str(animation.save_animation(frames, path, fps or 10.0)), len(frames)
 

@@ -57,6 +57,8 @@ class ReplayFrames:
     lap_ends : s, times at which laps end (`ekfslam.analysis.laps.lap_times`): the title says
         which lap a frame is in.
     confidence : of the ellipses (0.95 by default, as in the seed's Figure 2).
+    landmark_labels : one per landmark slot, for the correlation matrix; the slots' ids by
+        default (with hidden ids those are the filter's own names: give the true ids instead).
     """
 
     def __init__(
@@ -67,6 +69,7 @@ class ReplayFrames:
         arena_half_size: float | None = None,
         lap_ends: Sequence[float] = (),
         confidence: float = 0.95,
+        landmark_labels: Sequence[str] | None = None,
         figsize: tuple[float, float] = (14.0, 8.5),
         dpi: int = 80,
     ) -> None:
@@ -75,6 +78,10 @@ class ReplayFrames:
             raise ValueError("the replay has no keyframes: replay(run, keyframes=F) records them")
         self.keyframes, self.history = kf, result.history
         self.confidence, self.lap_ends = confidence, np.sort(np.asarray(lap_ends, dtype=float))
+        labels = [str(i) for i in kf.landmark_ids] if landmark_labels is None else landmark_labels
+        if len(labels) != len(kf.landmark_ids):
+            raise ValueError(f"{len(labels)} labels for {len(kf.landmark_ids)} landmarks")
+        self.landmark_labels = list(labels)
         self.figure = fig = Figure(figsize=figsize, dpi=dpi, layout="constrained")
         _OffscreenCanvas(fig)  # no pyplot, no window: safe in tests, scripts and notebooks
         axes = fig.subplot_mosaic(
@@ -145,7 +152,7 @@ class ReplayFrames:
         )
         # one label per block (the robot, then each landmark's two rows): 11 pt fits
         ticks = [1.0] + [3.5 + 2 * j for j in range(len(kf.landmark_ids))]
-        names = ["robot"] + [str(i) for i in kf.landmark_ids]
+        names = ["robot", *self.landmark_labels]
         ax.set_xticks(ticks, names, rotation=90, fontsize=FONT)
         ax.set_yticks(ticks, names, fontsize=FONT)
         for edge in [2.5 + 2 * j for j in range(len(kf.landmark_ids))]:

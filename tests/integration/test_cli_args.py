@@ -10,10 +10,11 @@ import stat
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from PIL import Image
 
-from ekfslam import files
+from ekfslam import files, read_run
 from ekfslam.analysis.bench import BenchConfig
 from ekfslam.cli import args as ca
 from ekfslam.cli.main import main
@@ -264,3 +265,22 @@ def test_run_animate_mp4_without_ffmpeg_is_refused_before_the_work(tmp_path, cap
 
 def _never(*args, **kwargs):
     raise AssertionError("the replay ran although the command line was refused")
+
+
+@pytest.mark.slow
+def test_run_animate_with_hidden_ids_labels_landmarks_by_true_id(tmp_path, monkeypatch):
+    from ekfslam.viz import animation  # matplotlib: only this test needs it
+
+    seen = {}
+
+    def capture(frames, path, fps):
+        seen["labels"], seen["fps"] = frames.landmark_labels, fps
+        return path
+
+    monkeypatch.setattr(animation, "save_animation", capture)
+    square = RUN.parent / "square-2laps"
+    args = ["run", str(square), "--association", "nn", "--animate", str(tmp_path / "a.gif")]
+    assert main([*args, "--frames", "3", "--json"]) == 0
+    ids = np.asarray(read_run(square).detections.tag_id)
+    first_seen = [str(i) for i in dict.fromkeys(ids.tolist())]  # nn gets every one right here
+    assert seen == {"labels": first_seen, "fps": 10.0}

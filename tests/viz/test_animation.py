@@ -115,3 +115,12 @@ def test_an_mp4_is_written_with_ffmpeg(square, tmp_path) -> None:
     path = save_animation(ReplayFrames(square, result, dpi=30), tmp_path / "a.mp4", fps=4)
     head = path.read_bytes()[:12]
     assert head[4:8] == b"ftyp" and path.stat().st_size > 1000
+
+
+def test_landmark_labels_name_the_correlation_blocks(square, framed) -> None:
+    labels = [f"tag {i}" for i in framed.keyframes.landmark_ids]
+    frames = ReplayFrames(square, framed, landmark_labels=labels, dpi=30)
+    shown = [t.get_text() for t in frames.corr_ax.get_xticklabels()]
+    assert shown == ["robot", *labels]
+    with pytest.raises(ValueError, match="1 labels for 8 landmarks"):
+        ReplayFrames(square, framed, landmark_labels=["a"])
