@@ -173,14 +173,15 @@ class ReplayFrames:
         (self.map_sigma_line,) = ax.plot([], [], "o-", color="tab:blue", ms=3,
                                          label="landmarks, mean √trace Σ_ll")  # fmt: skip
         self._robot_sigma = 100.0 * robot
-        t_end = max(float(kf.t[-1]), float(h.t[-1]) if len(h.t) else 0.0)
-        ax.set_xlim(float(kf.t[0]), t_end if t_end > kf.t[0] else kf.t[0] + 1.0)
+        t0 = self.t0 = float(kf.t[0])  # times since the start: MRCLAM's clock is Unix time
+        t_end = max(float(kf.t[-1]), float(h.t[-1]) if len(h.t) else t0) - t0
+        ax.set_xlim(0.0, t_end if t_end > 0 else 1.0)
         top = np.nanmax(np.concatenate([self._robot_sigma, 100.0 * self.landmark_sigma, [1.0]]))
         ax.set_ylim(0.0, 1.1 * top)
         for t in self.lap_ends:
-            ax.axvline(t, color="k", lw=1.0)
-        ax.set_xlabel("time (s)  (black lines: end of each lap)" if len(self.lap_ends)
-                      else "time (s)", fontsize=FONT)  # fmt: skip
+            ax.axvline(t - t0, color="k", lw=1.0)
+        ax.set_xlabel("time since the start (s)" + ("  (black lines: end of each lap)" if len(
+            self.lap_ends) else ""), fontsize=FONT)  # fmt: skip
         ax.set_ylabel("σ (cm)", fontsize=FONT)
         ax.tick_params(labelsize=FONT)
         ax.grid(True, alpha=0.3)
@@ -209,12 +210,12 @@ class ReplayFrames:
                 l = 3 + 2 * j
                 _set_ellipse(ellipse, m[j], S[l : l + 2, l : l + 2], self.confidence)
         self.correlation.set_data(_correlation_image(kf.Sigma[f], d))
-        self.robot_sigma_line.set_data(h.t[:e], self._robot_sigma[:e])
-        self.map_sigma_line.set_data(kf.t[: f + 1], 100.0 * self.landmark_sigma[: f + 1])
+        self.robot_sigma_line.set_data(h.t[:e] - self.t0, self._robot_sigma[:e])
+        self.map_sigma_line.set_data(kf.t[: f + 1] - self.t0, 100.0 * self.landmark_sigma[: f + 1])
         lap = int(np.searchsorted(self.lap_ends, t, side="left")) + 1
         laps = f"lap {min(lap, len(self.lap_ends))} of {len(self.lap_ends)} · " if len(
             self.lap_ends) else ""  # fmt: skip
-        self.title.set_text(f"t = {t:6.1f} s · {laps}{n} landmarks · {kf.detections[f]} "
+        self.title.set_text(f"t = {t - self.t0:6.1f} s · {laps}{n} landmarks · {kf.detections[f]} "
                             "detections used")  # fmt: skip
         return [self.trajectory, self.heading, self.robot, self.robot_ellipse, self.landmarks,
                 *self.landmark_ellipses, self.correlation, self.robot_sigma_line,

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from PIL import Image
@@ -124,3 +126,22 @@ def test_landmark_labels_name_the_correlation_blocks(square, framed) -> None:
     assert shown == ["robot", *labels]
     with pytest.raises(ValueError, match="1 labels for 8 landmarks"):
         ReplayFrames(square, framed, landmark_labels=["a"])
+
+
+def test_times_are_shown_since_the_start(square, framed, frames) -> None:
+    # MRCLAM's clock is Unix time: 1.2e9 s on the caption and axis said nothing
+    shift = 1.248e9
+    h, kf = framed.history, framed.keyframes
+    late = dataclasses.replace(
+        framed,
+        history=dataclasses.replace(h, t=h.t + shift),
+        keyframes=dataclasses.replace(kf, t=kf.t + shift),
+    )
+    later = ReplayFrames(square, late, lap_ends=lap_times(square) + shift, dpi=30)
+    f = len(frames) // 2
+    frames.draw(f)
+    later.draw(f)
+    assert later.title.get_text() == frames.title.get_text()
+    assert f"t = {kf.t[f] - kf.t[0]:6.1f} s" in later.title.get_text()
+    np.testing.assert_allclose(later.sigma_ax.get_xlim(), frames.sigma_ax.get_xlim(), atol=1e-6)
+    assert later.sigma_ax.get_xlim()[0] == 0.0
