@@ -32,6 +32,8 @@ PLOT_FORMATS: tuple[str, ...] = (".png", ".pdf", ".svg")
 ANIMATION_FORMATS: tuple[str, ...] = (".gif", ".mp4")
 #: ``--frames``' bound: each frame keeps a copy of the state's covariance until it is drawn.
 MAX_FRAMES = 1000
+#: ``--frames`` and ``--fps`` when not given: six seconds of animation.
+DEFAULT_FRAMES, DEFAULT_FPS = 60, 10.0
 #: Upper bounds of the noise options: beyond them σ² dt, and Σ, lose every digit of the poses.
 MAX_MOTION_SIGMA = 10.0  # m/√s and rad/√s
 MAX_RANGE_SIGMA = 100.0  # m
@@ -364,10 +366,11 @@ def add_animate_arguments(p: Parser) -> None:
         "through ffmpeg, found on PATH or from `pip install imageio-ffmpeg`)",
     )  # fmt: skip
     p.add_argument("--fps", type=real(1.0, 60.0, why="what a player shows"), metavar="F",
-                   help="--animate's frames per second (default 10)")  # fmt: skip
+                   help=f"--animate's frames per second (default {DEFAULT_FPS:g})")  # fmt: skip
     p.add_argument(
         "--frames", type=whole(2, MAX_FRAMES, why="each frame keeps a copy of Σ"), metavar="N",
-        help="--animate's number of frames, spread evenly over the detections (default 60)",
+        help="--animate's number of frames, spread evenly over the detections (default "
+        f"{DEFAULT_FRAMES})",
     )  # fmt: skip
 
     def check(args: argparse.Namespace) -> str | None:

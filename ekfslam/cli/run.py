@@ -57,7 +57,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     hidden = getattr(args, "association", "known") != "known"
     animate = getattr(args, "animate", None)
     # only an animation needs copies of the whole state (`Keyframes`); a plain replay keeps none
-    frames = {"keyframes": args.frames or DEFAULT_FRAMES} if animate is not None else {}
+    frames = {"keyframes": args.frames or ca.DEFAULT_FRAMES} if animate is not None else {}
     # looked up here: tests may replace it (and, with known ids, call it as before)
     if hidden:
         result = pipeline.replay(
@@ -100,10 +100,6 @@ def _true_labels(result: pipeline.ReplayResult, mapping: dict[int, int]) -> list
     return [str(mapping[e]) if e in mapping else f"new {e}" for e in result.keyframes.landmark_ids]
 
 
-#: ``--frames``' default: six seconds at the default 10 frames a second.
-DEFAULT_FRAMES = 60
-
-
 def _animate(
     run: RunLog,
     result: pipeline.ReplayResult,
@@ -123,7 +119,7 @@ def _animate(
     frames = animation.ReplayFrames(
         run, result, arena_half_size=arena_half_size(run), lap_ends=laps, landmark_labels=labels
     )
-    return str(animation.save_animation(frames, path, fps or 10.0)), len(frames)
+    return str(animation.save_animation(frames, path, fps or ca.DEFAULT_FPS)), len(frames)
 
 
 def _seed_report(run: RunLog) -> dict | None:
