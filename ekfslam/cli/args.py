@@ -15,11 +15,9 @@ write never leaves half a file and keeps the old one (`ekfslam.files`).
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import math
 import os
 import re
-import shutil
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any, NoReturn
@@ -28,12 +26,6 @@ from ekfslam.core.filter.config import CHI2_2DOF_99
 
 #: What ``--plot`` writes (matplotlib infers the format from the suffix; these need no extras).
 PLOT_FORMATS: tuple[str, ...] = (".png", ".pdf", ".svg")
-#: What ``--animate`` writes: a GIF (Pillow, always there) or an MP4 (ffmpeg, see `has_ffmpeg`).
-ANIMATION_FORMATS: tuple[str, ...] = (".gif", ".mp4")
-#: ``--frames``' bound: each frame keeps a copy of the state's covariance until it is drawn.
-MAX_FRAMES = 1000
-#: ``--frames`` and ``--fps`` when not given: six seconds of animation.
-DEFAULT_FRAMES, DEFAULT_FPS = 60, 10.0
 #: Upper bounds of the noise options: beyond them σ² dt, and Σ, lose every digit of the poses.
 MAX_MOTION_SIGMA = 10.0  # m/√s and rad/√s
 MAX_RANGE_SIGMA = 100.0  # m
@@ -349,43 +341,6 @@ def add_plot_argument(p: argparse.ArgumentParser, what: str) -> None:
         help=f"{what}; FILE must end in {', '.join(PLOT_FORMATS)} (no extension is added); "
         "missing folders are created",
     )  # fmt: skip
-
-
-def has_ffmpeg() -> bool:
-    """Whether an MP4 can be written: ffmpeg on PATH, or the imageio-ffmpeg wheel's own binary."""
-    on_path = shutil.which("ffmpeg") is not None
-    return on_path or importlib.util.find_spec("imageio_ffmpeg") is not None
-
-
-def add_animate_arguments(p: Parser) -> None:
-    """``--animate FILE --fps F --frames N``: checked before the work, like ``--plot``."""
-    listed = ", ".join(ANIMATION_FORMATS)
-    p.add_argument(
-        "--animate", type=output_file(ANIMATION_FORMATS), metavar="FILE",
-        help=f"write an animation of the replay to FILE ({listed}: GIF through Pillow, MP4 "
-        "through ffmpeg, found on PATH or from `pip install imageio-ffmpeg`)",
-    )  # fmt: skip
-    p.add_argument("--fps", type=real(1.0, 60.0, why="what a player shows"), metavar="F",
-                   help=f"--animate's frames per second (default {DEFAULT_FPS:g})")  # fmt: skip
-    p.add_argument(
-        "--frames", type=whole(2, MAX_FRAMES, why="each frame keeps a copy of Σ"), metavar="N",
-        help="--animate's number of frames, spread evenly over the detections (default "
-        f"{DEFAULT_FRAMES})",
-    )  # fmt: skip
-
-    def check(args: argparse.Namespace) -> str | None:
-        if args.animate is None:
-            options = (("--fps", args.fps), ("--frames", args.frames))
-            given = [o for o, v in options if v is not None]
-            return f"argument {given[0]}: only with --animate FILE" if given else None
-        if args.animate.suffix.lower() == ".mp4" and not has_ffmpeg():
-            return (
-                "argument --animate: writing .mp4 needs ffmpeg: pip install imageio-ffmpeg "
-                "(or install ffmpeg), or write a .gif"
-            )
-        return None
-
-    p.add_check(check)
 
 
 def add_run_folder_arguments(p: Parser, required: bool = True) -> None:

@@ -11,11 +11,10 @@ from typing import TYPE_CHECKING
 from ekfslam import pipeline
 from ekfslam.analysis import association as assoc
 from ekfslam.analysis.evaluation import SEED_TABLE1, RunSummary, seed_experiment, summarize
-from ekfslam.analysis.laps import lap_times
+from ekfslam.cli import animate as animate_args
 from ekfslam.cli import args as ca
 from ekfslam.cli.common import arena_half_size, load_run, noise_from_args
 from ekfslam.core.association import METHODS, AssociationConfig
-from ekfslam.errors import EkfSlamError
 from ekfslam.files import save_figure
 from ekfslam.logs.mrclam.load import MrclamLoadReport
 from ekfslam.logs.runlog import RunLog
@@ -34,7 +33,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     ca.add_robot_argument(run)
     ca.add_replay_start_arguments(run)
     ca.add_plot_argument(run, "write the seed's Figure 2 for the run to FILE")
-    ca.add_animate_arguments(run)
+    animate_args.add_animate_arguments(run)
     ca.add_json_argument(run)
     run.add_argument(
         "--align", choices=["mean_distance", "least_squares"], default="mean_distance",
@@ -57,14 +56,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     hidden = getattr(args, "association", "known") != "known"
     animate = getattr(args, "animate", None)
     # only an animation needs copies of the whole state (`Keyframes`); a plain replay keeps none
-    frames = {"keyframes": args.frames or ca.DEFAULT_FRAMES} if animate is not None else {}
+    frames = (
+        {"keyframes": args.frames or animate_args.DEFAULT_FRAMES} if animate is not None else {}
+    )
     # looked up here: tests may replace it (and, with known ids, call it as before)
     if hidden:
         result = pipeline.replay(
             run, noise, config, association=AssociationConfig(method=args.association), **frames
         )
         result, found = assoc.score(run, result)
-        labels = None if animate is None else _true_labels(result, found.mapping)
+        labels = None if animate is None else animate_args.true_labels(result, found.mapping)
     else:
         result = pipeline.replay(run, noise, config, **frames)
         labels = None
@@ -86,7 +87,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         )  # fmt: skip
         out["plot"] = str(save_figure(fig, args.plot))
     if animate is not None:
-        out["animation"], out["animation_frames"] = _animate(run, result, animate, args.fps, labels)
+        out["animation"], out["animation_frames"] = animate_args.write_animation(
+            run, result, animate, args.fps, labels
+        )
     if args.json:
         print(json.dumps(out, indent=2, allow_nan=False))
     else:
@@ -98,28 +101,6 @@ def _true_labels(result: pipeline.ReplayResult, mapping: dict[int, int]) -> list
     """Each landmark slot's true id: with hidden ids the filter names its landmarks 0, 1, ..."""
     assert result.keyframes is not None  # asked for with --animate
     return [str(mapping[e]) if e in mapping else f"new {e}" for e in result.keyframes.landmark_ids]
-
-
-def _animate(
-    run: RunLog,
-    result: pipeline.ReplayResult,
-    path: Path,
-    fps: float | None,
-    labels: list[str] | None = None,
-) -> tuple[str, int]:
-    """Write the replay's animation to `path`; returns (the path written, its frame count).
-
-    labels: one per landmark slot (`ReplayFrames`' ``landmark_labels``), None for their ids.
-    """
-    animation = importlib.import_module("ekfslam.viz.animation")  # matplotlib: only when asked
-    try:
-        laps = lap_times(run)
-    except EkfSlamError:  # not a simulated run: no laps to name
-        laps = ()
-    frames = animation.ReplayFrames(
-        run, result, arena_half_size=arena_half_size(run), lap_ends=laps, landmark_labels=labels
-    )
-    return str(animation.save_animation(frames, path, fps or ca.DEFAULT_FPS)), len(frames)
 
 
 def _seed_report(run: RunLog) -> dict | None:

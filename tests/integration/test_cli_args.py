@@ -16,6 +16,7 @@ from PIL import Image
 
 from ekfslam import files, read_run
 from ekfslam.analysis.bench import BenchConfig
+from ekfslam.cli import animate as animate_args
 from ekfslam.cli import args as ca
 from ekfslam.cli.main import main
 from ekfslam.core.filter.config import FilterConfig
@@ -255,7 +256,7 @@ def test_run_animate_writes_a_gif_of_the_frames_asked_for(tmp_path, capsys):
 
 
 def test_run_animate_mp4_without_ffmpeg_is_refused_before_the_work(tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr(ca, "has_ffmpeg", lambda: False)
+    monkeypatch.setattr(animate_args, "has_ffmpeg", lambda: False)
     monkeypatch.setattr(sys.modules["ekfslam.pipeline"], "replay", _never)
     assert main(["run", str(RUN), "--animate", str(tmp_path / "a.mp4")]) == 2
     (line,) = capsys.readouterr().err.splitlines()
