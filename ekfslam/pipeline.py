@@ -91,8 +91,8 @@ def replay(
         the end; fewer when the run has fewer detections. None (the default) keeps none and
         costs nothing. An animation's frames (`ekfslam.viz.animation`).
     """
-    if keyframes is not None and (isinstance(keyframes, bool) or int(keyframes) != keyframes
-                                  or keyframes < 2):  # fmt: skip
+    whole = isinstance(keyframes, int | np.integer) and not isinstance(keyframes, bool)
+    if keyframes is not None and not (whole and keyframes >= 2):
         raise ConfigError(f"keyframes must be a whole number >= 2, got {keyframes!r}")
     noise = noise or default_noise(run)
     config = config or default_config(run)
@@ -146,9 +146,9 @@ class _KeyframeTaker:
     """
 
     def __init__(self, ekf: EKFSLAM, steps: tuple, count: int) -> None:
-        _, _, dts, ends, *_rest = steps
-        self.det_time = steps[7]
-        n = len(self.det_time)
+        _, _, dts, ends, _, _, _, det_time, _, _ = steps  # `_schedule`'s
+        self.det_time = det_time
+        n = len(det_time)
         self.targets = np.unique(np.round(np.linspace(0, n, count - 1)).astype(int)).tolist()
         self.ekf, self.next = ekf, 0
         self.t_start = float(ends[0] - dts[0]) if len(ends) else 0.0
