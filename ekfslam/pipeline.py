@@ -24,7 +24,7 @@ from ekfslam.core.association import AssociationConfig
 from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog
 from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.ekf import EKFSLAM
-from ekfslam.core.filter.history import History
+from ekfslam.core.filter.history import History, KeyframeRecorder, Keyframes
 from ekfslam.core.noise import NoiseConfig, default_config, default_noise
 from ekfslam.errors import ConfigError, EkfSlamError
 from ekfslam.logs.edit import truncate
@@ -46,6 +46,7 @@ class ReplayResult:
     seconds : wall time of the replay loop.
     association : with ids hidden (``nn``, ``jcbb``), every sighting's decision, in the order of
         ``run.detections``; the landmarks are then keyed by estimated id. None for ``known``.
+    keyframes : the full state at evenly spread moments, when `replay` was asked for them.
     """
 
     name: str
@@ -59,6 +60,7 @@ class ReplayResult:
     noise: NoiseConfig = field(default_factory=NoiseConfig)
     config: FilterConfig = field(default_factory=FilterConfig)
     association: AssociationLog | None = None
+    keyframes: Keyframes | None = None
 
 
 def replay(
@@ -69,6 +71,7 @@ def replay(
     start_pose: ArrayLike | None = None,
     start_covariance: ArrayLike | None = None,
     association: AssociationConfig | None = None,
+    keyframes: int | None = None,
 ) -> ReplayResult:
     """Run the EKF over a log and return the estimate with its full history.
 
@@ -83,7 +86,14 @@ def replay(
     association : how sightings are matched to landmarks (`ekfslam.core.association`); with
         ``known`` (the default) the detections' ids, else the ids are hidden from the filter and
         the sightings of each time are associated (`ekfslam.core.filter.associating`).
+    keyframes : how many copies of the full state (μ, Σ) to keep (`History` keeps only the pose
+        block), at least 2: the start, the state after evenly spread numbers of detections, and
+        the end; fewer when the run has fewer detections. None (the default) keeps none and
+        costs nothing. An animation's frames (`ekfslam.viz.animation`).
     """
+    whole = isinstance(keyframes, int | np.integer) and not isinstance(keyframes, bool)
+    if keyframes is not None and not (whole and keyframes >= 2):
+        raise ConfigError(f"keyframes must be a whole number >= 2, got {keyframes!r}")
     noise = noise or default_noise(run)
     config = config or default_config(run)
     pose0 = run.meta.nominal_start if start_pose is None else start_pose
@@ -98,13 +108,16 @@ def replay(
     hidden = association is not None and association.method != "known"
     started = time.perf_counter()  # the schedule counts: it is part of the replay's work
     steps = _schedule(run, noise)
+    taker = None if keyframes is None else _KeyframeTaker(ekf, steps, int(keyframes))
+    pause = None if taker is None else taker.pause
     with np.errstate(all="ignore"):  # an overflow is caught below, once, and said where
         if hidden:
             associating = AssociatingFilter(ekf, association)
-            _feed_hidden(associating, *steps)
+            _feed_hidden(associating, *steps, pause=pause)
         else:
-            _feed(ekf, *steps)
+            _feed(ekf, *steps, pause=pause)
     seconds = time.perf_counter() - started
+    frames = None if taker is None else taker.finish()
     log = associating.finish() if hidden else None
     if not hidden and not (np.isfinite(ekf.mu).all() and np.isfinite(ekf.Sigma).all()):
         # once per replay, O(n²); only on failure is the run fed again, checking every step
@@ -121,7 +134,39 @@ def replay(
         )
     if hidden and not (np.isfinite(ekf.mu).all() and np.isfinite(ekf.Sigma).all()):
         raise NonFiniteStateError(f"run {run.meta.name!r}: the filter state became non-finite")
-    return _result(run, ekf, seconds, noise, config, log)
+    return _result(run, ekf, seconds, noise, config, log, frames)
+
+
+class _KeyframeTaker:
+    """`_feed`'s pause: copies the state when the number of detections used reaches each target.
+
+    Targets: `count` - 1 numbers of detections evenly spread over 0..N (0 is the start, N the
+    state after the last detection), then the end of the run in `finish`. With hidden ids the
+    pause comes only between one time's sightings, so a target inside a group waits for its end.
+    """
+
+    def __init__(self, ekf: EKFSLAM, steps: tuple, count: int) -> None:
+        _, _, dts, ends, _, _, _, det_time, _, _ = steps  # `_schedule`'s
+        self.det_time = det_time
+        n = len(det_time)
+        self.targets = np.unique(np.round(np.linspace(0, n, count - 1)).astype(int)).tolist()
+        self.ekf, self.next = ekf, 0
+        self.t_start = float(ends[0] - dts[0]) if len(ends) else 0.0
+        self.t_end = float(ends[-1]) if len(ends) else self.t_start
+        self.recorder = KeyframeRecorder()
+
+    def pause(self, i: int, done: int) -> None:
+        if self.next < len(self.targets) and self.targets[self.next] <= i:
+            while self.next < len(self.targets) and self.targets[self.next] <= i:
+                self.next += 1
+            t = self.t_start if i == 0 else max(self.t_start, self.det_time[i - 1])
+            self.recorder.take(t, i, self.ekf.mu, self.ekf.Sigma)
+
+    def finish(self) -> Keyframes:
+        ekf = self.ekf
+        t_last = self.det_time[-1] if len(self.det_time) else self.t_start
+        self.recorder.take(max(self.t_end, t_last), len(self.det_time), ekf.mu, ekf.Sigma)
+        return self.recorder.finish(ekf.landmark_ids)
 
 
 def _schedule(run: RunLog, noise: NoiseConfig) -> tuple:
@@ -161,6 +206,7 @@ def _result(
     noise: NoiseConfig,
     config: FilterConfig,
     association: AssociationLog | None = None,
+    keyframes: Keyframes | None = None,
 ) -> ReplayResult:
     ids = ekf.landmark_ids
     return ReplayResult(
@@ -175,6 +221,7 @@ def _result(
         noise=noise,
         config=config,
         association=association,
+        keyframes=keyframes,
     )
 
 
@@ -284,15 +331,29 @@ def _feed(
 
 
 def _feed_hidden(
-    associating: AssociatingFilter, upto, us, dts, ends, M, R, det_id, det_time, det_z, Q
+    associating: AssociatingFilter,
+    upto,
+    us,
+    dts,
+    ends,
+    M,
+    R,
+    det_id,
+    det_time,
+    det_z,
+    Q,
+    pause=None,
 ) -> None:
     """`_feed` without the ids: the detections of one time are associated together.
 
     det_id is not looked at (the filter must not know it); the replay's pieces are the same.
+    pause: as `_feed`'s, called only between one time's sightings and the next.
     """
     ekf = associating.ekf
     done, i, n = 0, 0, len(upto)
     while i < n:
+        if pause is not None:
+            pause(i, done)
         k = i + 1
         while k < n and det_time[k] == det_time[i]:  # one image's (one time's) sightings
             k += 1
@@ -302,6 +363,8 @@ def _feed_hidden(
             done = p
         associating.observe(det_z[i:k], Q, det_time[i])
         i = k
+    if pause is not None:
+        pause(n, done)
     if done < len(us):
         ekf.predict_many(us[done:], dts[done:], ends[done:], M, R)
 

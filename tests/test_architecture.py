@@ -69,6 +69,7 @@ MATPLOTLIB_FLOORS = {"viz", "ui"}
 LAZY_OK = {
     "cv2", "playwright", "rosbags", "ipywidgets", "matplotlib", "pupil_apriltags",
     "distributed",  # the optional extra ekfslam[dask], only for `--dask`
+    "imageio_ffmpeg",  # the optional extra ekfslam[video]: its ffmpeg, only for an MP4
 }  # fmt: skip
 
 # Rules the code breaks on purpose, each with its reason (violation -> why). Empty: the refactor

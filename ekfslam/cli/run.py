@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 from ekfslam import pipeline
 from ekfslam.analysis import association as assoc
 from ekfslam.analysis.evaluation import SEED_TABLE1, RunSummary, seed_experiment, summarize
+from ekfslam.cli import animate as animate_args
 from ekfslam.cli import args as ca
 from ekfslam.cli.common import arena_half_size, load_run, noise_from_args
 from ekfslam.core.association import METHODS, AssociationConfig
@@ -32,6 +33,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     ca.add_robot_argument(run)
     ca.add_replay_start_arguments(run)
     ca.add_plot_argument(run, "write the seed's Figure 2 for the run to FILE")
+    animate_args.add_animate_arguments(run)
     ca.add_json_argument(run)
     run.add_argument(
         "--align", choices=["mean_distance", "least_squares"], default="mean_distance",
@@ -52,14 +54,21 @@ def cmd_run(args: argparse.Namespace) -> int:
     run, report = load_run(args)
     noise, config = noise_from_args(args, run)
     hidden = getattr(args, "association", "known") != "known"
+    animate = getattr(args, "animate", None)
+    # only an animation needs copies of the whole state (`Keyframes`); a plain replay keeps none
+    frames = (
+        {"keyframes": args.frames or animate_args.DEFAULT_FRAMES} if animate is not None else {}
+    )
     # looked up here: tests may replace it (and, with known ids, call it as before)
     if hidden:
         result = pipeline.replay(
-            run, noise, config, association=AssociationConfig(method=args.association)
+            run, noise, config, association=AssociationConfig(method=args.association), **frames
         )
         result, found = assoc.score(run, result)
+        labels = None if animate is None else animate_args.true_labels(result, found.mapping)
     else:
-        result = pipeline.replay(run, noise, config)
+        result = pipeline.replay(run, noise, config, **frames)
+        labels = None
     summary = summarize(run, result, method=args.align)
     out = summary.as_dict()
     if hidden:
@@ -77,11 +86,21 @@ def cmd_run(args: argparse.Namespace) -> int:
             alignment_note=summary.alignment_note,
         )  # fmt: skip
         out["plot"] = str(save_figure(fig, args.plot))
+    if animate is not None:
+        out["animation"], out["animation_frames"] = animate_args.write_animation(
+            run, result, animate, args.fps, labels
+        )
     if args.json:
         print(json.dumps(out, indent=2, allow_nan=False))
     else:
         print(_table(summary, out, report))
     return 0
+
+
+def _true_labels(result: pipeline.ReplayResult, mapping: dict[int, int]) -> list[str]:
+    """Each landmark slot's true id: with hidden ids the filter names its landmarks 0, 1, ..."""
+    assert result.keyframes is not None  # asked for with --animate
+    return [str(mapping[e]) if e in mapping else f"new {e}" for e in result.keyframes.landmark_ids]
 
 
 def _seed_report(run: RunLog) -> dict | None:
@@ -147,4 +166,6 @@ def _table(summary: RunSummary, out: dict, report=None) -> str:
     lines.append(f"replay {summary.seconds * 1e3:.1f} ms")
     if "plot" in out:
         lines.append(f"figure written to {out['plot']}")
+    if "animation" in out:
+        lines.append(f"animation written to {out['animation']} ({out['animation_frames']} frames)")
     return "\n".join(lines)

@@ -60,6 +60,20 @@ CASES: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "run plot under a file": (f"{BAD_RUN} --plot {{file}}/fig.png", "--plot", ()),
     "run plot onto a folder": (f"{BAD_RUN} --plot {{dir}}.png", "--plot", ()),
     "run plot under a file, deeper": (f"{BAD_RUN} --plot {{file}}/a/b.pdf", "--plot", ()),
+    # run: --animate
+    "run animate unknown format": (f"{BAD_RUN} --animate a.avi", "--animate", ("a.avi",)),
+    "run animate png": (f"{BAD_RUN} --animate a.png", "--animate", ("a.png",)),
+    "run animate no extension": (f"{BAD_RUN} --animate movie", "--animate", ("movie",)),
+    "run animate under a file": (f"{BAD_RUN} --animate {{file}}/a.gif", "--animate", ()),
+    "run animate onto a folder": (f"{BAD_RUN} --animate {{dir}}.gif", "--animate", ()),
+    "run animate frames one": (f"{BAD_RUN} --animate a.gif --frames 1", "--frames", ("a.gif",)),
+    "run animate frames huge": (f"{BAD_RUN} --animate a.gif --frames 5000", "--frames", ("a.gif",)),
+    "run animate frames fraction": (f"{BAD_RUN} --animate a.gif --frames 2.5", "--frames", ()),
+    "run animate fps zero": (f"{BAD_RUN} --animate a.gif --fps 0", "--fps", ("a.gif",)),
+    "run animate fps huge": (f"{BAD_RUN} --animate a.gif --fps 1000", "--fps", ("a.gif",)),
+    "run animate fps nan": (f"{BAD_RUN} --animate a.gif --fps nan", "--fps", ("a.gif",)),
+    "run fps without animate": (f"{BAD_RUN} --fps 5", "--fps", ()),
+    "run frames without animate": (f"{BAD_RUN} --frames 5", "--frames", ()),
     # simulate
     "simulate laps zero": (f"{SIM} --laps 0", "--laps", ("sim",)),
     "simulate laps negative": (f"{SIM} --laps -3", "--laps", ("sim",)),
@@ -189,7 +203,7 @@ def scratch(tmp_path_factory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("bad-options")
     run = shutil.copytree(RUN, root / "run")
     (root / "afile").write_text("not a folder\n")
-    for name in ("dir", "dir.png", "dir.csv"):
+    for name in ("dir", "dir.png", "dir.csv", "dir.gif"):
         (root / name).mkdir()
     return {"tmp": root, "run": run, "file": root / "afile", "dir": root / "dir"}
 

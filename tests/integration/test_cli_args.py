@@ -10,10 +10,13 @@ import stat
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
+from PIL import Image
 
-from ekfslam import files
+from ekfslam import files, read_run
 from ekfslam.analysis.bench import BenchConfig
+from ekfslam.cli import animate as animate_args
 from ekfslam.cli import args as ca
 from ekfslam.cli.main import main
 from ekfslam.core.filter.config import FilterConfig
@@ -238,3 +241,47 @@ def test_a_mrclam_dataset_is_a_folder_or_a_number(tmp_path):
     (tmp_path / "f.txt").write_text("x")
     with pytest.raises(argparse.ArgumentTypeError, match="is not a folder"):
         ca.mrclam_dataset(str(tmp_path / "f.txt"))
+
+
+@pytest.mark.slow
+def test_run_animate_writes_a_gif_of_the_frames_asked_for(tmp_path, capsys):
+    movie = tmp_path / "movies" / "octagon.gif"
+    assert main(["run", str(RUN), "--animate", str(movie), "--frames", "6", "--fps", "4",
+                 "--json"]) == 0  # fmt: skip
+    out = json.loads(capsys.readouterr().out)
+    assert (out["animation"], out["animation_frames"]) == (str(movie), 6)
+    with Image.open(movie) as gif:
+        assert gif.format == "GIF" and gif.n_frames == 6 and gif.info["duration"] == 250
+    assert [p.name for p in movie.parent.iterdir()] == ["octagon.gif"]
+
+
+def test_run_animate_mp4_without_ffmpeg_is_refused_before_the_work(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(animate_args, "has_ffmpeg", lambda: False)
+    monkeypatch.setattr(sys.modules["ekfslam.pipeline"], "replay", _never)
+    assert main(["run", str(RUN), "--animate", str(tmp_path / "a.mp4")]) == 2
+    (line,) = capsys.readouterr().err.splitlines()
+    assert "--animate: writing .mp4 needs ffmpeg: pip install imageio-ffmpeg" in line
+    assert not list(tmp_path.iterdir())
+
+
+def _never(*args, **kwargs):
+    raise AssertionError("the replay ran although the command line was refused")
+
+
+@pytest.mark.slow
+def test_run_animate_with_hidden_ids_labels_landmarks_by_true_id(tmp_path, monkeypatch):
+    from ekfslam.viz import animation  # matplotlib: only this test needs it
+
+    seen = {}
+
+    def capture(frames, path, fps):
+        seen["labels"], seen["fps"] = frames.landmark_labels, fps
+        return path
+
+    monkeypatch.setattr(animation, "save_animation", capture)
+    square = RUN.parent / "square-2laps"
+    args = ["run", str(square), "--association", "nn", "--animate", str(tmp_path / "a.gif")]
+    assert main([*args, "--frames", "3", "--json"]) == 0
+    ids = np.asarray(read_run(square).detections.tag_id)
+    first_seen = [str(i) for i in dict.fromkeys(ids.tolist())]  # nn gets every one right here
+    assert seen == {"labels": first_seen, "fps": 10.0}

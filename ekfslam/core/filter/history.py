@@ -2,7 +2,8 @@
 
 The recorder keeps per event only O(1)-sized things (the pose, its 3x3 covariance, one
 observation's numbers), never a copy of the n x n covariance, so a long run costs O(steps) memory:
-about 100 bytes per event in the finished `History`.
+about 100 bytes per event in the finished `History`. Copies of the whole state are `Keyframes`,
+a fixed number of them, taken only when a replay is asked for them (an animation's frames).
 """
 
 from __future__ import annotations
@@ -88,6 +89,68 @@ class History:
     def nis_of_updates(self) -> Array:
         """NIS of the observations that were used as updates (accepted ones)."""
         return self.obs_nis[self.outcome_mask(Outcome.ACCEPTED)]
+
+
+@dataclass(frozen=True, eq=False)
+class Keyframes:
+    """The full state at a few moments of a replay: what `History` leaves out, for animations.
+
+    `History` keeps O(1) per event; the landmarks' estimates between their own sightings and the
+    correlations of Σ are in no event. A keyframe is a copy of μ and Σ, O(n²), so a replay
+    records them only when asked (`ekfslam.pipeline.replay`'s ``keyframes``), a fixed number
+    whatever the run's length: F keyframes of a state of size D cost 8 F D² bytes.
+
+    F keyframes, D = 3 + 2n the size of the final state
+        t (F,) s, the time of the state; detections (F,) how many detections it has used;
+        dim (F,) its size 3 + 2 n_f; mu (F, D) and Sigma (F, D, D), eqs. (1)-(2)'s mean and
+        covariance, NaN beyond dim (the landmarks not yet seen); landmark_ids (n,) the ids in
+        slot order (a slot keeps its landmark: keyframe f holds the first (dim_f - 3) / 2).
+    The last keyframe is the final state.
+    """
+
+    t: Array
+    detections: NDArray[np.int64]
+    dim: NDArray[np.int64]
+    mu: Array
+    Sigma: Array
+    landmark_ids: NDArray[np.int64]
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+class KeyframeRecorder:
+    """Collects `Keyframes`: `take` copies the state at chosen moments; `finish` pads, freezes."""
+
+    def __init__(self) -> None:
+        self._t: list[float] = []
+        self._detections: list[int] = []
+        self._mu: list[Array] = []
+        self._Sigma: list[Array] = []
+
+    def take(self, t: float, detections: int, mu: Array, Sigma: Array) -> None:
+        """Keep copies of mu (d,) and Sigma (d, d) at time t (s), after `detections` detections."""
+        self._t.append(float(t))
+        self._detections.append(int(detections))
+        self._mu.append(np.array(mu, dtype=float))
+        self._Sigma.append(np.array(Sigma, dtype=float))
+
+    def finish(self, landmark_ids: list[int]) -> Keyframes:
+        dims = np.array([len(m) for m in self._mu], dtype=np.int64)
+        D = int(dims.max()) if len(dims) else 3
+        mu = np.full((len(dims), D), np.nan)
+        Sigma = np.full((len(dims), D, D), np.nan)
+        for f, d in enumerate(dims):
+            mu[f, :d] = self._mu[f]
+            Sigma[f, :d, :d] = self._Sigma[f]
+        return Keyframes(
+            t=np.array(self._t),
+            detections=np.array(self._detections, dtype=np.int64),
+            dim=dims,
+            mu=mu,
+            Sigma=Sigma,
+            landmark_ids=np.array(landmark_ids, dtype=np.int64),
+        )
 
 
 #: Columns of one recorded event row: time, pose and the six distinct entries of its covariance.
