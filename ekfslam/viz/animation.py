@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 import os
 import shutil
+import subprocess
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -33,6 +34,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Ellipse
 from numpy.typing import NDArray
 
+from ekfslam.errors import EkfSlamError
 from ekfslam.files import atomic_write
 from ekfslam.logs.runlog import RunLog
 from ekfslam.viz.plotting import draw_arena, draw_true_landmarks, ellipse_parameters
@@ -283,7 +285,11 @@ def save_animation(frames: ReplayFrames, path: str | os.PathLike, fps: float = 1
                 frames.draw(f)
                 writer.grab_frame()
 
-    return atomic_write(path, write)
+    try:
+        return atomic_write(path, write)
+    except (OSError, subprocess.CalledProcessError) as e:  # ffmpeg died, or the disk is full
+        what = "ffmpeg failed" if suffix == ".mp4" else "writing failed"
+        raise EkfSlamError(f"{path}: {what}, nothing written: {str(e).splitlines()[0]}") from e
 
 
 class _OffscreenCanvas(FigureCanvasAgg):

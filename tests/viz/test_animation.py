@@ -9,6 +9,7 @@ import pytest
 from PIL import Image
 
 from ekfslam import replay
+from ekfslam.errors import EkfSlamError
 from ekfslam.analysis.laps import lap_times
 from ekfslam.viz import animation
 from ekfslam.viz.animation import ReplayFrames, replay_animation, save_animation
@@ -145,3 +146,19 @@ def test_times_are_shown_since_the_start(square, framed, frames) -> None:
     assert f"t = {kf.t[f] - kf.t[0]:6.1f} s" in later.title.get_text()
     np.testing.assert_allclose(later.sigma_ax.get_xlim(), frames.sigma_ax.get_xlim(), atol=1e-6)
     assert later.sigma_ax.get_xlim()[0] == 0.0
+
+
+def test_a_failing_ffmpeg_is_one_error_and_leaves_nothing(square, tmp_path, monkeypatch) -> None:
+    # an ffmpeg that exits at once: before, its BrokenPipe/CalledProcessError reached the user
+    # as a traceback
+    fake = tmp_path / "bin" / "ffmpeg"
+    fake.parent.mkdir()
+    fake.write_text("#!/bin/sh\nexit 3\n")
+    fake.chmod(0o755)
+    monkeypatch.setattr(animation, "ffmpeg_path", lambda: str(fake))
+    result = replay(square, keyframes=3)
+    out = tmp_path / "out"
+    out.mkdir()
+    with pytest.raises(EkfSlamError, match=r"a\.mp4: ffmpeg failed, nothing written"):
+        save_animation(ReplayFrames(square, result, dpi=30), out / "a.mp4", fps=3)
+    assert not list(out.iterdir())
