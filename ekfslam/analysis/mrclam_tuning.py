@@ -166,12 +166,15 @@ def tune_noise(
     points = [dict(zip(names, values, strict=True)) for values in itertools.product(*grid.values())]
     folder = str(dataset_dir)
     tasks = [(folder, dataclasses.replace(base, **p), robots, calibration) for p in points]
-    errors = run_tasks(_grid_point, tasks, jobs, dask)
+    errors = run_tasks(grid_point_errors, tasks, jobs, dask)
     rows = [TuningRow(p, e) for p, e in zip(points, errors, strict=True)]
     return sorted(rows, key=lambda r: r.mean)
 
 
-def _grid_point(dataset_dir, noise, robots, calibration) -> tuple[float, ...]:
+def grid_point_errors(
+    dataset_dir: str, noise: NoiseConfig, robots: tuple[int, ...], calibration
+) -> tuple[float, ...]:
+    """Each robot's aligned error (m) at one noise setting: one grid point's task."""
     return tuple(s.aligned_error for s in score_robots(dataset_dir, noise, robots, calibration))
 
 

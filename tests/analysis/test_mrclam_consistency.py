@@ -175,6 +175,15 @@ def test_tuning_ranks_by_distance_after_the_map_targets(studies: dict, mrclam7: 
     assert row.distance == pytest.approx(np.mean(np.abs(np.log(np.array(row.nees) / 3))))
 
 
+@pytest.mark.slow
+def test_tuning_for_consistency_is_the_same_on_two_processes(mrclam7: Path) -> None:
+    grid = {"sigma_x": (0.02, 0.05), "sigma_theta": (0.05, 0.1)}
+    one = tune_for_consistency(mrclam7, grid, MRCLAM_CONSISTENT_NOISE, (2,), jobs=1)
+    two = tune_for_consistency(mrclam7, grid, MRCLAM_CONSISTENT_NOISE, (2,), jobs=2)
+    assert len(one) == 4
+    assert one == two  # every field, exactly: each point replays the same robot the same way
+
+
 # -------------------------------------------------------------------------------- command line
 @pytest.mark.slow
 def test_cli_json_keys_values_and_plot(studies: dict, mrclam7: Path, tmp_path: Path) -> None:
