@@ -15,7 +15,8 @@ arithmetic on that table, so no fold can see the data it is scored on:
   winner cannot move it. It is never chosen by its score on all datasets at once.
 
 `ekfslam.logs.mrclam.defaults.MRCLAM_NOISE` is this rule's choice on the table recorded in
-``data/mrclam-crossval.json`` (``python -m ekfslam tune-mrclam --cross-validate --out ...``).
+`ekfslam.logs.mrclam.defaults.CROSSVAL_TABLE` (``python -m ekfslam tune-mrclam --cross-validate
+--out FILE``; ``--table`` reads one back).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from ekfslam.analysis.mrclam_tuning import TUNING_GRID, grid_point_errors
 from ekfslam.analysis.parallel import run_tasks
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.errors import InputError
+from ekfslam.logs.mrclam.defaults import CROSSVAL_TABLE
 from ekfslam.logs.mrclam.load import ROBOTS
 
 Array = NDArray[np.float64]
@@ -96,8 +98,11 @@ class GridTable:
         )
 
 
-def read_table(path: str | Path) -> GridTable:
-    """A GridTable written by `GridTable.as_dict` (``tune-mrclam --out``); InputError if not."""
+def read_table(path: str | Path = CROSSVAL_TABLE) -> GridTable:
+    """A GridTable written by `GridTable.as_dict` (``tune-mrclam --out``); InputError if not.
+
+    path : default the recorded table `MRCLAM_NOISE` was chosen on.
+    """
     path = Path(path)
     try:
         return GridTable.from_dict(json.loads(path.read_text()))

@@ -6,7 +6,7 @@ cores) and prints the best settings over all of them; ``--cross-validate`` print
 leave-one-dataset-out folds instead (tune on all datasets but one, score the one left out) and
 the default they choose (`ekfslam.analysis.mrclam_crossval`). ``--out FILE.json`` keeps the
 grid's table; ``--table FILE.json`` reads one back instead of replaying (the recorded table is
-``data/mrclam-crossval.json``).
+``ekfslam/logs/mrclam/crossval.json``).
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """Leave-one-dataset-out tuning: folds never score on their training data; the shipped default.
 
 The fold tests build their tables (no data needed). The recorded table
-``data/mrclam-crossval.json`` is checked against the rule and `MRCLAM_NOISE`; one shared-data
-test re-measures its row of the default on Dataset 4.
+(`ekfslam.logs.mrclam.defaults.CROSSVAL_TABLE`) is checked against the rule and `MRCLAM_NOISE`;
+one shared-data test re-measures its row of the default on Dataset 4.
 """
 
 from __future__ import annotations
@@ -28,10 +28,9 @@ from ekfslam.analysis.mrclam_crossval import (
     tune,
 )
 from ekfslam.analysis.mrclam_tuning import TUNING_GRID
+from ekfslam.logs.mrclam.defaults import CROSSVAL_TABLE as RECORDED
 from ekfslam.logs.mrclam.defaults import MRCLAM_NOISE
 
-REPO = Path(__file__).resolve().parents[2]
-RECORDED = REPO / "data" / "mrclam-crossval.json"
 GRID = {"sigma_x": (0.01, 0.02, 0.04), "sigma_theta": (0.05, 0.1)}
 
 
@@ -169,7 +168,7 @@ def test_cli_cross_validates_a_recorded_table() -> None:
     [
         (("--table", "missing.json"), "missing.json"),
         (("--table", "README.md", "--cross-validate"), "README.md"),
-        (("7", "--table", "data/mrclam-crossval.json"), "not both"),
+        (("7", "--table", str(RECORDED)), "not both"),
         (("--out", "table.txt"), "--out"),
         (("--jobs", "0"), "--jobs"),
     ],

@@ -7,15 +7,20 @@ read them from the run, knowing nothing about datasets.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.noise import NoiseConfig
 
 #: The name `ekfslam.logs.runjson.RunMeta.defaults` holds for these.
 NAME = "mrclam"
+#: The grid table `MRCLAM_NOISE` was chosen on: every robot of Datasets 7, 1 and 4 at every
+#: grid point (`ekfslam.analysis.mrclam_crossval.GridTable`; ``tune-mrclam --out`` writes one).
+CROSSVAL_TABLE = Path(__file__).with_name("crossval.json")
 
 #: Noise for MRCLAM robots, one setting for all five, chosen by leave-one-dataset-out
 #: cross-validation over Datasets 7, 1 and 4 (`ekfslam.analysis.mrclam_crossval`; the table is
-#: ``data/mrclam-crossval.json``, ``python -m ekfslam tune-mrclam --cross-validate``): a grid of
+#: `CROSSVAL_TABLE`, ``python -m ekfslam tune-mrclam --cross-validate``): a grid of
 #: 81 points (`ekfslam.analysis.mrclam_tuning.TUNING_GRID`: sigma_x 0.005/0.01/0.02,
 #: sigma_theta 0.03/0.05/0.1, sigma_range 0.15/0.2/0.3, sigma_bearing 0.01/0.02/0.05; sigma_y
 #: 0.005, a differential drive does not slip sideways), every robot replayed on its logged
