@@ -190,3 +190,21 @@ def test_the_recorded_table_is_what_the_replay_gives(shared_data: Path, data_mis
     point = recorded.points[k]
     fresh = measure_grid({"4": folder}, {f: (v,) for f, v in point.items()})
     np.testing.assert_allclose(fresh.errors[0, 0], recorded.errors[k, 2], atol=2e-6)
+
+
+@pytest.mark.slow
+def test_the_grid_is_the_same_on_two_processes(mrclam7: Path) -> None:
+    grid = {"sigma_x": (0.005, 0.01), "sigma_theta": (0.05,)}
+    one = measure_grid({"7": mrclam7}, grid, robots=(2, 5), jobs=1)
+    two = measure_grid({"7": mrclam7}, grid, robots=(2, 5), jobs=2)
+    assert one.points == two.points and one.errors.shape == (2, 1, 2)
+    np.testing.assert_array_equal(one.errors, two.errors)
+
+
+def test_cli_without_cross_validation_ranks_the_grid_in_sample() -> None:
+    done = run_ekfslam("tune-mrclam", "--table", str(RECORDED), "--json")
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout)
+    assert out["datasets"] == ["7", "1", "4"] and len(out["best"]) == 5
+    means = [row["mean"] for row in out["best"]]
+    assert means == sorted(means) and round(means[0], 4) == 0.0530
