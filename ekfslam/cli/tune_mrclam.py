@@ -56,6 +56,8 @@ def cmd_tune_mrclam(args: argparse.Namespace) -> int:
         table = read_table(args.table)
     else:
         named = args.datasets or list(DATASETS)
+        if args.cross_validate and len(named) < 2:  # before minutes of replays, not after
+            raise ConfigError("tune-mrclam --cross-validate needs at least two datasets")
         folders = {_label(d): mrclam_folder(d) for d in named}
         if len(folders) < len(named):
             raise ConfigError("tune-mrclam: a dataset is named twice")
@@ -64,7 +66,10 @@ def cmd_tune_mrclam(args: argparse.Namespace) -> int:
             atomic_write_text(args.out, json.dumps(table.as_dict(), allow_nan=False) + "\n")
     if args.cross_validate:
         if len(table.datasets) < 2:
-            raise ConfigError("tune-mrclam --cross-validate needs at least two datasets")
+            raise ConfigError(
+                f"{args.table}: a table of {len(table.datasets)} dataset; --cross-validate needs "
+                "at least two datasets"
+            )
         if args.json:
             print(json.dumps(report(table), indent=2, allow_nan=False))
         else:

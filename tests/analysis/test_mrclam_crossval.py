@@ -171,10 +171,15 @@ def test_cli_cross_validates_a_recorded_table() -> None:
         (("7", "--table", str(RECORDED)), "not both"),
         (("--out", "table.txt"), "--out"),
         (("--jobs", "0"), "--jobs"),
+        (("--dask", "nowhere"), "--dask"),
+        (("7", "--cross-validate"), "at least two datasets"),
+        (("--table", "{one}", "--cross-validate"), "one.json: a table of 1 dataset"),
     ],
 )
-def test_cli_bad_input_is_one_line(args, named) -> None:
-    done = run_ekfslam("tune-mrclam", *args)
+def test_cli_bad_input_is_one_line(args, named, tmp_path: Path) -> None:
+    one = tmp_path / "one.json"  # a table of a single dataset: nothing to leave out
+    one.write_text(json.dumps(random_table(("a",)).as_dict()))
+    done = run_ekfslam("tune-mrclam", *(a.format(one=one) for a in args))
     assert done.returncode == 2 and done.stdout == ""
     assert len(done.stderr.strip().splitlines()) == 1 and named in done.stderr
     assert "Traceback" not in done.stderr
