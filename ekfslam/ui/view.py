@@ -190,7 +190,8 @@ class TuningView:
 
 def status_text(summary: RunSummary, seed: Row | None = None) -> str:
     """The Table 1 row of a replay (eq. 17), its average NIS and its update counts, 3 lines;
-    with `seed` (the seed's real-robot row), that row under ours, 4 lines."""
+    with `seed` (the seed's real-robot row), that row under ours, 4 lines. A run without ground
+    truth gets one more line: why it has no ATE, and the start eq. (17) recovers."""
     nis = "-" if summary.nis_mean is None else f"{summary.nis_mean:.2f}"
     lines = table1_lines(summary, seed, layout=PANEL, extra=("avg NIS", nis))
     counts = (
@@ -198,4 +199,11 @@ def status_text(summary: RunSummary, seed: Row | None = None) -> str:
         f"initialised {summary.initialised}, refused {summary.refused}"
         + (f", singular S {summary.singular}" if summary.singular else "")
     )
-    return "\n".join([*lines, counts])
+    if summary.ate_note is None:
+        return "\n".join([*lines, counts])
+    start = (
+        "" if summary.start_pose is None
+        else " (x, y, theta) = ({:.3f} m, {:.3f} m, {:+.3f} rad)".format(*summary.start_pose)
+    )  # fmt: skip
+    truth = f"no ground truth, no ATE: the map is scored after eq. (17); recovered start{start}"
+    return "\n".join([*lines, counts, truth if start else "no ground truth, no ATE"])

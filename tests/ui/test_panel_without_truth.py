@@ -6,6 +6,7 @@ and MRCLAM Dataset 4 (no Vicon for its robots; shared data).
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -48,6 +49,10 @@ def test_without_ground_truth_the_panel_draws_the_estimate_after_eq17(square) ->
     true_tags = np.array([square.meta.tag_map[i] for i in sorted(state.result.landmarks)])
     assert np.mean(np.hypot(*(tags - true_tags).T)) == pytest.approx(a.mean_error, abs=1e-9)
     assert len(tuner.view.true_path.get_xdata()) == 0
+    last = state.text.splitlines()[-1]
+    assert last.startswith("no ground truth, no ATE")
+    shown_start = [float(v) for v in re.findall(r"[-+]?\d+\.\d+", last)]
+    np.testing.assert_allclose(shown_start, state.summary.start_pose, atol=6e-4)
 
 
 def test_with_ground_truth_the_panel_draws_what_the_filter_made(square) -> None:
@@ -56,6 +61,7 @@ def test_with_ground_truth_the_panel_draws_what_the_filter_made(square) -> None:
     path, start, _ = shown(tuner)
     np.testing.assert_array_equal(path, state.result.history.pose[:, :2])
     np.testing.assert_array_equal(start[0], square.groundtruth.pose[0, :2])
+    assert len(state.text.splitlines()) == 3 and "ground truth" not in state.text
 
 
 def test_mrclam_runs_names_each_robot_and_refuses_a_missing_dataset(tmp_path: Path) -> None:
