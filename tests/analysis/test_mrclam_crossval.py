@@ -213,3 +213,15 @@ def test_cli_without_cross_validation_ranks_the_grid_in_sample() -> None:
     assert out["datasets"] == ["7", "1", "4"] and len(out["best"]) == 5
     means = [row["mean"] for row in out["best"]]
     assert means == sorted(means) and round(means[0], 4) == 0.0530
+
+
+@pytest.mark.slow
+def test_the_grid_is_the_same_on_a_dask_cluster(mrclam7: Path) -> None:
+    distributed = pytest.importorskip("distributed")
+    grid = {"sigma_x": (0.005, 0.01), "sigma_theta": (0.05,)}
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None
+    ) as cluster:
+        on_dask = measure_grid({"7": mrclam7}, grid, robots=(2,), dask=cluster.scheduler_address)
+    here = measure_grid({"7": mrclam7}, grid, robots=(2,), jobs=1)
+    np.testing.assert_array_equal(on_dask.errors, here.errors)
