@@ -332,25 +332,34 @@ def tune_for_consistency(
     robots: tuple[int, ...] = ROBOTS,
     linearization: str = "standard",
     map_targets: tuple[float, float] | None = MAP_TARGETS,
+    jobs: int | None = 1,
+    dask: str | None = None,
 ) -> list[ConsistencyRow]:
     """Grid search of the noise for consistency: one setting for every robot.
 
     Each combination of `grid` (NoiseConfig field -> values; default `CONSISTENCY_GRID`, about
-    two minutes) replays every robot. Rows come back best first: those that meet `map_targets`
-    (see `ConsistencyRow.meets`; None: no constraint) before those that do not, each group by
-    `ConsistencyRow.distance`, so an over- and an under-confident robot do not cancel out.
+    two minutes on one core) replays every robot. Rows come back best first: those that meet
+    `map_targets` (see `ConsistencyRow.meets`; None: no constraint) before those that do not,
+    each group by `ConsistencyRow.distance`, so an over- and an under-confident robot do not
+    cancel out. jobs, dask : where the grid points go (`ekfslam.analysis.parallel.run_tasks`,
+    one task per point); the rows are the same whatever the backend.
     """
     grid = CONSISTENCY_GRID if grid is None else grid
     base = base or NoiseConfig(sigma_y=0.005)
-    rows = []
-    for values in itertools.product(*grid.values()):
-        point = dict(zip(grid, values, strict=True))
-        noise = dataclasses.replace(base, **point)
-        found = [robot_nees(load_robot(dataset_dir, r), noise, linearization) for r in robots]
-        nees_means = tuple(f.mean for f in found)
-        rows.append(ConsistencyRow(point, nees_means, tuple(f.aligned_error for f in found)))
+    points = [dict(zip(grid, v, strict=True)) for v in itertools.product(*grid.values())]
+    tasks = [
+        (str(dataset_dir), dataclasses.replace(base, **p), robots, linearization) for p in points
+    ]
+    found = run_tasks(_consistency_point, tasks, jobs, dask)
+    rows = [ConsistencyRow(p, nees_means, errors) for p, (nees_means, errors) in
+            zip(points, found, strict=True)]  # fmt: skip
     return sorted(rows, key=lambda r: (map_targets is not None and not r.meets(map_targets),
                                        r.distance))  # fmt: skip
+
+
+def _consistency_point(dataset_dir, noise, robots, linearization):
+    found = [robot_nees(load_robot(dataset_dir, r), noise, linearization) for r in robots]
+    return tuple(f.mean for f in found), tuple(f.aligned_error for f in found)
 
 
 def table(study: MrclamConsistency, plot: str | None = None) -> str:

@@ -1,9 +1,10 @@
 """MRCLAM beyond loading: scoring robots and tuning the noise on a whole dataset.
 
-`ekfslam.logs.mrclam.load` reads the dataset; this module asks how well the filter does on it. The
-noise defaults in `ekfslam.logs.mrclam.defaults.MRCLAM_NOISE` were found with `tune_noise` on
-Dataset 7 (see the comment there and notebook 10); `score_robots` gives the per-robot table of the
-closing notes. The optional correction of the logged commands is the dataset's knowledge, in
+`ekfslam.logs.mrclam.load` reads the dataset; this module asks how well the filter does on it.
+`tune_noise` searches one dataset (an in-sample score); the noise defaults in
+`ekfslam.logs.mrclam.defaults.MRCLAM_NOISE` were chosen on `TUNING_GRID` by leave-one-dataset-out
+cross-validation (`ekfslam.analysis.mrclam_crossval`); `score_robots` gives the per-robot table
+of the README. The optional correction of the logged commands is the dataset's knowledge, in
 `ekfslam.logs.mrclam.calibration`.
 """
 
@@ -113,7 +114,7 @@ def scores_table(scores: list[RobotScore]) -> str:
     return "\n".join(lines)
 
 
-#: The grid `tune_noise` searched for `ekfslam.logs.mrclam.defaults.MRCLAM_NOISE` (sigma_y fixed
+#: The grid `MRCLAM_NOISE` was chosen on, by `tune_noise` and then cross-validation (sigma_y fixed
 #: at 0.005 m/√s: a differential drive does not slip sideways, Vicon shows < 0.01 m/s across the
 #: body).
 TUNING_GRID: dict[str, tuple[float, ...]] = {
@@ -166,12 +167,15 @@ def tune_noise(
     points = [dict(zip(names, values, strict=True)) for values in itertools.product(*grid.values())]
     folder = str(dataset_dir)
     tasks = [(folder, dataclasses.replace(base, **p), robots, calibration) for p in points]
-    errors = run_tasks(_grid_point, tasks, jobs, dask)
+    errors = run_tasks(grid_point_errors, tasks, jobs, dask)
     rows = [TuningRow(p, e) for p, e in zip(points, errors, strict=True)]
     return sorted(rows, key=lambda r: r.mean)
 
 
-def _grid_point(dataset_dir, noise, robots, calibration) -> tuple[float, ...]:
+def grid_point_errors(
+    dataset_dir: str, noise: NoiseConfig, robots: tuple[int, ...], calibration
+) -> tuple[float, ...]:
+    """Each robot's aligned error (m) at one noise setting: one grid point's task."""
     return tuple(s.aligned_error for s in score_robots(dataset_dir, noise, robots, calibration))
 
 

@@ -113,3 +113,29 @@ def arena_half_size(run: RunLog) -> float | None:
         abs(tags[i][0] - seed[i][0]) < 1e-9 and abs(tags[i][1] - seed[i][1]) < 1e-9 for i in seed
     )
     return SEED_ARENA.half_size if same else None
+
+
+def _dask_address(text: str) -> str:
+    scheme, sep, rest = text.partition("://")
+    if not sep or not rest or scheme not in DASK_SCHEMES:
+        raise argparse.ArgumentTypeError(
+            f"a Dask scheduler address is {'|'.join(DASK_SCHEMES)}://HOST:PORT, got {text!r}"
+        )
+    return text
+
+
+DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "inproc")
+
+
+def add_parallel_arguments(p: argparse.ArgumentParser) -> None:
+    """``--jobs N`` and ``--dask ADDRESS``: where the runs go (`ekfslam.analysis.parallel`).
+
+    The same options as ``consistency``'s (`ekfslam.cli.consistency._parallel`, to be replaced by
+    this one once the branches that change that module have landed).
+    """
+    p.add_argument("--jobs", type=ca.whole(1, 4096), default=None, metavar="N",
+                   help="local processes for the runs; 1 runs in this process "
+                   "(default: every core)")  # fmt: skip
+    p.add_argument("--dask", type=ca._name(_dask_address, "address"), metavar="ADDRESS",
+                   help="run on the Dask cluster at ADDRESS (tcp://host:8786; needs "
+                   "pip install 'ekfslam[dask]'); --jobs is then ignored")  # fmt: skip

@@ -31,6 +31,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "ekfslam.cli.score_mrclam",
         "replay every robot of a MRCLAM dataset with one noise setting; print the scores",
     ),
+    "tune-mrclam": (
+        "ekfslam.cli.tune_mrclam",
+        "tune the MRCLAM noise over datasets; --cross-validate: leave one dataset out",
+    ),
     "convert": (
         "ekfslam.cli.convert",
         "convert a recorded log (MRCLAM, ROS bag) to a run folder",

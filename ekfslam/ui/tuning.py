@@ -31,6 +31,7 @@ from ekfslam.analysis.evaluation import RunSummary, replay_and_summarize
 from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig, chi2_2dof_quantile
 from ekfslam.core.noise import NoiseConfig, default_noise
 from ekfslam.errors import InputError
+from ekfslam.logs.mrclam.load import find_dataset, load_mrclam
 from ekfslam.logs.runlog import RunLog, read_run
 from ekfslam.pipeline import ReplayResult
 from ekfslam.ui.coalescer import Coalescer
@@ -126,8 +127,8 @@ def seed_runs(folder: str | Path | None = None) -> dict[str, RunSource]:
 
     folder : default `RUNS_DIR`, the checkout's data/runs. Raises InputError when it is not
     there (an installed package has no data/runs): pass the folder of a checkout instead.
-    Hook for more: any ``{name: loader}`` works, e.g. a MRCLAM robot
-    ``{**seed_runs(), "mrclam7-r1": lambda: ekfslam.logs.mrclam.load.load_mrclam(path, 1)[0]}``.
+    Hook for more: any ``{name: loader}`` works, e.g. MRCLAM robots with and without Vicon,
+    ``{**seed_runs(), **mrclam_runs((7, 4))}``.
     """
     folder = Path(RUNS_DIR if folder is None else folder)
     if not folder.is_dir():
@@ -136,6 +137,30 @@ def seed_runs(folder: str | Path | None = None) -> dict[str, RunSource]:
             "pass seed_runs(<checkout>/data/runs)",
         )  # fmt: skip
     return {name: partial(read_run, folder / name) for name in SEED_RUNS}
+
+
+def mrclam_runs(
+    datasets: tuple[int | str | Path, ...] = (7, 1, 4), robots: tuple[int, ...] = (1,)
+) -> dict[str, RunSource]:
+    """MRCLAM robots for the panel as lazy loaders: ``{"mrclam7-r1": ..., "mrclam1-r1": ...}``.
+
+    datasets : numbers 1-9 (found by `ekfslam.logs.mrclam.load.find_dataset`: the shared data,
+    then the download cache) or folders. Each loader reads its robot when the panel first shows
+    it, with the MRCLAM defaults (`ekfslam.logs.mrclam.defaults`). Datasets 1 and 4 have no
+    Vicon: the panel then draws the estimate after eq. (17) with the start it recovers, and the
+    row above the map is the map's score. Raises InputError for a dataset not on this machine.
+    """
+    runs: dict[str, RunSource] = {}
+    for dataset in datasets:
+        folder = find_dataset(int(dataset)) if str(dataset).isdigit() else Path(dataset)
+        label = folder.name.removeprefix("MRCLAM_Dataset")  # "7" for MRCLAM_Dataset7
+        for robot in robots:
+            runs[f"mrclam{label}-r{robot}"] = partial(_first, load_mrclam, folder, robot)
+    return runs
+
+
+def _first(load: Callable, *args: object) -> RunLog:
+    return load(*args)[0]
 
 
 @dataclass(frozen=True, eq=False)

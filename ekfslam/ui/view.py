@@ -103,28 +103,39 @@ class TuningView:
             self.figure.canvas.draw_idle()
 
     def show(self, run: RunLog, result: ReplayResult, summary: RunSummary) -> None:
-        """Move every artist to this replay's data (in place; the canvas is not drawn here)."""
+        """Move every artist to this replay's data (in place; the canvas is not drawn here).
+
+        A run without ground truth (a MRCLAM robot of Dataset 1 or 4, a student's robot) started
+        at a nominal pose, not where the robot stood: its estimate is drawn after eq. (17), and
+        the blue dot is the start eq. (17) recovers. With ground truth the estimate is drawn as
+        the filter made it (the seed's Figure 2).
+        """
         h = result.history
-        self.path.set_data(h.pose[:, 0], h.pose[:, 1])
         gt = run.groundtruth
         gt_xy = gt.pose[:, :2] if gt is not None and len(gt.t) else np.empty((0, 2))
+        a = summary.alignment if not len(gt_xy) else None
+        path = h.pose[:, :2] if a is None else a.apply(h.pose[:, :2])
+        self.path.set_data(path[:, 0], path[:, 1])
         self.true_path.set_data(gt_xy[:, 0], gt_xy[:, 1])
-        self.start.set_data(gt_xy[:1, 0], gt_xy[:1, 1])
+        start = gt_xy[:1] if a is None else a.start_pose(run.meta.nominal_start)[None, :2]
+        self.start.set_data(start[:, 0], start[:, 1])
         tags = run.meta.tag_map or {}
         truth = np.array([tags[i] for i in sorted(tags)]).reshape(-1, 2)
         self.true_tags.set_data(truth[:, 0], truth[:, 1])
         ids = sorted(result.landmarks)
         est = np.array([result.landmarks[i] for i in ids]).reshape(-1, 2)
+        est = est if a is None or not len(est) else a.apply(est)
         self.tags.set_offsets(est)
         while len(self.ellipses) < len(ids):  # a pool: a run with more landmarks adds patches
             patch = Ellipse((0, 0), 0, 0, fill=False, color="tab:blue", lw=1.2)
             self.ellipses.append(self.map_ax.add_patch(patch))
+        turn = 0.0 if a is None else math.degrees(a.theta0)  # eq. (17) turns the ellipses too
         for k, patch in enumerate(self.ellipses):
             patch.set_visible(k < len(ids))
             if k < len(ids):
                 w, hgt, angle = ellipse_parameters(result.landmark_covariances[ids[k]])
-                patch.set(center=tuple(est[k]), width=w, height=hgt, angle=angle)
-        self._map_limits(np.vstack([truth, gt_xy]), np.vstack([est, h.pose[:, :2]]))
+                patch.set(center=tuple(est[k]), width=w, height=hgt, angle=angle + turn)
+        self._map_limits(np.vstack([truth, gt_xy]), np.vstack([est, path]))
         self._show_nis(result)
         header, row = status_text(summary).splitlines()[:2]
         if self.header.get_text() != header:  # (a new header redraws the background: `key`)
@@ -179,7 +190,8 @@ class TuningView:
 
 def status_text(summary: RunSummary, seed: Row | None = None) -> str:
     """The Table 1 row of a replay (eq. 17), its average NIS and its update counts, 3 lines;
-    with `seed` (the seed's real-robot row), that row under ours, 4 lines."""
+    with `seed` (the seed's real-robot row), that row under ours, 4 lines. A run without ground
+    truth gets one more line: why it has no ATE, and the start eq. (17) recovers."""
     nis = "-" if summary.nis_mean is None else f"{summary.nis_mean:.2f}"
     lines = table1_lines(summary, seed, layout=PANEL, extra=("avg NIS", nis))
     counts = (
@@ -187,4 +199,11 @@ def status_text(summary: RunSummary, seed: Row | None = None) -> str:
         f"initialised {summary.initialised}, refused {summary.refused}"
         + (f", singular S {summary.singular}" if summary.singular else "")
     )
-    return "\n".join([*lines, counts])
+    if summary.ate_note is None:
+        return "\n".join([*lines, counts])
+    start = (
+        "" if summary.start_pose is None
+        else " (x, y, theta) = ({:.3f} m, {:.3f} m, {:+.3f} rad)".format(*summary.start_pose)
+    )  # fmt: skip
+    truth = f"no ground truth, no ATE: the map is scored after eq. (17); recovered start{start}"
+    return "\n".join([*lines, counts, truth if start else "no ground truth, no ATE"])

@@ -9,8 +9,8 @@ import pytest
 from PIL import Image
 
 from ekfslam import replay
-from ekfslam.errors import EkfSlamError
 from ekfslam.analysis.laps import lap_times
+from ekfslam.errors import EkfSlamError
 from ekfslam.viz import animation
 from ekfslam.viz.animation import ReplayFrames, replay_animation, save_animation
 
