@@ -160,8 +160,9 @@ class AssociatingFilter:
         smallest = np.empty(len(zs))
         # positional, each argument named as the kernel's parameter (see `EKFSLAM._propagate`)
         kernels.nearest(
-            ekf._mu, ekf._Sigma, ekf._dim, zs, q00, q01, q11, self.config.gate, pairing, smallest
-        )
+            ekf._mu, ekf._Sigma, ekf._dim, zs, q00, q01, q11, self.config.gate, ekf._invariant,
+            pairing, smallest,
+        )  # fmt: skip
         return pairing.tolist(), smallest.tolist()
 
     def predicted(self, zs: Array) -> tuple[Array, Array]:

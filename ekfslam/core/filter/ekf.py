@@ -38,6 +38,12 @@ from ekfslam.core.filter import kernels
 from ekfslam.core.filter.config import CHI2_2DOF_99 as CHI2_2DOF_99
 from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.history import OBSERVE, PREDICT, History, Outcome, Recorder
+from ekfslam.core.invariant import (
+    INVARIANT_NEW_LANDMARK_POSE,
+    from_cartesian,
+    landmark_to_cartesian,
+    to_cartesian,
+)
 from ekfslam.core.models import (
     MIN_RANGE_SQUARED,
     inverse_observation,
@@ -102,6 +108,8 @@ class EKFSLAM:
         self._mu[2] = _wrap(float(self._mu[2]))
         if pose_covariance is not None:
             P0 = np.asarray(pose_covariance, dtype=float)
+            if self.config.linearization == "invariant":  # Σ0 is Cartesian; the filter keeps ξ's
+                P0 = from_cartesian(P0, self._mu[:3])
             self._Sigma[:3, :3] = 0.5 * (P0 + P0.T)
         self._ids: list[int] = []
         self.slot: dict[int, int] = {}
@@ -110,6 +118,8 @@ class EKFSLAM:
         self._recorder = Recorder() if record else None
         self._t = 0.0
         self._fej = self.config.linearization == "fej"
+        # invariant: _Sigma holds the covariance of the right-invariant error (`core.invariant`)
+        self._invariant = self.config.linearization == "invariant"
         # FEJ: the robot's predicted position at the current step, and first landmark estimates
         self._prior_xy = (float(self._mu[0]), float(self._mu[1]))
         self._first: list[tuple[float, float]] = []
@@ -131,9 +141,20 @@ class EKFSLAM:
 
         The steps keep only its lower triangle current (`ekfslam.core.filter.kernels`); reading it
         fills in the upper one, O(n²). Read it again after a step rather than keeping the view.
+        With `linearization="invariant"` it is the Cartesian covariance of (x, y, θ, m), a new
+        array, T P Tᵀ from `invariant_covariance` (`ekfslam.core.invariant.to_cartesian`).
         """
         kernels.mirror(self._Sigma, self._dim)
-        return self._Sigma[: self._dim, : self._dim]
+        P = self._Sigma[: self._dim, : self._dim]
+        return to_cartesian(P, self.mu) if self._invariant else P
+
+    @property
+    def invariant_covariance(self) -> Array:
+        """The covariance the invariant filter keeps, of its right-invariant error ξ (a copy)."""
+        if not self._invariant:
+            raise AttributeError("only a filter with linearization='invariant' has one")
+        kernels.mirror(self._Sigma, self._dim)
+        return self._Sigma[: self._dim, : self._dim].copy()
 
     @property
     def pose(self) -> Array:
@@ -142,8 +163,9 @@ class EKFSLAM:
 
     @property
     def pose_covariance(self) -> Array:
-        """The 3x3 pose block of Sigma, a copy."""
-        return self._Sigma[:3, :3].copy()
+        """The 3x3 pose block of Sigma (Cartesian for the invariant filter too), a copy."""
+        P = self._Sigma[:3, :3].copy()
+        return to_cartesian(P, self._mu[:3]) if self._invariant else P
 
     @property
     def n_landmarks(self) -> int:
@@ -167,7 +189,10 @@ class EKFSLAM:
         """Mean (2,) and covariance (2, 2) of one landmark, by id (copies)."""
         l = 3 + 2 * self.slot[landmark_id]
         (a, _), (b, c) = self._Sigma[l : l + 2, l : l + 2].tolist()  # its lower triangle
-        return self._mu[l : l + 2].copy(), np.array([[a, b], [b, c]])
+        m, P = self._mu[l : l + 2].copy(), np.array([[a, b], [b, c]])
+        if self._invariant:
+            P = landmark_to_cartesian(P, self._Sigma[l : l + 2, 2], self._Sigma[2, 2], m)
+        return m, P
 
     def landmark_map(self) -> dict[int, Array]:
         """{landmark id: mean (2,)}, the estimated map."""
@@ -246,12 +271,12 @@ class EKFSLAM:
         if not use_dts:  # ts stands in for dts: the kernel's types are fixed
             dts = ts
         mu, S, d, fej, record = self._mu, self._Sigma, self._dim, self._fej, rec is not None
-        px, py = self._prior_xy
+        px, py, invariant = *self._prior_xy, self._invariant
         # positional, each argument named as the kernel's parameter (tests/core/test_history.py
         # checks it): numba's dispatcher folds keyword arguments at 0.4 µs a call of 14, a
         # quarter of what an event costs
         self._prior_xy = kernels.propagate(
-            mu, S, d, us, dts, use_dts, N, fej, px, py, ts, rows, r0, record
+            mu, S, d, us, dts, use_dts, N, fej, invariant, px, py, ts, rows, r0, record
         )
         self._counts["predictions"] += len(us)
         if len(ts):
@@ -324,7 +349,10 @@ class EKFSLAM:
         else:
             jx, jy = mu.item(l) - mu.item(0), mu.item(l + 1) - mu.item(1)
         # positional, each argument named as the kernel's parameter (see `_propagate`)
-        outcome = kernels.correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out)
+        invariant = self._invariant
+        outcome = kernels.correct(
+            mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, invariant, gate, work, out
+        )
         if outcome == _REJECTED and self._should_reinitialise(j, z):
             return self._reinitialise(landmark_id, j, z, Q)
         if outcome == _ACCEPTED:
@@ -356,6 +384,8 @@ class EKFSLAM:
         mu[l : l + 2] = inverse_observation(pose, z)
         if self.config.init == "inverse":
             G_p, G_z = inverse_observation_jacobians(pose, z)
+            if self._invariant:  # ξ_m = ξ_p + G_z δz (`ekfslam.core.invariant`)
+                G_p = INVARIANT_NEW_LANDMARK_POSE
             cross = G_p @ S[:d, :3].T  # cov(m_new, everything) = G_p Σ_r,m (lower triangle)
             S[l : l + 2, :d] = cross
             S[:d, l : l + 2] = cross.T
@@ -430,7 +460,8 @@ class EKFSLAM:
                 self._mu, self._Sigma, self._t, z, self._out, rec.rows, rec.obs
             )  # fmt: skip
             # positional, each argument named as the kernel's parameter (see `_propagate`)
-            kernels.record(mu, S, l, t, landmark_id, z0, z1, out, code, rows, n, obs, m)
+            inv = self._invariant
+            kernels.record(mu, S, l, t, landmark_id, z0, z1, out, code, inv, rows, n, obs, m)
         return _OUTCOME[code]
 
 
