@@ -460,8 +460,8 @@ class EKFSLAM:
                 self._mu, self._Sigma, self._t, z, self._out, rec.rows, rec.obs
             )  # fmt: skip
             # positional, each argument named as the kernel's parameter (see `_propagate`)
-            inv = self._invariant
-            kernels.record(mu, S, l, t, landmark_id, z0, z1, out, code, inv, rows, n, obs, m)
+            invariant = self._invariant
+            kernels.record(mu, S, l, t, landmark_id, z0, z1, out, code, invariant, rows, n, obs, m)
         return _OUTCOME[code]
 
 
