@@ -102,5 +102,5 @@ def test_every_report_of_the_invariant_filter_is_cartesian():
 def test_only_the_invariant_filter_has_an_invariant_covariance():
     with pytest.raises(AttributeError, match="invariant"):
         _ = EKFSLAM([0.0, 0.0, 0.0]).invariant_covariance
-    with pytest.raises(ConfigError, match="'invariant'.*got 'iekf'"):
+    with pytest.raises(ConfigError, match=r"'invariant'.*got 'iekf'"):
         FilterConfig(linearization="iekf")
