@@ -32,8 +32,8 @@ def log_error(true: np.ndarray, estimate: np.ndarray) -> np.ndarray:
     return np.array([p[0], p[1], a, m[0], m[1]])
 
 
-def moved(state: np.ndarray, u: np.ndarray, noise=np.zeros(3)) -> np.ndarray:
-    return np.concatenate([motion(state[:3], u) + noise, state[3:5]])
+def moved(state: np.ndarray, u: np.ndarray, noise=(0.0, 0.0, 0.0)) -> np.ndarray:
+    return np.concatenate([motion(state[:3], u) + np.asarray(noise), state[3:5]])
 
 
 def central(f, x0: np.ndarray) -> np.ndarray:
