@@ -104,3 +104,26 @@ def test_only_the_invariant_filter_has_an_invariant_covariance():
         _ = EKFSLAM([0.0, 0.0, 0.0]).invariant_covariance
     with pytest.raises(ConfigError, match=r"'invariant'.*got 'iekf'"):
         FilterConfig(linearization="iekf")
+
+
+def test_the_heading_noise_owed_to_the_map_is_in_every_report():
+    # the map block's share of the prediction noise waits for the next correction's pass;
+    # what is read before (a rejected sighting's record, a landmark, Σ) includes it
+    f = EKFSLAM(
+        [1.0, 2.0, 0.5], np.diag([1e-4, 1e-4, 1e-4]), FilterConfig(linearization="invariant")
+    )
+    twin = EKFSLAM(
+        [1.0, 2.0, 0.5], np.diag([1e-4, 1e-4, 1e-4]), FilterConfig(linearization="invariant")
+    )
+    for g in (f, twin):
+        g.update(1, [1.5, 0.4], Q)
+        g.update(2, [2.5, -0.4], Q)
+        g.predict_many([[0.1, 0.0, 0.2]] * 4, [0.1] * 4, [1.0, 2.0, 3.0, 4.0], R=R)
+    assert f.update(1, [4.0, 2.0], Q).label == "rejected"  # far outside the gate
+    _, cov = f.landmark(1)
+    np.testing.assert_allclose(f.history().obs_landmark_cov[-1], cov, rtol=0, atol=1e-15)
+    _ = twin.Sigma  # settles what is owed at once: the same state as correcting with it owed
+    for g in (f, twin):
+        g.update(2, [2.3, -0.6], Q)
+    np.testing.assert_allclose(f.Sigma, twin.Sigma, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(f.mu, twin.mu, rtol=0, atol=1e-15)

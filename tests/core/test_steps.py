@@ -95,7 +95,8 @@ def test_the_compiled_correction_is_the_block_form(seed: int, invariant: bool) -
     out = np.full(kernels.OUT_SIZE, math.nan)
     outcome = kernels.correct(
         mu=m, S=S, d=d, l=l, z0=z[0], z1=z[1], q00=Q[0, 0], q01=Q[0, 1], q11=Q[1, 1],
-        jx=mu[l] - mu[0], jy=mu[l + 1] - mu[1], invariant=invariant, gate=math.inf,
+        jx=mu[l] - mu[0], jy=mu[l + 1] - mu[1], invariant=invariant, rho=0.0, dp=d,
+        gate=math.inf,
         work=np.zeros((2, capacity)), out=out,
     )  # fmt: skip
     assert outcome == kernels.ACCEPTED == Outcome.ACCEPTED

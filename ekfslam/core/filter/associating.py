@@ -158,6 +158,7 @@ class AssociatingFilter:
         (q00, q01), (_, q11) = Q.tolist()
         pairing = np.empty(len(zs), dtype=np.int64)
         smallest = np.empty(len(zs))
+        ekf._settle()  # the invariant filter's owed heading noise, before Σ is read
         # positional, each argument named as the kernel's parameter (see `EKFSLAM._propagate`)
         kernels.nearest(
             ekf._mu, ekf._Sigma, ekf._dim, zs, q00, q01, q11, self.config.gate, ekf._invariant,

@@ -120,12 +120,14 @@ class EKFSLAM:
         self._fej = self.config.linearization == "fej"
         # invariant: _Sigma holds the covariance of the right-invariant error (`core.invariant`)
         self._invariant = self.config.linearization == "invariant"
+        # invariant: the map block still owes rho v vᵀ up to row _owed_to (`kernels.propagate`)
+        self._rho, self._owed_to = 0.0, 3
         # FEJ: the robot's predicted position at the current step, and first landmark estimates
         self._prior_xy = (float(self._mu[0]), float(self._mu[1]))
         self._first: list[tuple[float, float]] = []
         self._rejected: list[list[Array]] = []  # per slot: where the rejected sightings put it
         # scratch for the kernels (filled in place: no per-step allocation)
-        self._work = np.zeros((2, cap))  # H Σ, then W = L⁻¹ H Σ
+        self._work = np.zeros((3, cap))  # H Σ, then W = L⁻¹ H Σ; the invariant filter's v
         self._out = np.full(kernels.OUT_SIZE, math.nan)  # ẑ, ν, S, NIS of the last observation
         self._no_rows = np.zeros((1, kernels.ROW_SIZE))  # where nothing is recorded
 
@@ -144,6 +146,7 @@ class EKFSLAM:
         With `linearization="invariant"` it is the Cartesian covariance of (x, y, θ, m), a new
         array, T P Tᵀ from `invariant_covariance` (`ekfslam.core.invariant.to_cartesian`).
         """
+        self._settle()
         kernels.mirror(self._Sigma, self._dim)
         P = self._Sigma[: self._dim, : self._dim]
         return to_cartesian(P, self.mu) if self._invariant else P
@@ -153,6 +156,7 @@ class EKFSLAM:
         """The covariance the invariant filter keeps, of its right-invariant error ξ (a copy)."""
         if not self._invariant:
             raise AttributeError("only a filter with linearization='invariant' has one")
+        self._settle()
         kernels.mirror(self._Sigma, self._dim)
         return self._Sigma[: self._dim, : self._dim].copy()
 
@@ -188,6 +192,7 @@ class EKFSLAM:
     def landmark(self, landmark_id: int) -> tuple[Array, Array]:
         """Mean (2,) and covariance (2, 2) of one landmark, by id (copies)."""
         l = 3 + 2 * self.slot[landmark_id]
+        self._settle()
         (a, _), (b, c) = self._Sigma[l : l + 2, l : l + 2].tolist()  # its lower triangle
         m, P = self._mu[l : l + 2].copy(), np.array([[a, b], [b, c]])
         if self._invariant:
@@ -275,9 +280,14 @@ class EKFSLAM:
         # positional, each argument named as the kernel's parameter (tests/core/test_history.py
         # checks it): numba's dispatcher folds keyword arguments at 0.4 µs a call of 14, a
         # quarter of what an event costs
-        self._prior_xy = kernels.propagate(
+        if self._rho and self._dim != self._owed_to:
+            self._settle()  # landmarks came in since: what is owed is owed to fewer rows
+        *self._prior_xy, rho = kernels.propagate(
             mu, S, d, us, dts, use_dts, N, fej, invariant, px, py, ts, rows, r0, record
         )
+        if invariant:
+            self._rho += rho
+            self._owed_to = d
         self._counts["predictions"] += len(us)
         if len(ts):
             self._t = float(ts[-1])
@@ -349,10 +359,12 @@ class EKFSLAM:
         else:
             jx, jy = mu.item(l) - mu.item(0), mu.item(l + 1) - mu.item(1)
         # positional, each argument named as the kernel's parameter (see `_propagate`)
-        invariant = self._invariant
+        invariant, rho, dp = self._invariant, self._rho, self._owed_to
         outcome = kernels.correct(
-            mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, invariant, gate, work, out
+            mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, invariant, rho, dp, gate, work, out
         )
+        if outcome == _ACCEPTED:
+            self._rho = 0.0  # the correction's pass added it
         if outcome == _REJECTED and self._should_reinitialise(j, z):
             return self._reinitialise(landmark_id, j, z, Q)
         if outcome == _ACCEPTED:
@@ -417,7 +429,15 @@ class EKFSLAM:
             seen, self._mu[3 : self._dim].reshape(-1, 2), j, self.config.reinit_radius
         )
 
+    def _settle(self) -> None:
+        """Add the heading noise the invariant filter's map block is owed (O(n²), see
+        `kernels.propagate`); a correction adds it in its own pass instead."""
+        if self._rho:
+            kernels.spread(self._mu, self._Sigma, self._owed_to, self._rho, self._work[2])
+            self._rho = 0.0
+
     def _reinitialise(self, landmark_id: int, j: int, z: tuple[float, float], Q: Array) -> Outcome:
+        self._settle()
         self._place(j, np.array(z), np.asarray(Q, dtype=float))
         l = 3 + 2 * j
         self._first[j] = (float(self._mu[l]), float(self._mu[l + 1]))
@@ -437,7 +457,7 @@ class EKFSLAM:
         mu[:d] = self._mu[:d]
         S[:d, :d] = self._Sigma[:d, :d]
         self._mu, self._Sigma = mu, S
-        self._work = np.zeros((2, cap))
+        self._work = np.zeros((3, cap))
 
     def _finish(
         self, landmark_id: int, z: tuple[float, float], code: int, l: int, computed=True
@@ -460,8 +480,10 @@ class EKFSLAM:
                 self._mu, self._Sigma, self._t, z, self._out, rec.rows, rec.obs
             )  # fmt: skip
             # positional, each argument named as the kernel's parameter (see `_propagate`)
-            invariant = self._invariant
-            kernels.record(mu, S, l, t, landmark_id, z0, z1, out, code, invariant, rows, n, obs, m)
+            invariant, rho, dp = self._invariant, self._rho, self._owed_to
+            kernels.record(
+                mu, S, l, t, landmark_id, z0, z1, out, code, invariant, rho, dp, rows, n, obs, m
+            )
         return _OUTCOME[code]
 
 

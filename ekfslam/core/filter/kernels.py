@@ -89,35 +89,38 @@ def cartesian_pose(row, c, x, y):
 
 
 @njit(cache=True)
-def _spread_heading_noise(mu, S, d, c0, c1, c2):
-    """The map rows of a batch's invariant noise Σ_k A_k R_k A_kᵀ (lower triangle, in place).
+def heading_direction(mu, d, dp, v):
+    """v = (0, 0, 0, m̂_1y, -m̂_1x, ...) up to dp, 0 from dp to d: -J m̂, the map rows of ξ that a
+    heading noise moves (`propagate`)."""
+    v[0] = v[1] = v[2] = 0.0
+    for i in range(3, dp, 2):
+        v[i], v[i + 1] = mu[i + 1], -mu[i]
+    for i in range(dp, d):
+        v[i] = 0.0
 
-    A_k's map rows are v = (m̂_y, -m̂_x) per landmark for n_θ, the same for the whole batch (the
-    landmarks do not move), so they add (c0, c1, c2) vᵀ to the pose-map block and c2 v vᵀ to
-    the map block, with (c0, c1, c2) = Σ_k A_k R_k e₃'s pose rows (c2 = Σ_k r22).
-    """
-    for i in range(3, d):
-        vi = mu[i + 1] if (i - 3) % 2 == 0 else -mu[i - 1]
+
+@njit(cache=True)
+def spread(mu, S, dp, rho, v):
+    """Σ's map block += rho v vᵀ (lower triangle; v of `heading_direction`, filled here): the
+    invariant filter's pending heading noise, one rank-1 pass."""
+    heading_direction(mu, dp, dp, v)
+    for i in range(3, dp):
+        w = rho * v[i]
         row = S[i]
-        row[0] += c0 * vi
-        row[1] += c1 * vi
-        row[2] += c2 * vi
-        w = c2 * vi
-        for k in range(3, i + 1, 2):  # v_k, v_k+1 = (m_y, -m_x) of the landmark at k
-            vx, vy = mu[k + 1], -mu[k]
-            row[k] += w * vx
-            if k + 1 <= i:
-                row[k + 1] += w * vy
+        for k in range(i + 1):  # from 0: v's pose entries are 0 (and the loop vectorises)
+            row[k] += w * v[k]
 
 
 @njit(cache=True)
 def propagate(mu, S, d, us, dts, use_dts, N, fej, invariant, px, py, ts, rows, r0, record):
-    """K predictions in a row, eqs. (6), (7) and (9); returns FEJ's (px, py) after them.
+    """K predictions in a row, eqs. (6), (7) and (9); returns FEJ's (px, py) after them, and rho.
 
     us (K, 3) body-frame increments; dts (K,) their durations when use_dts (then N is the
     control covariance per second M, and step k gets R_k = V(θ_k) (M dt_k) V(θ_k)ᵀ), else N is
     a fixed state-space R. px, py: FEJ's first estimate of the position at this step, p̂(k|k-1).
     When record, the pose and its covariance after each step go to rows[r0 + k] (`ROW`).
+    Returns (px, py, rho): rho = Σ_k r22, the heading noise the invariant filter still owes the
+    map block (0 otherwise).
 
     Every motion Jacobian of eq. (7) is G = I + g e₃ᵀ with g = (g0, g1, 0) = (-Δy, Δx), so the
     product over the batch is I + (Σ g) e₃ᵀ: the pose-landmark cross-covariance Σ_rm <- G Σ_rm
@@ -125,8 +128,11 @@ def propagate(mu, S, d, us, dts, use_dts, N, fej, invariant, px, py, ts, rows, r
 
     invariant: S holds the covariance of the right-invariant error ξ (`ekfslam.core.invariant`),
     whose propagation Jacobian is the identity (Barrau & Bonnabel 2015, the motion is
-    group-affine): only the pose block changes, by the noise mapped into ξ, A R Aᵀ with
-    A = I + a e₃ᵀ, a = (y, -x) at the pose after the step. The rows get the Cartesian pose
+    group-affine): P += A R Aᵀ with A = `ekfslam.core.invariant.noise_map` at the state after
+    the step, whose map rows v = -J m̂ (`heading_direction`) are the same for the whole batch.
+    The pose block and the pose-map block (c vᵀ, c = Σ_k A_k R_k e₃'s pose rows) are added
+    here, O(n); the map block's rho v vᵀ, O(n²), is returned as rho for the filter to add in
+    its next correction's pass (`correct`) or `spread`. The rows get the Cartesian pose
     covariance T P Tᵀ, T = I + (-y, x, 0) e₃ᵀ.
     """
     x, y, th = mu[0], mu[1], mu[2]
@@ -193,19 +199,26 @@ def propagate(mu, S, d, us, dts, use_dts, N, fej, invariant, px, py, ts, rows, r
             r00, r01, r02, r11, r12, r22 = n00, n01, n02, n11, n12, n22
         px, py = x, y
     mu[0], mu[1], mu[2] = x, y, th
-    if invariant:  # the heading noise n_θ moves every landmark's ξ by -J m̂ n_θ: O(n²) once
-        _spread_heading_noise(mu, S, d, c0, c1, c2)
+    if invariant:  # the heading noise n_θ moves every landmark's ξ by -J m̂ n_θ
+        for i in range(3, d, 2):  # the pose-map block += c vᵀ
+            vx, vy = mu[i + 1], -mu[i]
+            S[i, 0] += c0 * vx
+            S[i, 1] += c1 * vx
+            S[i, 2] += c2 * vx
+            S[i + 1, 0] += c0 * vy
+            S[i + 1, 1] += c1 * vy
+            S[i + 1, 2] += c2 * vy
     else:
         for i in range(3, d):  # Σ_rm <- (Π G) Σ_rm: only x and y change (columns, lower half)
             S[i, 0] += A * S[i, 2]
             S[i, 1] += B * S[i, 2]
     S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2] = s00, s01, s02, s11, s12, s22
     S[1, 0], S[2, 0], S[2, 1] = s01, s02, s12
-    return px, py
+    return px, py, c2
 
 
 @njit(cache=True)
-def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, invariant, gate, work, out):
+def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, invariant, rho, dp, gate, work, out):
     """One range-bearing observation of the landmark at l, eqs. (13)-(16); returns an outcome.
 
     jx, jy: the landmark relative to the robot where the Jacobian is evaluated (the current
@@ -219,7 +232,9 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, invariant, gate, work, o
     invariant: S is the covariance of the right-invariant error ξ. The observation Jacobian in ξ
     is H = [-H_l | 0 | H_l] (the heading column vanishes: the bearing's -1 cancels H_l J (m - p)),
     and the correction K ν is applied through the exponential of SE_{1+n}(2), x̂ <- exp(Kν) x̂
-    (Barrau & Bonnabel 2015, sec. IV), not added.
+    (Barrau & Bonnabel 2015, sec. IV), not added. rho, dp: the heading noise still owed to the
+    map block up to dp (`propagate`): Σ is read as S + rho v vᵀ and an accepted correction adds
+    it in its pass (then the filter owes nothing); work then needs a third row, for v.
     """
     out[:] = np.nan
     x, y, th = mu[0], mu[1], mu[2]
@@ -238,6 +253,11 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, invariant, gate, work, o
     a, b, e, f = jx / jr, jy / jr, jy / jq, jx / jq
     hth = 0.0 if invariant else 1.0  # minus the heading column of H
     h0, h1 = work[0], work[1]
+    owed = rho != 0.0
+    if owed:
+        hv = work[2]
+        heading_direction(mu, d, dp, hv)
+        vl0, vl1 = rho * hv[l], rho * hv[l + 1]
     for k in range(d):  # Σ's rows 0, 1, 2, l, l+1, read from the lower triangle
         if k < 3:
             p0, p1, p2 = S[0, k], S[1, k], S[2, k]
@@ -245,6 +265,9 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, invariant, gate, work, o
             p0, p1, p2 = S[k, 0], S[k, 1], S[k, 2]
         m0 = S[l, k] if k <= l else S[k, l]
         m1 = S[l + 1, k] if k <= l + 1 else S[k, l + 1]
+        if owed:
+            m0 += vl0 * hv[k]
+            m1 += vl1 * hv[k]
         u, v = m0 - p0, m1 - p1
         h0[k] = a * u + b * v
         h1[k] = -e * u + f * v - hth * p2
@@ -283,11 +306,18 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, invariant, gate, work, o
         W1[k] = f10 * p0 + f11 * p1
     if not -math.pi <= mu[2] < math.pi:
         mu[2] = wrap(mu[2])
-    for i in range(d):  # Σ -= Wᵀ W: the only O(n²) step, one pass over the lower triangle
-        a0, a1 = W0[i], W1[i]
-        row = S[i]
-        for k in range(i + 1):
-            row[k] -= a0 * W0[k] + a1 * W1[k]
+    if owed:  # Σ += rho v vᵀ - Wᵀ W in the same pass
+        for i in range(d):
+            a0, a1, w = W0[i], W1[i], rho * hv[i]
+            row = S[i]
+            for k in range(i + 1):
+                row[k] += w * hv[k] - (a0 * W0[k] + a1 * W1[k])
+    else:
+        for i in range(d):  # Σ -= Wᵀ W: the only O(n²) step, one pass over the lower triangle
+            a0, a1 = W0[i], W1[i]
+            row = S[i]
+            for k in range(i + 1):
+                row[k] -= a0 * W0[k] + a1 * W1[k]
     S[0, 1], S[0, 2], S[1, 2] = S[1, 0], S[2, 0], S[2, 1]  # the pose block stays whole
     return ACCEPTED
 
@@ -317,12 +347,13 @@ def retract(mu, d, h0, h1, k0, k1):
 
 
 @njit(cache=True)
-def record(mu, S, l, t, landmark_id, z0, z1, out, code, invariant, rows, n, obs, m):
+def record(mu, S, l, t, landmark_id, z0, z1, out, code, invariant, rho, dp, rows, n, obs, m):
     """Write the state after an observation to rows[n] (`ROW`) and the observation to obs[m].
 
     l < 0: no landmark slot (a refused first sighting); its estimate is then NaN. out: what
     `correct` wrote (ẑ, ν, S, NIS), NaN where there was none. code: the `history.Outcome`, as an
-    int. invariant: S is in invariant coordinates; the rows get the Cartesian covariances.
+    int. invariant: S is in invariant coordinates, with rho v vᵀ still owed to its map block up
+    to dp (`propagate`); the rows get the Cartesian covariances.
     """
     row = rows[n]
     p, c = ROW_POSE, ROW_COV
@@ -348,6 +379,8 @@ def record(mu, S, l, t, landmark_id, z0, z1, out, code, invariant, rows, n, obs,
         a, b, e = S[l, l], S[l + 1, l], S[l + 1, l + 1]
         if invariant:  # δm = ξ_m + J m̂ ξ_θ
             g0, g1, p0, p1, p22 = -mu[l + 1], mu[l], S[l, 2], S[l + 1, 2], S[2, 2]
+            if l < dp:  # the owed heading noise, v = -(g0, g1)
+                a, b, e = a + rho * g0 * g0, b + rho * g0 * g1, e + rho * g1 * g1
             a, b, e = (
                 a + 2.0 * g0 * p0 + g0 * g0 * p22,
                 b + g0 * p1 + g1 * p0 + g0 * g1 * p22,
