@@ -80,7 +80,7 @@ def test_a_sighting_between_the_gate_and_the_new_landmark_threshold_is_dropped()
 @pytest.mark.parametrize("linearization", ["standard", "invariant"])
 def test_the_compiled_nearest_neighbour_decides_as_the_numpy_reference(linearization):
     # a correlated map (pose uncertain, landmarks seen from two poses) and sightings near,
-    # between and far from its landmarks: kernels.nearest agrees with individual_nis then
+    # between and far from its landmarks: nearest.nearest agrees with individual_nis then
     # nearest_neighbour on every pairing, and on the smallest NIS to rounding. The invariant
     # filter's kernel reads its ξ covariance, the numpy one the Cartesian Σ: the same S.
     rng = np.random.default_rng(3)
