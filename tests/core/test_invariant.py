@@ -2,14 +2,21 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
+from ekfslam import pipeline
 from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.invariant import error_map, from_cartesian, noise_map, retract, to_cartesian
 from ekfslam.core.models import observation_noise
+from ekfslam.core.noise import default_noise
 from ekfslam.core.steps import new_landmark_step, predict_step
 from ekfslam.errors import ConfigError
+from ekfslam.logs.runlog import read_run
+from ekfslam.places import seed_runs_dir
+from ekfslam.teaching.reference import LiteralEKFSLAM
 
 Q = observation_noise(0.05, 0.03)
 R = np.diag([1e-4, 2e-4, 1e-3])
@@ -127,3 +134,32 @@ def test_the_heading_noise_owed_to_the_map_is_in_every_report():
         g.update(2, [2.3, -0.6], Q)
     np.testing.assert_allclose(f.Sigma, twin.Sigma, rtol=0, atol=1e-15)
     np.testing.assert_allclose(f.mu, twin.mu, rtol=0, atol=1e-15)
+
+
+def test_the_invariant_filter_replays_a_seed_run_as_the_literal_reference():
+    # the seed's octagon, event by event: the compiled filter (batched predictions, the owed
+    # map-block noise) against the literal F_x form (a full-size step each), to 1e-9
+    run = read_run(seed_runs_dir() / "octagon-2laps")
+    upto, us, dts, ends, M, R_fixed, ids, times, zs, Q_run = pipeline._schedule(
+        run, default_noise(run)
+    )
+    config = FilterConfig(linearization="invariant")
+    start = run.meta.nominal_start
+    fast, slow = EKFSLAM(start, None, config), LiteralEKFSLAM(start, None, config)
+
+    def R_of(theta: float, dt: float) -> np.ndarray:
+        c, s = math.cos(theta), math.sin(theta)
+        V = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return V @ (M * dt) @ V.T if M is not None else R_fixed
+
+    done = 0
+    for i, p in enumerate(upto):
+        if p > done:
+            fast.predict_many(us[done:p], dts[done:p], ends[done:p], M, R_fixed)
+            for k in range(done, p):
+                slow.predict(us[k], R_of(slow.mu[2], dts[k]))
+            done = p
+        assert fast.update(ids[i], zs[i], Q_run, times[i]) == slow.update(ids[i], zs[i], Q_run)
+    assert fast.counts.accepted > 500 and fast.n_landmarks == 8
+    np.testing.assert_allclose(fast.mu, slow.mu, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fast.Sigma, slow.cartesian_Sigma, rtol=0, atol=1e-9)
