@@ -22,6 +22,13 @@ numpy calls on the seed's small map, per-call overhead cost ten times the arithm
 keeps the decisions (slots, gating, re-initialisation, counting). `python -m ekfslam bench` measures
 it.
 
+With `FilterConfig(linearization="invariant")` (Barrau & Bonnabel 2015) the storage holds the
+covariance P of the right-invariant error ξ (`ekfslam.core.invariant`) instead of Σ: the mean is
+the same (x, y, θ, m), every covariance handed out (`Sigma`, `pose_covariance`, `landmark`, the
+history) is the Cartesian T P Tᵀ to first order, and `invariant_covariance` is P itself. Its
+prediction noise reaches the map block (O(n²)); the filter owes it and adds it in the next
+accepted correction's pass, or when Σ is read (`_settle`).
+
 Over 400 lines because it is one class: the decisions share the slot bookkeeping and the
 pre-allocated storage, and split across modules they would each need all of it.
 """
