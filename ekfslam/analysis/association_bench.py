@@ -5,7 +5,7 @@ Part of ``python -m ekfslam bench`` (`ekfslam.analysis.bench`):
 - the octagon replayed with ``known``, ``nn`` and ``jcbb`` association, interleaved: the median
   time per sighting (µs) and nn's and jcbb's ratio to known;
 - one association decision against the number m of sightings taken at one time: the NN choice
-  (compiled, `ekfslam.core.filter.kernels.nearest`), or the predictions
+  (compiled, `ekfslam.core.filter.nearest.nearest`), or the predictions
   (`AssociatingFilter.predicted`) and the JCBB search, over a map of `MAP_SIZE` landmarks on a
   circle the robot sits in, its pose uncertain (`POSE_SIGMA`), each sighting noisy; the JCBB
   nodes and whether the budget was hit.

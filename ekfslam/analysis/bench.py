@@ -3,7 +3,8 @@
 ``python -m ekfslam bench [--quick] [--json] [--out DIR]`` measures, in one run:
 
 - full replays of ``data/runs/octagon-2laps`` and ``square-2laps`` (ms, filter events per second),
-  the octagon also with ``FilterConfig(linearization="fej")`` (its cost relative to standard);
+  the octagon also with ``FilterConfig(linearization="fej")`` and ``"invariant"`` (their cost
+  relative to standard; the invariant EKF's prediction is O(n²), its noise reaching the map);
 - one `EKFSLAM.predict` and one `EKFSLAM.update` against n in `SIZES`, for the efficient filter
   and the literal F_x reference (`ekfslam.teaching.reference`, O(n^3): skipped, reported as null,
   where one step would take more than `LITERAL_MAX_STEP_S`), their ratio, the log-log slope of the
@@ -121,16 +122,21 @@ def default_mrclam_dir() -> Path | None:
 # ------------------------------------------------------------------------------------ replays
 def bench_replays(config: BenchConfig) -> dict:
     """Median replay times of the seed's runs (ms), events/s, and FEJ's cost on the octagon."""
-    out: dict = {"replay_ms": {}, "replay_events_per_s": {}, "fej_vs_standard": {}}
+    out: dict = {
+        "replay_ms": {}, "replay_events_per_s": {}, "fej_vs_standard": {},
+        "invariant_vs_standard": {},
+    }  # fmt: skip
     folder = config.runs_dir
     if folder is None or not all((folder / name).is_dir() for name in RUNS.values()):
         for key in RUNS:
             out["replay_ms"][key] = out["replay_events_per_s"][key] = None
         out["fej_vs_standard"]["replay_octagon"] = None
+        out["invariant_vs_standard"]["replay_octagon"] = None
         return out
     runs = {key: read_run(folder / name) for key, name in RUNS.items()}
-    fej = FilterConfig(linearization="fej")
-    cases = {**{key: (run, None) for key, run in runs.items()}, "fej": (runs["octagon"], fej)}
+    cases = {key: (run, None) for key, run in runs.items()}
+    for lin in ("fej", "invariant"):
+        cases[lin] = (runs["octagon"], FilterConfig(linearization=lin))
     events = {key: len(replay(run, config=c).history.t) for key, (run, c) in cases.items()}
     times: dict[str, list[float]] = {key: [] for key in cases}
     for _ in range(config.replay_repeats):  # interleaved: a busy spell hits every case alike
@@ -143,9 +149,10 @@ def bench_replays(config: BenchConfig) -> dict:
         out["replay_ms"][key] = 1e3 * s
         out["replay_events_per_s"][key] = events[key] / s
     out["replay_events"] = {key: events[key] for key in runs}
-    out["fej_vs_standard"]["replay_octagon"] = statistics.median(times["fej"]) / statistics.median(
-        times["octagon"]
-    )
+    for lin in ("fej", "invariant"):
+        out[f"{lin}_vs_standard"]["replay_octagon"] = statistics.median(
+            times[lin]
+        ) / statistics.median(times["octagon"])
     return out
 
 
@@ -197,7 +204,8 @@ def literal_twin(f: EKFSLAM) -> LiteralEKFSLAM:
     bookkeeping (sightings, first estimates) has no public setter, so it is filled here.
     """
     lit = LiteralEKFSLAM(f.pose, f.pose_covariance, f.config)
-    lit.mu, lit.Sigma, lit.slot = f.mu.copy(), f.Sigma.copy(), dict(f.slot)
+    own = f.invariant_covariance if f.config.linearization == "invariant" else f.Sigma.copy()
+    lit.mu, lit.Sigma, lit.slot = f.mu.copy(), own, dict(f.slot)
     lit._sightings = [2] * f.n_landmarks
     lit._first = [f.mu[3 + 2 * j : 5 + 2 * j].copy() for j in range(f.n_landmarks)]
     lit._rejected = [[] for _ in range(f.n_landmarks)]
@@ -228,7 +236,7 @@ def bench_sizes(config: BenchConfig) -> dict:
     eff: dict = {"predict": {}, "update": {}}
     lit: dict = {"predict": {}, "update": {}}
     last = None  # (d, seconds) of the latest literal step, to predict the next one's cost
-    fej = {}
+    fej, inv = {}, {}
     # (100, 1000) when measured, else the smallest and largest size (a tiny smoke run)
     lo = 100 if 100 in config.sizes else min(config.sizes)
     hi = 1000 if 1000 in config.sizes else max(config.sizes)
@@ -236,8 +244,10 @@ def bench_sizes(config: BenchConfig) -> dict:
         f, zs = map_of(n)
         if n == lo:
             g, _ = map_of(n, FilterConfig(gate=None, linearization="fej"))
-            (p, u), (pg, ug) = _step_costs([f, g], zs, config.step_repeats)
+            h, _ = map_of(n, FilterConfig(gate=None, linearization="invariant"))
+            (p, u), (pg, ug), (ph, uh) = _step_costs([f, g, h], zs, config.step_repeats)
             fej = {"update_n": n, "predict": pg / p, "update": ug / u}
+            inv = {"update_n": n, "predict": ph / p, "update": uh / u, "step": (ph + uh) / (p + u)}
         else:
             [(p, u)] = _step_costs([f], zs, config.step_repeats)
         eff["predict"][n], eff["update"][n] = p, u
@@ -265,6 +275,7 @@ def bench_sizes(config: BenchConfig) -> dict:
         "floor_s": floor,
         "inplace_pass_s": one_pass,
         "fej_step": fej,
+        "invariant_step": inv,
     }
 
 

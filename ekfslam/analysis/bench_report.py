@@ -72,6 +72,15 @@ def markdown_table(r: dict) -> str:
         f"predict {_fmt(fej.get('predict'), digits=2)}x and update "
         f"{_fmt(fej.get('update'), digits=2)}x at n = {fej.get('update_n')}",
     ]
+    inv = r.get("invariant_step")
+    if inv is not None:  # results written before the invariant EKF have none
+        lines.append(
+            f"- invariant / standard: octagon replay "
+            f"{_fmt(r['invariant_vs_standard']['replay_octagon'], digits=2)}x, "
+            f"predict {_fmt(inv.get('predict'), digits=2)}x, update "
+            f"{_fmt(inv.get('update'), digits=2)}x and predict + update "
+            f"{_fmt(inv.get('step'), digits=2)}x at n = {inv.get('update_n')}"
+        )
     lines += association_lines(r)
     if "startup_s" in r:  # results written before the startup section have none
         lines += startup_lines(r)

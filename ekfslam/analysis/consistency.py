@@ -8,7 +8,11 @@ chi-square with 2. N times the average of N independent runs is chi-square with 
 gives the two-sided 95% band of `chi2_band`. EKF-SLAM is known to leave that band from above: the
 standard linearisation gains information about the global heading that it cannot have (Bailey et
 al., IROS 2006; Huang, Mourikis & Roumeliotis, IJRR 2010); the FEJ-EKF
-(`FilterConfig.linearization="fej"`) is the cheap fix.
+(`FilterConfig.linearization="fej"`) is the cheap fix, the invariant EKF (Barrau & Bonnabel 2015,
+`"invariant"`) the one whose Jacobians do not depend on the estimate along the unobservable
+rotation. Its covariance is that of the invariant error; the NEES here uses the Cartesian one
+it reports, T P Tᵀ (`ekfslam.core.invariant.to_cartesian`, first order), like every other
+filter's.
 
 Monte Carlo runs are simulated with *correctly specified noise*: `noise_for_simulation` gives the
 filter the simulator's own R (eq. 9) and Q (eq. 11). The filter starts at the robot's TRUE start

@@ -370,7 +370,7 @@ def table(study: MrclamConsistency, plot: str | None = None) -> str:
         f"(ideal mean {IDEAL:g}; {CONFIDENCE:.0%} interval [{INTERVAL[0]:.3f}, "
         f"{INTERVAL[1]:.3f}] for one run)",
         f"{'robot':<9}"
-        + "".join(f"{lin + ' mean':>14}{'median':>8}{'in int.':>9}{'map (m)':>9}" for lin in lins),
+        + "".join(f"{lin + ' mean':>16}{'median':>8}{'in int.':>9}{'map (m)':>9}" for lin in lins),
     ]
     cells = [
         (str(robot), [study.get(robot, lin).as_dict() for lin in lins]) for robot in study.robots
@@ -380,7 +380,7 @@ def table(study: MrclamConsistency, plot: str | None = None) -> str:
         lines.append(
             f"{label:<9}"
             + "".join(
-                f"{r['mean']:>14.1f}{r['median']:>8.1f}{r['fraction_in_interval']:>9.0%}"
+                f"{r['mean']:>16.1f}{r['median']:>8.1f}{r['fraction_in_interval']:>9.0%}"
                 f"{r['aligned_error']:>9.3f}"
                 for r in rows
             )

@@ -22,7 +22,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any, NoReturn
 
-from ekfslam.core.filter.config import CHI2_2DOF_99
+from ekfslam.core.filter.config import CHI2_2DOF_99, LINEARIZATIONS
 
 #: What ``--plot`` writes (matplotlib infers the format from the suffix; these need no extras).
 PLOT_FORMATS: tuple[str, ...] = (".png", ".pdf", ".svg")
@@ -367,6 +367,11 @@ def add_noise_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--init", choices=["inverse", "seed"], default="inverse",
         help="landmark initialisation: inverse observation (default) or the seed's eq. (3)",
+    )  # fmt: skip
+    g.add_argument(
+        "--linearization", choices=LINEARIZATIONS, default="standard",
+        help="standard EKF (default), first-estimates Jacobian (fej), or the right-invariant "
+        "EKF (invariant; its covariance is reported Cartesian)",
     )  # fmt: skip
     g.add_argument(
         "--gate", type=non_negative(1e6), default=CHI2_2DOF_99,

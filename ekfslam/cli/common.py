@@ -98,8 +98,9 @@ def noise_from_args(args: argparse.Namespace, run: RunLog) -> tuple[NoiseConfig,
     }
     noise = replace(base, **overrides)  # validated again, as a new NoiseConfig
     config = replace(
-        default_config(run), init=args.init, gate=None if args.gate == 0 else args.gate
-    )
+        default_config(run), init=args.init, gate=None if args.gate == 0 else args.gate,
+        linearization=args.linearization,
+    )  # fmt: skip
     if args.reinit_after is not None:
         config = replace(config, reinit_after=args.reinit_after or None)
     return noise, config

@@ -32,7 +32,6 @@ from ekfslam.analysis.consistency import (
     counts_line,
 )
 from ekfslam.analysis.mrclam_consistency import (
-    LINEARIZATIONS,
     NOISE_SETTINGS,
     mrclam_consistency,
     table,
@@ -40,6 +39,7 @@ from ekfslam.analysis.mrclam_consistency import (
 from ekfslam.cli import args as ca
 from ekfslam.cli.common import mrclam_folder
 from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig
+from ekfslam.core.filter.config import LINEARIZATIONS as ALL_LINEARIZATIONS
 from ekfslam.files import save_figure
 from ekfslam.logs.mrclam.defaults import MRCLAM_CONFIG
 from ekfslam.logs.mrclam.load import ROBOTS
@@ -155,8 +155,10 @@ def _parallel(p: argparse.ArgumentParser) -> None:
 
 
 def _linearization(p: argparse.ArgumentParser, default: str) -> None:
-    p.add_argument("--linearization", choices=["standard", "fej", "both"], default=default,
-                   help="standard EKF, first-estimates Jacobian, or both "
+    p.add_argument("--linearization", choices=[*ALL_LINEARIZATIONS, "both", "all"],
+                   default=default,
+                   help="standard EKF, first-estimates Jacobian (fej), right-invariant EKF "
+                   "(invariant); both = standard and fej, all = the three "
                    "(default: %(default)s)")  # fmt: skip
 
 
@@ -173,7 +175,8 @@ def _gate(p: argparse.ArgumentParser) -> None:
 
 
 def _linearizations(args: argparse.Namespace) -> tuple[str, ...]:
-    return ("standard", "fej") if args.linearization == "both" else (args.linearization,)
+    choice = args.linearization
+    return {"both": ("standard", "fej"), "all": ALL_LINEARIZATIONS}.get(choice, (choice,))
 
 
 def _emit(args: argparse.Namespace, data: dict, text: str) -> None:
@@ -237,7 +240,7 @@ def cmd_long_run(args: argparse.Namespace) -> int:
 def cmd_mrclam(args: argparse.Namespace) -> int:
     """The robot x linearization table, --json, --plot."""
     folder = mrclam_folder(args.dataset)
-    lins = LINEARIZATIONS if args.linearization == "both" else (args.linearization,)
+    lins = _linearizations(args)
     config = dataclasses.replace(MRCLAM_CONFIG, gate=None if args.gate == 0 else args.gate)
     study = mrclam_consistency(
         folder, args.noise, tuple(args.robots), lins, config, jobs=args.jobs, dask=args.dask

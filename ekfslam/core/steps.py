@@ -10,6 +10,11 @@ The block form is Solà's (slamtb): an observation of landmark j sees only the r
 r = 0:3 and the landmark's rows l = 3+2j : 5+2j, so eq. (14)'s H = [H_r  H_l] F_x,j touches two
 column blocks of Σ, and Σ Hᵀ = Σ[:, r] H_rᵀ + Σ[:, l] H_lᵀ costs O(n) instead of the lift's
 O(n²) products.
+
+With ``invariant=True`` each step is the right-invariant EKF's (Barrau & Bonnabel 2015,
+`ekfslam.core.invariant`), on the covariance P of the invariant error ξ: the prediction's
+Jacobian is I and its noise A R Aᵀ reaches every row (O(n²)); H's heading column is zero; the
+mean moves by the group exponential; a new landmark's ξ is ξ_p + G_z δz.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam.core.invariant import INVARIANT_NEW_LANDMARK_POSE, noise_map, retract
 from ekfslam.core.models import (
     inverse_observation,
     inverse_observation_jacobians,
@@ -59,7 +65,7 @@ class UpdateSteps:
 
 
 def update_steps(
-    mu: ArrayLike, Sigma: ArrayLike, j: int, z: ArrayLike, Q: ArrayLike
+    mu: ArrayLike, Sigma: ArrayLike, j: int, z: ArrayLike, Q: ArrayLike, invariant: bool = False
 ) -> UpdateSteps:
     """One EKF correction with landmark slot j, eqs. (13)-(16), on the blocks it touches.
 
@@ -79,12 +85,15 @@ def update_steps(
     r, l = slice(0, 3), slice(3 + 2 * j, 5 + 2 * j)  # the robot's rows, landmark j's rows
     z_hat = observation(mu[r], mu[l])  # eq. (13), with atan2
     H_r, H_l = observation_jacobians(mu[r], mu[l])  # eq. (14)'s two non-zero blocks
+    if invariant:  # in ξ the bearing does not see the heading: H_r = [-H_l | 0]
+        H_r = H_r.copy()
+        H_r[:, 2] = 0.0
     SigmaHt = Sigma[:, r] @ H_r.T + Sigma[:, l] @ H_l.T  # Σ Hᵀ, (d, 2)
     S = H_r @ SigmaHt[r] + H_l @ SigmaHt[l] + Q  # H Σ Hᵀ + Q
     K = SigmaHt @ np.linalg.inv(S)  # eq. (15)
     nu = z - z_hat
     nu[1] = wrap_angle(float(nu[1]))
-    mu_post = mu + K @ nu  # eq. (16)
+    mu_post = retract(mu, K @ nu) if invariant else mu + K @ nu  # eq. (16)
     mu_post[2] = wrap_angle(float(mu_post[2]))
     H = np.zeros((2, d))
     H[:, r], H[:, l] = H_r, H_l
@@ -108,7 +117,7 @@ def update_steps(
 
 
 def predict_step(
-    mu: ArrayLike, Sigma: ArrayLike, u: ArrayLike, R: ArrayLike
+    mu: ArrayLike, Sigma: ArrayLike, u: ArrayLike, R: ArrayLike, invariant: bool = False
 ) -> tuple[Array, Array]:
     """One EKF prediction, eqs. (6), (7) and (9) done right, on the blocks it touches.
 
@@ -130,6 +139,9 @@ def predict_step(
     r, m = slice(0, 3), slice(3, None)
     G = motion_jacobian(mu[r], u)
     mu[r] = motion(mu[r], u)
+    if invariant:  # Σ (that is P) + A R Aᵀ, A = noise_map at the new state: every row moves
+        A = noise_map(mu)
+        return mu, Sigma + A @ np.asarray(R, dtype=float) @ A.T
     Sigma[r, r] = G @ Sigma[r, r] @ G.T + np.asarray(R, dtype=float)
     Sigma[r, m] = G @ Sigma[r, m]
     Sigma[m, r] = Sigma[r, m].T
@@ -137,7 +149,7 @@ def predict_step(
 
 
 def new_landmark_step(
-    mu: ArrayLike, Sigma: ArrayLike, z: ArrayLike, Q: ArrayLike
+    mu: ArrayLike, Sigma: ArrayLike, z: ArrayLike, Q: ArrayLike, invariant: bool = False
 ) -> tuple[Array, Array]:
     """A landmark first seen at z = (r, φ) appended to the state, eq. (12), with its covariance.
 
@@ -158,6 +170,8 @@ def new_landmark_step(
     Sigma = np.asarray(Sigma, dtype=float)
     d, r = mu.size, slice(0, 3)
     G_p, G_z = inverse_observation_jacobians(mu[r], z)
+    if invariant:
+        G_p = INVARIANT_NEW_LANDMARK_POSE
     cross = G_p @ Sigma[r, :]  # (2, d)
     new = np.zeros((d + 2, d + 2))
     new[:d, :d] = Sigma

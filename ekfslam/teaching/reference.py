@@ -5,6 +5,11 @@ This is a teaching artefact and the test oracle for `ekfslam.core.filter.ekf`: e
 
 Where the seed's printed shapes are wrong (eqs. 7 and 9 write F_x R F_x^T, which is 3x3), this
 uses the lift that type-checks: G = I + F_xᵀ (g - I) F_x and R lifted as F_xᵀ R F_x.
+With `linearization="invariant"` it is Barrau & Bonnabel's right-invariant EKF (2015) written as
+literally: `Sigma` is then the covariance of the invariant error ξ, the motion Jacobian is the
+full-size identity, the observation Jacobian is eq. (14)'s lifted H times the full-size error map
+T(μ̂) of `ekfslam.core.invariant` (H_ξ = H T), and the mean moves by the group exponential;
+`cartesian_Sigma` is T Σ Tᵀ, what the fast filter reports.
 The covariance update is Joseph's form (I - KH) Σ (I - KH)ᵀ + K Q Kᵀ, which for the optimal gain
 equals the seed's eq. (16) (I - KH) Σ but stays symmetric and positive semi-definite.
 """
@@ -18,6 +23,7 @@ from numpy.typing import ArrayLike
 
 from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.history import Outcome
+from ekfslam.core.invariant import INVARIANT_NEW_LANDMARK_POSE, error_map, noise_map, retract
 from ekfslam.core.models import (
     MIN_RANGE_SQUARED,
     inverse_observation,
@@ -50,6 +56,10 @@ class LiteralEKFSLAM:
         self.slot: dict[int, int] = {}
         self._sightings: list[int] = []
         self._fej = self.config.linearization == "fej"
+        self._invariant = self.config.linearization == "invariant"
+        if self._invariant:  # Σ0 is given Cartesian: the invariant one is T⁻¹ Σ0 T⁻ᵀ
+            T_inv = np.linalg.inv(error_map(self.mu))
+            self.Sigma = T_inv @ self.Sigma @ T_inv.T
         self._prior = self.mu[:2].copy()  # FEJ: the predicted position at the current step
         self._first: list[np.ndarray] = []  # FEJ: each landmark's first estimate
         self._rejected: list[list[np.ndarray]] = []  # per slot: rejected sightings' positions
@@ -62,6 +72,14 @@ class LiteralEKFSLAM:
     @property
     def counts(self) -> FilterCounts:
         return FilterCounts(**self._counts)
+
+    @property
+    def cartesian_Sigma(self) -> np.ndarray:
+        """The covariance of (x, y, θ, m): Sigma itself, or T Sigma Tᵀ for the invariant filter."""
+        if not self._invariant:
+            return self.Sigma
+        T = error_map(self.mu)
+        return T @ self.Sigma @ T.T
 
     def landmark_map(self) -> dict[int, np.ndarray]:
         return {i: self.mu[3 + 2 * j : 5 + 2 * j].copy() for i, j in self.slot.items()}
@@ -79,11 +97,15 @@ class LiteralEKFSLAM:
             g[1, 2] = predicted[0] - self._prior[0]
         self._prior = predicted[:2].copy()
         G = I + F_x.T @ (g - np.eye(3)) @ F_x
+        noise = F_x.T  # how the pose noise enters the state's error
         step = predicted - pose
         step[2] = wrap_angle(float(step[2]))
         self.mu = self.mu + F_x.T @ step
         self.mu[2] = wrap_angle(float(self.mu[2]))
-        self.Sigma = G @ self.Sigma @ G.T + F_x.T @ np.asarray(R, dtype=float) @ F_x
+        if self._invariant:  # ξ's Jacobian is I; the noise is mapped into ξ at the new state
+            G, noise = I, noise_map(self.mu)
+        R = np.asarray(R, dtype=float)
+        self.Sigma = G @ self.Sigma @ G.T + noise @ R @ noise.T
         self._counts["predictions"] += 1
 
     def update(
@@ -109,6 +131,8 @@ class LiteralEKFSLAM:
         m = inverse_observation(pose, z)
         if self.config.init == "inverse":
             G_p, G_z = inverse_observation_jacobians(pose, z)
+            if self._invariant:  # ξ_m = ξ_p + G_z δz
+                G_p = INVARIANT_NEW_LANDMARK_POSE
             G_x = G_p @ lift_matrix_numeric(n)  # 2 x (2n+3): the new landmark against the state
             top = np.hstack([self.Sigma, self.Sigma @ G_x.T])
             bottom = np.hstack([G_x @ self.Sigma, G_x @ self.Sigma @ G_x.T + G_z @ Q @ G_z.T])
@@ -132,6 +156,8 @@ class LiteralEKFSLAM:
         rows = slice(3 + 2 * j, 5 + 2 * j)
         if self.config.init == "inverse":
             G_p, G_z = inverse_observation_jacobians(pose, z)
+            if self._invariant:
+                G_p = INVARIANT_NEW_LANDMARK_POSE
             G_x = G_p @ lift_matrix_numeric(n)
             cross = G_x @ self.Sigma
             self.Sigma[rows, :] = cross
@@ -174,6 +200,8 @@ class LiteralEKFSLAM:
         z_hat = observation(pose, landmark)
         H_p, H_l = observation_jacobians(at_pose, at_landmark)
         H = np.hstack([H_p, H_l]) @ landmark_lift_matrix_numeric(n, j)  # eq. (14)
+        if self._invariant:  # the Jacobian in ξ: H T(μ̂)
+            H = H @ error_map(self.mu)
         S = H @ self.Sigma @ H.T + Q
         nu = z - z_hat
         nu[1] = wrap_angle(float(nu[1]))
@@ -197,7 +225,10 @@ class LiteralEKFSLAM:
                     return self._reinitialise(j, z, Q)
             return self._count(Outcome.REJECTED)
         K = self.Sigma @ H.T @ np.linalg.inv(S)  # eq. (15)
-        self.mu = self.mu + K @ nu  # eq. (16)
+        if self._invariant:  # eq. (16) through the group: exp(K ν) X̂
+            self.mu = retract(self.mu, K @ nu)
+        else:
+            self.mu = self.mu + K @ nu  # eq. (16)
         self.mu[2] = wrap_angle(float(self.mu[2]))
         IKH = np.eye(self.Sigma.shape[0]) - K @ H
         self.Sigma = IKH @ self.Sigma @ IKH.T + K @ Q @ K.T

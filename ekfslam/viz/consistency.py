@@ -35,7 +35,7 @@ def plot_consistency(
         ("nees_heading", "heading NEES (1 dof)"),
         ("nis", "NIS (2 dof)"),
     )
-    colors = {"standard": "tab:red", "fej": "tab:blue"}
+    colors = {"standard": "tab:red", "fej": "tab:blue", "invariant": "tab:green"}
     for ax, (name, label) in zip(axes, panels, strict=True):
         r0 = results[0]
         band = getattr(r0, "band_" + name.removeprefix("nees_"))
@@ -70,7 +70,7 @@ def plot_mrclam_nees(study: MrclamConsistency, figsize=None, floor: float = 0.01
     robots = study.robots
     fig = Figure(figsize=figsize or (9.0, 1.5 + 1.7 * len(robots)), layout="constrained")
     axes = np.atleast_1d(fig.subplots(len(robots), 1, sharex=True, sharey=True))
-    colors = {"standard": "tab:red", "fej": "tab:blue"}
+    colors = {"standard": "tab:red", "fej": "tab:blue", "invariant": "tab:green"}
     for ax, robot in zip(axes, robots, strict=True):
         ax.axhspan(
             *study.interval, color="0.88", label=f"{study.confidence:.0%} interval for one run"

@@ -159,6 +159,24 @@ def test_standard_ekf_leaves_the_band_on_the_loop_and_fej_does_not():
     assert len(fig.axes) == 3 and all(ax.get_legend() for ax in fig.axes)
 
 
+@pytest.mark.slow
+def test_the_invariant_ekf_stays_in_the_chi2_band_on_the_loop():
+    # Barrau & Bonnabel's right-invariant EKF: its Jacobians do not depend on the estimate
+    # along the unobservable rotation, so it gains no heading information it cannot have
+    standard, invariant = compare("loop", runs=20, linearizations=("standard", "invariant"))
+    lo, hi = chi2_band(3, 20)
+    d = invariant.as_dict()
+    assert d["band"] == pytest.approx([lo, hi])
+    assert lo < d["nees_pose"]["mean"] < hi
+    assert invariant.fraction_in_band("nees_pose") >= 0.9
+    assert standard.fraction_in_band("nees_pose") < 0.8
+    second_half = standard.t > standard.t[-1] / 2
+    assert np.nanmean(standard.nees_heading[second_half]) > 1.3 * np.nanmean(
+        invariant.nees_heading[second_half]
+    )
+    assert invariant.counts.initialised == standard.counts.initialised  # the same runs
+
+
 def test_runs_must_be_positive():
     with pytest.raises(ValueError, match="runs"):
         monte_carlo("square", runs=0)
@@ -235,7 +253,7 @@ def test_five_percent_outliers_cost_the_gated_map_at_most_a_fifth(name):
 
 
 # ------------------------------------------------------------------------------------ long run
-@pytest.mark.parametrize("linearization", ["standard", "fej"])
+@pytest.mark.parametrize("linearization", ["standard", "fej", "invariant"])
 def test_a_short_long_run_keeps_sigma_positive_semidefinite(linearization):
     r = long_run(3000, linearization, check_every=500)
     assert r.passed and r.finite
@@ -256,6 +274,18 @@ def test_the_counts_line_puts_each_label_with_its_number():
         "over all runs: 25740 predictions; updates 9000 accepted, 12 rejected, 1 refused; "
         "landmarks 160 initialised, 2 re-initialised"
     )
+
+
+def test_cli_all_compares_the_three_linearizations_on_the_same_runs():
+    out = cli("consistency", "nees", "--runs", "1", "--trajectory", "square",
+              "--linearization", "all", "--json", "--jobs", "1")  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    d = json.loads(out.stdout)
+    assert sorted(d) == ["fej", "invariant", "standard"]
+    assert len({d[k]["updates"]["initialised"] for k in d}) == 1
+    bad = cli("consistency", "nees", "--linearization", "iekf")
+    assert bad.returncode == 2 and "invalid choice: 'iekf'" in bad.stderr
+    assert "Traceback" not in bad.stderr
 
 
 def test_cli_text_prints_the_counts_line():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from ekfslam.core.association import (
     UNPAIRED,
@@ -11,6 +12,7 @@ from ekfslam.core.association import (
     nearest_neighbour,
 )
 from ekfslam.core.filter.associating import AMBIGUOUS, AssociatingFilter
+from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.models import observation, observation_noise
 
@@ -75,12 +77,15 @@ def test_a_sighting_between_the_gate_and_the_new_landmark_threshold_is_dropped()
     np.testing.assert_array_equal(f.ekf.mu, mean_before)  # dropped: the state is untouched
 
 
-def test_the_compiled_nearest_neighbour_decides_as_the_numpy_reference():
+@pytest.mark.parametrize("linearization", ["standard", "invariant"])
+def test_the_compiled_nearest_neighbour_decides_as_the_numpy_reference(linearization):
     # a correlated map (pose uncertain, landmarks seen from two poses) and sightings near,
-    # between and far from its landmarks: kernels.nearest agrees with individual_nis then
-    # nearest_neighbour on every pairing, and on the smallest NIS to rounding
+    # between and far from its landmarks: nearest.nearest agrees with individual_nis then
+    # nearest_neighbour on every pairing, and on the smallest NIS to rounding. The invariant
+    # filter's kernel reads its ξ covariance, the numpy one the Cartesian Σ: the same S.
     rng = np.random.default_rng(3)
-    ekf = EKFSLAM(np.zeros(3), np.diag([0.04, 0.04, 0.01]))
+    config = FilterConfig(linearization=linearization)
+    ekf = EKFSLAM(np.zeros(3), np.diag([0.04, 0.04, 0.01]), config)
     marks = rng.uniform(-4.0, 4.0, size=(12, 2))
     for j, p in enumerate(marks):
         ekf.update(j, observation(np.zeros(3), p), Q)

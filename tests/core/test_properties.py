@@ -25,7 +25,7 @@ FLOOR = -1e-9  # smallest eigenvalue of Σ allowed, as a fraction of its trace
 configs = st.builds(
     FilterConfig,
     init=st.sampled_from(["inverse", "seed"]),
-    linearization=st.sampled_from(["standard", "fej"]),
+    linearization=st.sampled_from(["standard", "fej", "invariant"]),
     gate=st.sampled_from([None, 9.21, 25.0]),
     gate_after=st.integers(1, 3),
     initial_capacity=st.integers(1, 4),  # exercise the storage doubling too
@@ -185,3 +185,10 @@ def test_non_finite_observations_are_an_error_not_a_nan_state():
         with pytest.raises(ValueError, match="non-finite"):
             ekf.update(1, z, np.eye(2) * 1e-4)
     assert ekf.n_landmarks == 0 and np.isfinite(ekf.Sigma).all()
+
+
+@pytest.mark.parametrize("gate", [None, 9.21])
+def test_the_invariant_filter_survives_observations_that_fit_no_world(gate):
+    # where FEJ without a gate diverges (above): the invariant filter's Jacobians are taken at
+    # the latest estimate, so ungated nonsense moves the state without blowing Σ up
+    _adversarial_run(FilterConfig(linearization="invariant", gate=gate), seed=3, n_landmarks=6)

@@ -84,18 +84,20 @@ def random_state(seed: int):
 SEEDS = range(25)
 
 
+@pytest.mark.parametrize("invariant", [False, True])
 @pytest.mark.parametrize("seed", SEEDS)
-def test_the_compiled_correction_is_the_block_form(seed: int) -> None:
+def test_the_compiled_correction_is_the_block_form(seed: int, invariant: bool) -> None:
     mu, Sigma, j, z, Q = random_state(seed)
-    steps = update_steps(mu, Sigma, j, z, Q)
+    steps = update_steps(mu, Sigma, j, z, Q, invariant=invariant)
     d, l, capacity = len(mu), 3 + 2 * j, len(mu) + 4  # storage larger than the state, as in EKFSLAM
     m, S = np.zeros(capacity), np.zeros((capacity, capacity))
     m[:d], S[:d, :d] = mu, Sigma
     out = np.full(kernels.OUT_SIZE, math.nan)
     outcome = kernels.correct(
         mu=m, S=S, d=d, l=l, z0=z[0], z1=z[1], q00=Q[0, 0], q01=Q[0, 1], q11=Q[1, 1],
-        jx=mu[l] - mu[0], jy=mu[l + 1] - mu[1], gate=math.inf, work=np.zeros((2, capacity)),
-        out=out,
+        jx=mu[l] - mu[0], jy=mu[l + 1] - mu[1], invariant=invariant, rho=0.0, dp=d,
+        gate=math.inf,
+        work=np.zeros((2, capacity)), out=out,
     )  # fmt: skip
     assert outcome == kernels.ACCEPTED == Outcome.ACCEPTED
     kernels.mirror(S, d)  # the kernel keeps the lower triangle
@@ -108,12 +110,13 @@ def test_the_compiled_correction_is_the_block_form(seed: int) -> None:
     np.testing.assert_allclose(S[:d, :d], steps.Sigma_joseph, rtol=0, atol=1e-9)
 
 
+@pytest.mark.parametrize("linearization", ["standard", "invariant"])
 @pytest.mark.parametrize("seed", SEEDS)
-def test_the_literal_reference_correction_is_the_block_form(seed: int) -> None:
+def test_the_literal_reference_correction_is_the_block_form(seed: int, linearization) -> None:
     mu, Sigma, j, z, Q = random_state(seed)
-    steps = update_steps(mu, Sigma, j, z, Q)
+    steps = update_steps(mu, Sigma, j, z, Q, invariant=linearization == "invariant")
     n = (len(mu) - 3) // 2
-    literal = LiteralEKFSLAM(mu[:3], config=FilterConfig(gate=None))
+    literal = LiteralEKFSLAM(mu[:3], config=FilterConfig(gate=None, linearization=linearization))
     # the reference has no constructor from a state: give it one landmark per slot, seen once
     literal.mu, literal.Sigma = mu.copy(), Sigma.copy()
     literal.slot = {10 + k: k for k in range(n)}

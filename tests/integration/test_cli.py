@@ -81,6 +81,22 @@ def test_noise_and_init_options_change_the_result():
     assert off["updates"]["rejected"] == 0
 
 
+def test_run_takes_each_linearization():
+    out = {
+        lin: json.loads(
+            cli("run", str(RUNS / "octagon-2laps"), "--json", "--linearization", lin).stdout
+        )
+        for lin in ("standard", "invariant")
+    }
+    # the same sightings, another filter: every one used, a different estimate
+    assert out["standard"]["updates"] == out["invariant"]["updates"]
+    assert out["standard"]["alignment"] != out["invariant"]["alignment"]
+    assert out["invariant"]["alignment"]["mean_error"] < 0.02  # m; the octagon maps to ~5 mm
+    bad = cli("run", str(RUNS / "octagon-2laps"), "--linearization", "iekf")
+    assert bad.returncode == 2 and "--linearization" in bad.stderr
+    assert "Traceback" not in bad.stderr
+
+
 # What "reproducible" means for data/runs (data/README.md): on any CPU, every file regenerates
 # with the same names, headers, row counts and integers, and floats that agree to REGEN_ATOL. The
 # writer rounds simulated values to SIMULATED_DECIMALS, so on one machine (and, in practice, on

@@ -6,7 +6,7 @@ predictions from the filter's state, lets `ekfslam.core.association` choose the 
 (``nn`` or ``jcbb``), and feeds each paired sighting to `EKFSLAM.update` under the landmark's
 estimated id (0, 1, 2 ... in the order they become permanent), one after the other as the
 replay does with known ids. ``nn`` needs only each landmark's own 2x2 block of that covariance,
-so it runs compiled (`ekfslam.core.filter.kernels.nearest`, O(m n)) and costs about what the
+so it runs compiled (`ekfslam.core.filter.nearest.nearest`, O(m n)) and costs about what the
 updates do; ``jcbb`` needs the cross blocks too, and builds H Σ Hᵀ (`predicted`). The EKF
 itself is unchanged: its gate and re-initialisation still apply to each update.
 
@@ -41,7 +41,7 @@ from ekfslam.core.association import (
     individual_nis,
     jcbb,
 )
-from ekfslam.core.filter import kernels
+from ekfslam.core.filter import nearest as nearest_kernel
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.models import inverse_observation, inverse_observation_jacobians
 
@@ -119,7 +119,7 @@ class AssociatingFilter:
             self._expire(t)
         m = len(zs)
         ids = self.ekf.landmark_ids
-        if self.config.method == "nn":  # compiled, O(m n): no H Σ Hᵀ (see `kernels.nearest`)
+        if self.config.method == "nn":  # compiled, O(m n): no H Σ Hᵀ (see `nearest.nearest`)
             pairing, nearest = self._nearest(zs, Q)
         else:
             Qs = np.broadcast_to(Q, (m, 2, 2))
@@ -158,10 +158,12 @@ class AssociatingFilter:
         (q00, q01), (_, q11) = Q.tolist()
         pairing = np.empty(len(zs), dtype=np.int64)
         smallest = np.empty(len(zs))
+        ekf._settle()  # the invariant filter's owed heading noise, before Σ is read
         # positional, each argument named as the kernel's parameter (see `EKFSLAM._propagate`)
-        kernels.nearest(
-            ekf._mu, ekf._Sigma, ekf._dim, zs, q00, q01, q11, self.config.gate, pairing, smallest
-        )
+        nearest_kernel.nearest(
+            ekf._mu, ekf._Sigma, ekf._dim, zs, q00, q01, q11, self.config.gate, ekf._invariant,
+            pairing, smallest,
+        )  # fmt: skip
         return pairing.tolist(), smallest.tolist()
 
     def predicted(self, zs: Array) -> tuple[Array, Array]:

@@ -25,6 +25,9 @@ def chi2_2dof_quantile(p: float) -> float:
     return -2.0 * math.log1p(-p)
 
 
+#: The filter's linearisations (`FilterConfig.linearization`), in the order tables list them.
+LINEARIZATIONS = ("standard", "fej", "invariant")
+
 #: chi-square(2 dof) 99% quantile (9.2103...): the default Mahalanobis gate on (r, φ) innovations.
 CHI2_2DOF_99 = chi2_2dof_quantile(0.99)
 
@@ -56,11 +59,17 @@ class FilterConfig:
         First-Estimates Jacobian EKF (Huang, Mourikis & Roumeliotis, IJRR 2010): the motion
         Jacobian of eq. (7) uses the predicted positions p̂(k+1|k) - p̂(k|k-1) and the observation
         Jacobian of eq. (14) the robot's predicted position and each landmark's first estimate,
-        so the filter does not gain spurious information about the global heading.
+        so the filter does not gain spurious information about the global heading;
+        "invariant" is the right-invariant EKF on SE_{1+n}(2) (Barrau & Bonnabel, "An EKF-SLAM
+        algorithm with consistency properties", 2015): the filter keeps the covariance of the
+        invariant error ξ (`ekfslam.core.invariant`), whose Jacobians do not depend on the
+        estimate along the unobservable directions (a global shift and rotation), and corrects
+        through the group's exponential. The mean is the same (x, y, θ, landmarks) and the
+        covariance is reported Cartesian (`EKFSLAM.Sigma`, the history), to first order.
     """
 
     init: Literal["inverse", "seed"] = "inverse"
-    linearization: Literal["standard", "fej"] = "standard"
+    linearization: Literal["standard", "fej", "invariant"] = "standard"
     seed_init_variance: float = 1e6
     gate: float | None = CHI2_2DOF_99
     gate_after: int = 1
@@ -69,9 +78,10 @@ class FilterConfig:
     initial_capacity: int = 16
 
     def __post_init__(self) -> None:
-        if self.linearization not in ("standard", "fej"):
+        if self.linearization not in LINEARIZATIONS:
             raise ConfigError(
-                f"linearization must be 'standard' or 'fej', got {self.linearization!r}"
+                f"linearization must be 'standard', 'fej' or 'invariant', "
+                f"got {self.linearization!r}"
             )
         if self.init not in ("inverse", "seed"):
             raise ConfigError(f"init must be 'inverse' or 'seed', got {self.init!r}")

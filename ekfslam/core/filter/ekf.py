@@ -22,6 +22,13 @@ numpy calls on the seed's small map, per-call overhead cost ten times the arithm
 keeps the decisions (slots, gating, re-initialisation, counting). `python -m ekfslam bench` measures
 it.
 
+With `FilterConfig(linearization="invariant")` (Barrau & Bonnabel 2015) the storage holds the
+covariance P of the right-invariant error ξ (`ekfslam.core.invariant`) instead of Σ: the mean is
+the same (x, y, θ, m), every covariance handed out (`Sigma`, `pose_covariance`, `landmark`, the
+history) is the Cartesian T P Tᵀ to first order, and `invariant_covariance` is P itself. Its
+prediction noise reaches the map block (O(n²)); the filter owes it and adds it in the next
+accepted correction's pass, or when Σ is read (`_settle`).
+
 Over 400 lines because it is one class: the decisions share the slot bookkeeping and the
 pre-allocated storage, and split across modules they would each need all of it.
 """
@@ -38,6 +45,12 @@ from ekfslam.core.filter import kernels
 from ekfslam.core.filter.config import CHI2_2DOF_99 as CHI2_2DOF_99
 from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.history import OBSERVE, PREDICT, History, Outcome, Recorder
+from ekfslam.core.invariant import (
+    INVARIANT_NEW_LANDMARK_POSE,
+    from_cartesian,
+    landmark_to_cartesian,
+    to_cartesian,
+)
 from ekfslam.core.models import (
     MIN_RANGE_SQUARED,
     inverse_observation,
@@ -102,6 +115,8 @@ class EKFSLAM:
         self._mu[2] = _wrap(float(self._mu[2]))
         if pose_covariance is not None:
             P0 = np.asarray(pose_covariance, dtype=float)
+            if self.config.linearization == "invariant":  # Σ0 is Cartesian; the filter keeps ξ's
+                P0 = from_cartesian(P0, self._mu[:3])
             self._Sigma[:3, :3] = 0.5 * (P0 + P0.T)
         self._ids: list[int] = []
         self.slot: dict[int, int] = {}
@@ -110,12 +125,16 @@ class EKFSLAM:
         self._recorder = Recorder() if record else None
         self._t = 0.0
         self._fej = self.config.linearization == "fej"
+        # invariant: _Sigma holds the covariance of the right-invariant error (`core.invariant`)
+        self._invariant = self.config.linearization == "invariant"
+        # invariant: the map block still owes rho v vᵀ up to row _owed_to (`kernels.propagate`)
+        self._rho, self._owed_to = 0.0, 3
         # FEJ: the robot's predicted position at the current step, and first landmark estimates
         self._prior_xy = (float(self._mu[0]), float(self._mu[1]))
         self._first: list[tuple[float, float]] = []
         self._rejected: list[list[Array]] = []  # per slot: where the rejected sightings put it
         # scratch for the kernels (filled in place: no per-step allocation)
-        self._work = np.zeros((2, cap))  # H Σ, then W = L⁻¹ H Σ
+        self._work = np.zeros((3, cap))  # H Σ, then W = L⁻¹ H Σ; the invariant filter's v
         self._out = np.full(kernels.OUT_SIZE, math.nan)  # ẑ, ν, S, NIS of the last observation
         self._no_rows = np.zeros((1, kernels.ROW_SIZE))  # where nothing is recorded
 
@@ -131,9 +150,22 @@ class EKFSLAM:
 
         The steps keep only its lower triangle current (`ekfslam.core.filter.kernels`); reading it
         fills in the upper one, O(n²). Read it again after a step rather than keeping the view.
+        With `linearization="invariant"` it is the Cartesian covariance of (x, y, θ, m), a new
+        array, T P Tᵀ from `invariant_covariance` (`ekfslam.core.invariant.to_cartesian`).
         """
+        self._settle()
         kernels.mirror(self._Sigma, self._dim)
-        return self._Sigma[: self._dim, : self._dim]
+        P = self._Sigma[: self._dim, : self._dim]
+        return to_cartesian(P, self.mu) if self._invariant else P
+
+    @property
+    def invariant_covariance(self) -> Array:
+        """The covariance the invariant filter keeps, of its right-invariant error ξ (a copy)."""
+        if not self._invariant:
+            raise AttributeError("only a filter with linearization='invariant' has one")
+        self._settle()
+        kernels.mirror(self._Sigma, self._dim)
+        return self._Sigma[: self._dim, : self._dim].copy()
 
     @property
     def pose(self) -> Array:
@@ -142,8 +174,9 @@ class EKFSLAM:
 
     @property
     def pose_covariance(self) -> Array:
-        """The 3x3 pose block of Sigma, a copy."""
-        return self._Sigma[:3, :3].copy()
+        """The 3x3 pose block of Sigma (Cartesian for the invariant filter too), a copy."""
+        P = self._Sigma[:3, :3].copy()
+        return to_cartesian(P, self._mu[:3]) if self._invariant else P
 
     @property
     def n_landmarks(self) -> int:
@@ -166,8 +199,12 @@ class EKFSLAM:
     def landmark(self, landmark_id: int) -> tuple[Array, Array]:
         """Mean (2,) and covariance (2, 2) of one landmark, by id (copies)."""
         l = 3 + 2 * self.slot[landmark_id]
+        self._settle()
         (a, _), (b, c) = self._Sigma[l : l + 2, l : l + 2].tolist()  # its lower triangle
-        return self._mu[l : l + 2].copy(), np.array([[a, b], [b, c]])
+        m, P = self._mu[l : l + 2].copy(), np.array([[a, b], [b, c]])
+        if self._invariant:
+            P = landmark_to_cartesian(P, self._Sigma[l : l + 2, 2], self._Sigma[2, 2], m)
+        return m, P
 
     def landmark_map(self) -> dict[int, Array]:
         """{landmark id: mean (2,)}, the estimated map."""
@@ -246,13 +283,18 @@ class EKFSLAM:
         if not use_dts:  # ts stands in for dts: the kernel's types are fixed
             dts = ts
         mu, S, d, fej, record = self._mu, self._Sigma, self._dim, self._fej, rec is not None
-        px, py = self._prior_xy
+        px, py, invariant = *self._prior_xy, self._invariant
         # positional, each argument named as the kernel's parameter (tests/core/test_history.py
         # checks it): numba's dispatcher folds keyword arguments at 0.4 µs a call of 14, a
         # quarter of what an event costs
-        self._prior_xy = kernels.propagate(
-            mu, S, d, us, dts, use_dts, N, fej, px, py, ts, rows, r0, record
+        if self._rho and self._dim != self._owed_to:
+            self._settle()  # landmarks came in since: what is owed is owed to fewer rows
+        *self._prior_xy, rho = kernels.propagate(
+            mu, S, d, us, dts, use_dts, N, fej, invariant, px, py, ts, rows, r0, record
         )
+        if invariant:
+            self._rho += rho
+            self._owed_to = d
         self._counts["predictions"] += len(us)
         if len(ts):
             self._t = float(ts[-1])
@@ -324,7 +366,12 @@ class EKFSLAM:
         else:
             jx, jy = mu.item(l) - mu.item(0), mu.item(l + 1) - mu.item(1)
         # positional, each argument named as the kernel's parameter (see `_propagate`)
-        outcome = kernels.correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out)
+        invariant, rho, dp = self._invariant, self._rho, self._owed_to
+        outcome = kernels.correct(
+            mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, invariant, rho, dp, gate, work, out
+        )
+        if outcome == _ACCEPTED:
+            self._rho = 0.0  # the correction's pass added it
         if outcome == _REJECTED and self._should_reinitialise(j, z):
             return self._reinitialise(landmark_id, j, z, Q)
         if outcome == _ACCEPTED:
@@ -356,6 +403,8 @@ class EKFSLAM:
         mu[l : l + 2] = inverse_observation(pose, z)
         if self.config.init == "inverse":
             G_p, G_z = inverse_observation_jacobians(pose, z)
+            if self._invariant:  # ξ_m = ξ_p + G_z δz (`ekfslam.core.invariant`)
+                G_p = INVARIANT_NEW_LANDMARK_POSE
             cross = G_p @ S[:d, :3].T  # cov(m_new, everything) = G_p Σ_r,m (lower triangle)
             S[l : l + 2, :d] = cross
             S[:d, l : l + 2] = cross.T
@@ -387,7 +436,15 @@ class EKFSLAM:
             seen, self._mu[3 : self._dim].reshape(-1, 2), j, self.config.reinit_radius
         )
 
+    def _settle(self) -> None:
+        """Add the heading noise the invariant filter's map block is owed (O(n²), see
+        `kernels.propagate`); a correction adds it in its own pass instead."""
+        if self._rho:
+            kernels.spread(self._mu, self._Sigma, self._owed_to, self._rho, self._work[2])
+            self._rho = 0.0
+
     def _reinitialise(self, landmark_id: int, j: int, z: tuple[float, float], Q: Array) -> Outcome:
+        self._settle()
         self._place(j, np.array(z), np.asarray(Q, dtype=float))
         l = 3 + 2 * j
         self._first[j] = (float(self._mu[l]), float(self._mu[l + 1]))
@@ -407,7 +464,7 @@ class EKFSLAM:
         mu[:d] = self._mu[:d]
         S[:d, :d] = self._Sigma[:d, :d]
         self._mu, self._Sigma = mu, S
-        self._work = np.zeros((2, cap))
+        self._work = np.zeros((3, cap))
 
     def _finish(
         self, landmark_id: int, z: tuple[float, float], code: int, l: int, computed=True
@@ -430,7 +487,10 @@ class EKFSLAM:
                 self._mu, self._Sigma, self._t, z, self._out, rec.rows, rec.obs
             )  # fmt: skip
             # positional, each argument named as the kernel's parameter (see `_propagate`)
-            kernels.record(mu, S, l, t, landmark_id, z0, z1, out, code, rows, n, obs, m)
+            invariant, rho, dp = self._invariant, self._rho, self._owed_to
+            kernels.record(
+                mu, S, l, t, landmark_id, z0, z1, out, code, invariant, rho, dp, rows, n, obs, m
+            )
         return _OUTCOME[code]
 
 

@@ -67,17 +67,73 @@ def wrap(a: float) -> float:
 
 
 @njit(cache=True)
-def propagate(mu, S, d, us, dts, use_dts, N, fej, px, py, ts, rows, r0, record):
-    """K predictions in a row, eqs. (6), (7) and (9); returns FEJ's (px, py) after them.
+def cartesian_pose(row, c, x, y):
+    """The 6 entries of an invariant pose covariance at row[c:c+6] made Cartesian, in place.
+
+    T P Tᵀ with T = I + g e₃ᵀ, g = J p̂ = (-y, x): δp = ξ_p + J p̂ ξ_θ (`ekfslam.core.invariant`).
+    """
+    g0, g1 = -y, x
+    s00, s01, s02, s11, s12, s22 = (
+        row[c],
+        row[c + 1],
+        row[c + 2],
+        row[c + 3],
+        row[c + 4],
+        row[c + 5],
+    )
+    row[c] = s00 + 2.0 * g0 * s02 + g0 * g0 * s22
+    row[c + 1] = s01 + g0 * s12 + g1 * s02 + g0 * g1 * s22
+    row[c + 2] = s02 + g0 * s22
+    row[c + 3] = s11 + 2.0 * g1 * s12 + g1 * g1 * s22
+    row[c + 4] = s12 + g1 * s22
+
+
+@njit(cache=True)
+def heading_direction(mu, d, dp, v):
+    """v = (0, 0, 0, m̂_1y, -m̂_1x, ...) up to dp, 0 from dp to d: -J m̂, the map rows of ξ that a
+    heading noise moves (`propagate`)."""
+    v[0] = v[1] = v[2] = 0.0
+    for i in range(3, dp, 2):
+        v[i], v[i + 1] = mu[i + 1], -mu[i]
+    for i in range(dp, d):
+        v[i] = 0.0
+
+
+@njit(cache=True)
+def spread(mu, S, dp, rho, v):
+    """Σ's map block += rho v vᵀ (lower triangle; v of `heading_direction`, filled here): the
+    invariant filter's pending heading noise, one rank-1 pass."""
+    heading_direction(mu, dp, dp, v)
+    for i in range(3, dp):
+        w = rho * v[i]
+        row = S[i]
+        for k in range(i + 1):  # from 0: v's pose entries are 0 (and the loop vectorises)
+            row[k] += w * v[k]
+
+
+@njit(cache=True)
+def propagate(mu, S, d, us, dts, use_dts, N, fej, invariant, px, py, ts, rows, r0, record):
+    """K predictions in a row, eqs. (6), (7) and (9); returns FEJ's (px, py) after them, and rho.
 
     us (K, 3) body-frame increments; dts (K,) their durations when use_dts (then N is the
     control covariance per second M, and step k gets R_k = V(θ_k) (M dt_k) V(θ_k)ᵀ), else N is
     a fixed state-space R. px, py: FEJ's first estimate of the position at this step, p̂(k|k-1).
     When record, the pose and its covariance after each step go to rows[r0 + k] (`ROW`).
+    Returns (px, py, rho): rho = Σ_k r22, the heading noise the invariant filter still owes the
+    map block (0 otherwise).
 
     Every motion Jacobian of eq. (7) is G = I + g e₃ᵀ with g = (g0, g1, 0) = (-Δy, Δx), so the
     product over the batch is I + (Σ g) e₃ᵀ: the pose-landmark cross-covariance Σ_rm <- G Σ_rm
     takes one O(n) pass for the whole batch, while the 3x3 pose block is stepped in floats.
+
+    invariant: S holds the covariance of the right-invariant error ξ (`ekfslam.core.invariant`),
+    whose propagation Jacobian is the identity (Barrau & Bonnabel 2015, the motion is
+    group-affine): P += A R Aᵀ with A = `ekfslam.core.invariant.noise_map` at the state after
+    the step, whose map rows v = -J m̂ (`heading_direction`) are the same for the whole batch.
+    The pose block and the pose-map block (c vᵀ, c = Σ_k A_k R_k e₃'s pose rows) are added
+    here, O(n); the map block's rho v vᵀ, O(n²), is returned as rho for the filter to add in
+    its next correction's pass (`correct`) or `spread`. The rows get the Cartesian pose
+    covariance T P Tᵀ, T = I + (-y, x, 0) e₃ᵀ.
     """
     x, y, th = mu[0], mu[1], mu[2]
     s00, s01, s02, s11, s12, s22 = S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]
@@ -85,6 +141,7 @@ def propagate(mu, S, d, us, dts, use_dts, N, fej, px, py, ts, rows, r0, record):
     r00, r01, r02, r11, r12, r22 = n00, n01, n02, n11, n12, n22
     A = 0.0  # Σ g0 and Σ g1 over the batch
     B = 0.0
+    c0 = c1 = c2 = 0.0  # invariant: Σ of A R e₃'s pose rows over the batch (its map rows: below)
     for k in range(us.shape[0]):
         c, s = math.cos(th), math.sin(th)
         dx = us[k, 0] * c - us[k, 1] * s  # eq. (6): the step in the world frame
@@ -102,6 +159,17 @@ def propagate(mu, S, d, us, dts, use_dts, N, fej, px, py, ts, rows, r0, record):
             r02 = (c * n02 - s * n12) * dt
             r12 = (s * n02 + c * n12) * dt
             r22 = n22 * dt
+        if invariant:  # F = I; the noise enters ξ through A = I + a e₃ᵀ, a = (y', -x')
+            g0, g1 = 0.0, 0.0
+            a0, a1 = y + dy, -(x + dx)
+            r00, r01, r02, r11, r12 = (
+                r00 + 2.0 * a0 * r02 + a0 * a0 * r22,
+                r01 + a0 * r12 + a1 * r02 + a0 * a1 * r22,
+                r02 + a0 * r22,
+                r11 + 2.0 * a1 * r12 + a1 * a1 * r22,
+                r12 + a1 * r22,
+            )
+            c0, c1, c2 = c0 + r02, c1 + r12, c2 + r22
         # eq. (9) on the pose block: G Σ Gᵀ + R, written out for G = I + g e₃ᵀ
         s00, s01, s02, s11, s12, s22 = (
             s00 + 2.0 * g0 * s02 + g0 * g0 * s22 + r00,
@@ -125,18 +193,32 @@ def propagate(mu, S, d, us, dts, use_dts, N, fej, px, py, ts, rows, r0, record):
             row[c], row[c + 1], row[c + 2], row[c + 3], row[c + 4], row[c + 5] = (
                 s00, s01, s02, s11, s12, s22
             )  # fmt: skip
+            if invariant:
+                cartesian_pose(row, c, x, y)
+        if invariant and not use_dts:  # the fixed R again for the next step (it was mapped)
+            r00, r01, r02, r11, r12, r22 = n00, n01, n02, n11, n12, n22
         px, py = x, y
     mu[0], mu[1], mu[2] = x, y, th
-    for i in range(3, d):  # Σ_rm <- (Π G) Σ_rm: only x and y change (columns, in the lower half)
-        S[i, 0] += A * S[i, 2]
-        S[i, 1] += B * S[i, 2]
+    if invariant:  # the heading noise n_θ moves every landmark's ξ by -J m̂ n_θ
+        for i in range(3, d, 2):  # the pose-map block += c vᵀ
+            vx, vy = mu[i + 1], -mu[i]
+            S[i, 0] += c0 * vx
+            S[i, 1] += c1 * vx
+            S[i, 2] += c2 * vx
+            S[i + 1, 0] += c0 * vy
+            S[i + 1, 1] += c1 * vy
+            S[i + 1, 2] += c2 * vy
+    else:
+        for i in range(3, d):  # Σ_rm <- (Π G) Σ_rm: only x and y change (columns, lower half)
+            S[i, 0] += A * S[i, 2]
+            S[i, 1] += B * S[i, 2]
     S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2] = s00, s01, s02, s11, s12, s22
     S[1, 0], S[2, 0], S[2, 1] = s01, s02, s12
-    return px, py
+    return px, py, c2
 
 
 @njit(cache=True)
-def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out):
+def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, invariant, rho, dp, gate, work, out):
     """One range-bearing observation of the landmark at l, eqs. (13)-(16); returns an outcome.
 
     jx, jy: the landmark relative to the robot where the Jacobian is evaluated (the current
@@ -146,6 +228,13 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out):
     ACCEPTED (state updated), REJECTED (NIS above the gate), REFUSED (no linearisation: the
     landmark, or the observation, sits on the robot) or SINGULAR (S is not positive definite,
     or not finite: no gain); only ACCEPTED changes mu and S.
+
+    invariant: S is the covariance of the right-invariant error ξ. The observation Jacobian in ξ
+    is H = [-H_l | 0 | H_l] (the heading column vanishes: the bearing's -1 cancels H_l J (m - p)),
+    and the correction K ν is applied through the exponential of SE_{1+n}(2), x̂ <- exp(Kν) x̂
+    (Barrau & Bonnabel 2015, sec. IV), not added. rho, dp: the heading noise still owed to the
+    map block up to dp (`propagate`): Σ is read as S + rho v vᵀ and an accepted correction adds
+    it in its pass (then the filter owes nothing); work then needs a third row, for v.
     """
     out[:] = np.nan
     x, y, th = mu[0], mu[1], mu[2]
@@ -162,7 +251,13 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out):
     # so H Σ = H_l (Σ_l - Σ_xy) - e₂ Σ_θ comes from five rows of Σ: O(n), no lift.
     jr = math.sqrt(jq)
     a, b, e, f = jx / jr, jy / jr, jy / jq, jx / jq
+    hth = 0.0 if invariant else 1.0  # minus the heading column of H
     h0, h1 = work[0], work[1]
+    owed = rho != 0.0
+    if owed:
+        hv = work[2]
+        heading_direction(mu, d, dp, hv)
+        vl0, vl1 = rho * hv[l], rho * hv[l + 1]
     for k in range(d):  # Σ's rows 0, 1, 2, l, l+1, read from the lower triangle
         if k < 3:
             p0, p1, p2 = S[0, k], S[1, k], S[2, k]
@@ -170,13 +265,16 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out):
             p0, p1, p2 = S[k, 0], S[k, 1], S[k, 2]
         m0 = S[l, k] if k <= l else S[k, l]
         m1 = S[l + 1, k] if k <= l + 1 else S[k, l + 1]
+        if owed:
+            m0 += vl0 * hv[k]
+            m1 += vl1 * hv[k]
         u, v = m0 - p0, m1 - p1
         h0[k] = a * u + b * v
-        h1[k] = -e * u + f * v - p2
+        h1[k] = -e * u + f * v - hth * p2
     # S = H Σ Hᵀ + Q (eq. 15's innovation covariance), from H Σ's columns the same way
     s00 = a * (h0[l] - h0[0]) + b * (h0[l + 1] - h0[1]) + q00
-    s01 = -e * (h0[l] - h0[0]) + f * (h0[l + 1] - h0[1]) - h0[2] + q01
-    s11 = -e * (h1[l] - h1[0]) + f * (h1[l + 1] - h1[1]) - h1[2] + q11
+    s01 = -e * (h0[l] - h0[0]) + f * (h0[l + 1] - h0[1]) - hth * h0[2] + q01
+    s11 = -e * (h1[l] - h1[0]) + f * (h1[l + 1] - h1[1]) - hth * h1[2] + q11
     out[OUT_S], out[OUT_S + 1], out[OUT_S + 2] = s00, s01, s11
     # S = L Lᵀ (Cholesky, 2x2); w = L⁻¹ ν makes the NIS νᵀ S⁻¹ ν = |w|²
     det = s00 * s11 - s01 * s01
@@ -197,30 +295,65 @@ def correct(mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, gate, work, out):
     f00, f10, f11 = 1.0 / l00, -l10 / (l00 * l11), 1.0 / l11
     k1 = w1 / l11
     k0 = (w0 - l10 * k1) / l00
+    if invariant:
+        retract(mu, d, h0, h1, k0, k1)
     W0, W1 = h0, h1  # in place: column k of H Σ is read before it is overwritten
     for k in range(d):
         p0, p1 = h0[k], h1[k]
-        mu[k] += k0 * p0 + k1 * p1
+        if not invariant:
+            mu[k] += k0 * p0 + k1 * p1
         W0[k] = f00 * p0
         W1[k] = f10 * p0 + f11 * p1
     if not -math.pi <= mu[2] < math.pi:
         mu[2] = wrap(mu[2])
-    for i in range(d):  # Σ -= Wᵀ W: the only O(n²) step, one pass over the lower triangle
-        a0, a1 = W0[i], W1[i]
-        row = S[i]
-        for k in range(i + 1):
-            row[k] -= a0 * W0[k] + a1 * W1[k]
+    if owed:  # Σ += rho v vᵀ - Wᵀ W in the same pass
+        for i in range(d):
+            a0, a1, w = W0[i], W1[i], rho * hv[i]
+            row = S[i]
+            for k in range(i + 1):
+                row[k] += w * hv[k] - (a0 * W0[k] + a1 * W1[k])
+    else:
+        for i in range(d):  # Σ -= Wᵀ W: the only O(n²) step, one pass over the lower triangle
+            a0, a1 = W0[i], W1[i]
+            row = S[i]
+            for k in range(i + 1):
+                row[k] -= a0 * W0[k] + a1 * W1[k]
     S[0, 1], S[0, 2], S[1, 2] = S[1, 0], S[2, 0], S[2, 1]  # the pose block stays whole
     return ACCEPTED
 
 
 @njit(cache=True)
-def record(mu, S, l, t, landmark_id, z0, z1, out, code, rows, n, obs, m):
+def retract(mu, d, h0, h1, k0, k1):
+    """mu <- exp(ξ) mu on SE_{1+n}(2), ξ = K ν = (H Σ)ᵀ (k0, k1) (`ekfslam.core.invariant.retract`).
+
+    θ += ξ_θ and every point v (the position, each landmark) becomes R(ξ_θ) v + V(ξ_θ) ξ_v with
+    V(φ) = (sin φ / φ) I + ((1 - cos φ) / φ) J, the left Jacobian of SO(2).
+    """
+    w = k0 * h0[2] + k1 * h1[2]
+    c, s = math.cos(w), math.sin(w)
+    if abs(w) < 1e-6:  # the series of sin w / w and (1 - cos w) / w
+        va, vb = 1.0 - w * w / 6.0, 0.5 * w
+    else:
+        va, vb = s / w, (1.0 - c) / w
+    for t in range((d - 1) // 2):  # the points start at 0 (the position), 3, 5, ...
+        i = 0 if t == 0 else 1 + 2 * t
+        j = i + 1
+        x0, x1 = mu[i], mu[j]
+        e0, e1 = k0 * h0[i] + k1 * h1[i], k0 * h0[j] + k1 * h1[j]
+        mu[i] = c * x0 - s * x1 + va * e0 - vb * e1
+        mu[j] = s * x0 + c * x1 + vb * e0 + va * e1
+    th = mu[2] + w
+    mu[2] = th if -math.pi <= th < math.pi else wrap(th)
+
+
+@njit(cache=True)
+def record(mu, S, l, t, landmark_id, z0, z1, out, code, invariant, rho, dp, rows, n, obs, m):
     """Write the state after an observation to rows[n] (`ROW`) and the observation to obs[m].
 
     l < 0: no landmark slot (a refused first sighting); its estimate is then NaN. out: what
     `correct` wrote (ẑ, ν, S, NIS), NaN where there was none. code: the `history.Outcome`, as an
-    int.
+    int. invariant: S is in invariant coordinates, with rho v vᵀ still owed to its map block up
+    to dp (`propagate`); the rows get the Cartesian covariances.
     """
     row = rows[n]
     p, c = ROW_POSE, ROW_COV
@@ -228,6 +361,8 @@ def record(mu, S, l, t, landmark_id, z0, z1, out, code, rows, n, obs, m):
     row[c], row[c + 1], row[c + 2], row[c + 3], row[c + 4], row[c + 5] = (
         S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]
     )  # fmt: skip
+    if invariant:
+        cartesian_pose(row, c, mu[0], mu[1])
     o = obs[m]
     o[OBS_T], o[OBS_EVENT], o[OBS_ID], o[OBS_Z], o[OBS_Z + 1] = t, n, landmark_id, z0, z1
     o[OBS_Z_HAT], o[OBS_Z_HAT + 1] = out[OUT_Z_HAT], out[OUT_Z_HAT + 1]
@@ -241,7 +376,17 @@ def record(mu, S, l, t, landmark_id, z0, z1, out, code, rows, n, obs, m):
     else:
         o[OBS_LANDMARK], o[OBS_LANDMARK + 1] = mu[l], mu[l + 1]
         c = OBS_LANDMARK_COV
-        o[c], o[c + 1], o[c + 2], o[c + 3] = S[l, l], S[l + 1, l], S[l + 1, l], S[l + 1, l + 1]
+        a, b, e = S[l, l], S[l + 1, l], S[l + 1, l + 1]
+        if invariant:  # δm = ξ_m + J m̂ ξ_θ
+            g0, g1, p0, p1, p22 = -mu[l + 1], mu[l], S[l, 2], S[l + 1, 2], S[2, 2]
+            if l < dp:  # the owed heading noise, v = -(g0, g1)
+                a, b, e = a + rho * g0 * g0, b + rho * g0 * g1, e + rho * g1 * g1
+            a, b, e = (
+                a + 2.0 * g0 * p0 + g0 * g0 * p22,
+                b + g0 * p1 + g1 * p0 + g0 * g1 * p22,
+                e + 2.0 * g1 * p1 + g1 * g1 * p22,
+            )
+        o[c], o[c + 1], o[c + 2], o[c + 3] = a, b, b, e
 
 
 @njit(cache=True)
@@ -252,60 +397,3 @@ def mirror(S, d):
             for i in range(ib, min(ib + 32, d)):
                 for k in range(kb, min(kb + 32, i)):
                     S[k, i] = S[i, k]
-
-
-@njit(cache=True)
-def nearest(mu, S, d, zs, q00, q01, q11, gate, pairing, smallest):
-    """Individual compatibility of m sightings zs (m, 2) against every landmark, in O(m n).
-
-    For landmark j, ẑ_j is eq. (10) and H_j eq. (14), nonzero on (x, y, θ, m_jx, m_jy) only, so
-    S_ij = H_j Σ_j H_jᵀ + Q needs just that 5x5 block Σ_j of Σ's lower triangle, and
-    NIS_ij = ν_ijᵀ S_ij⁻¹ ν_ij with ν_ij = z_i - ẑ_j (eq. 13, bearing wrapped). Writes each
-    sighting's smallest NIS to smallest[i] (inf: none finite) and its landmark's index to
-    pairing[i] when that NIS is at most gate, else -1: `ekfslam.core.association.individual_nis`
-    then `nearest_neighbour`, without building H Σ Hᵀ (ties: the lower index, as argmin).
-    """
-    m = zs.shape[0]
-    for i in range(m):
-        pairing[i] = -1
-        smallest[i] = math.inf
-    x, y, th = mu[0], mu[1], mu[2]
-    h0 = np.zeros(5)
-    h1 = np.zeros(5)
-    ix = np.zeros(5, dtype=np.int64)
-    ix[0], ix[1], ix[2] = 0, 1, 2
-    for l in range(3, d, 2):
-        dx, dy = mu[l] - x, mu[l + 1] - y
-        q = max(dx * dx + dy * dy, MIN_RANGE_SQUARED)
-        r = math.sqrt(q)
-        zb = math.atan2(dy, dx) - th
-        a, b, c, e = dx / r, dy / r, dy / q, dx / q
-        h0[0], h0[1], h0[2], h0[3], h0[4] = -a, -b, 0.0, a, b
-        h1[0], h1[1], h1[2], h1[3], h1[4] = c, -e, -1.0, -c, e
-        ix[3], ix[4] = l, l + 1
-        p00 = p01 = p11 = 0.0
-        for u in range(5):
-            s0 = s1 = 0.0
-            for v in range(5):
-                iu, iv = ix[u], ix[v]
-                w = S[iu, iv] if iv <= iu else S[iv, iu]  # the lower triangle
-                s0 += w * h0[v]
-                s1 += w * h1[v]
-            p00 += h0[u] * s0
-            p01 += h0[u] * s1
-            p11 += h1[u] * s1
-        s00, s01, s11 = p00 + q00, p01 + q01, p11 + q11
-        det = s00 * s11 - s01 * s01
-        j = (l - 3) // 2
-        for i in range(m):
-            v0 = zs[i, 0] - r
-            v1 = (zs[i, 1] - zb + math.pi) % (2.0 * math.pi) - math.pi
-            nis = (s11 * v0 * v0 - 2.0 * s01 * v0 * v1 + s00 * v1 * v1) / det
-            if not (s00 > 0.0 and det > 0.0 and math.isfinite(nis)):
-                nis = math.inf
-            if nis < smallest[i]:
-                smallest[i] = nis
-                pairing[i] = j
-    for i in range(m):
-        if not smallest[i] <= gate:
-            pairing[i] = -1

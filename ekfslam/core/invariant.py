@@ -1,0 +1,122 @@
+"""The right-invariant error of EKF SLAM on SE_{1+n}(2), and the maps to and from Cartesian.
+
+Barrau & Bonnabel, "An EKF-SLAM algorithm with consistency properties" (2015; arXiv:1510.06263)
+write the state of eq. (1) as one matrix group element, SE_{1+n}(2):
+
+    X = [[R(θ), p, m_1, ..., m_n],
+         [0,    1, 0,   ..., 0  ],  ...]   (the identity below the first two rows)
+
+and the error as the right-invariant η = X X̂⁻¹ = exp(ξ). To first order, with J = [[0, -1], [1, 0]]
+(a quarter turn), the true state is
+
+    θ = θ̂ + ξ_θ,   p = p̂ + ξ_p + J p̂ ξ_θ,   m_i = m̂_i + ξ_mi + J m̂_i ξ_θ,
+
+so the Cartesian error δ = (δx, δy, δθ, δm) of the other filters is δ = T(μ̂) ξ with
+T = I + c e₃ᵀ, c = (J p̂, 0, J m̂_1, ..., J m̂_n): a global rotation of the whole map about the
+origin, the unobservable direction, is ξ = e₃ whatever the estimate. In ξ the motion of eq. (6)
+is group-affine, so the propagation Jacobian is the identity, and the observation Jacobian of
+eq. (14) loses its heading column (see `ekfslam.teaching.invariant`, which derives both).
+
+The invariant filter keeps the covariance P of ξ (ordered as the state: ξ_x, ξ_y, ξ_θ, ξ_m...),
+and reports Σ = T P Tᵀ, the first-order Cartesian covariance, wherever a covariance leaves it
+(ellipses, NEES, the history): everything downstream reads one kind of covariance.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+Array = NDArray[np.float64]
+
+#: ∂ξ_m/∂ξ_pose of a landmark initialised by eq. (12): ξ_m = ξ_p + G_z δz, no heading term.
+INVARIANT_NEW_LANDMARK_POSE = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+INVARIANT_NEW_LANDMARK_POSE.flags.writeable = False
+
+
+def _column(mu: ArrayLike) -> Array:
+    """c = (J p̂, 0, J m̂_1, ...): the Cartesian error of the rotation ξ = e₃ (without its e₃)."""
+    mu = np.asarray(mu, dtype=float)
+    points = np.concatenate([mu[:2], mu[3:]]).reshape(-1, 2)
+    jp = np.column_stack([-points[:, 1], points[:, 0]]).ravel()
+    return np.concatenate([jp[:2], [0.0], jp[2:]])
+
+
+def error_map(mu: ArrayLike) -> Array:
+    """T(μ̂) (d, d): the Cartesian error δ = T ξ of a small invariant error ξ at the estimate μ̂."""
+    c = _column(mu)
+    T = np.eye(len(c))
+    T[:, 2] += c
+    return T
+
+
+def to_cartesian(P: ArrayLike, mu: ArrayLike) -> Array:
+    """Σ = T P Tᵀ (a new array): the Cartesian covariance of an invariant one P, O(d²)."""
+    P = np.asarray(P, dtype=float)
+    c = _column(mu[: len(P)])
+    p2 = P[:, 2]
+    return P + np.outer(c, p2) + np.outer(p2, c) + P[2, 2] * np.outer(c, c)
+
+
+def from_cartesian(Sigma: ArrayLike, mu: ArrayLike) -> Array:
+    """P = T⁻¹ Σ T⁻ᵀ, with T⁻¹ = I - c e₃ᵀ: the invariant covariance of a Cartesian one."""
+    Sigma = np.asarray(Sigma, dtype=float)
+    c = -_column(mu[: len(Sigma)])
+    s2 = Sigma[:, 2]
+    return Sigma + np.outer(c, s2) + np.outer(s2, c) + Sigma[2, 2] * np.outer(c, c)
+
+
+def landmark_to_cartesian(P_mm: ArrayLike, P_mtheta: ArrayLike, P_thth: float, m: ArrayLike):
+    """One landmark's 2x2 Cartesian covariance from its invariant blocks (δm = ξ_m + J m̂ ξ_θ)."""
+    g = np.array([-m[1], m[0]])
+    P_mtheta = np.asarray(P_mtheta, dtype=float)
+    return (
+        np.asarray(P_mm, dtype=float)
+        + np.outer(g, P_mtheta)
+        + np.outer(P_mtheta, g)
+        + P_thth * np.outer(g, g)
+    )
+
+
+def noise_map(mu: ArrayLike) -> Array:
+    """A (d, 3) = T(μ̂)⁻¹ F_xᵀ: a Cartesian pose noise n at the estimate μ̂ is A n in ξ.
+
+    ξ_p = n_p - J p̂ n_θ, ξ_θ = n_θ, and ξ_m = -J m̂ n_θ for every landmark: in the invariant
+    error a heading noise turns the whole map about the robot's frame (Barrau & Bonnabel's
+    Ad_X̂), so the noise reaches every row of P, not only the pose's.
+    """
+    c = _column(mu)
+    A = np.zeros((len(c), 3))
+    A[:3] = np.eye(3)
+    A[:, 2] -= c
+    return A
+
+
+def so2_left_jacobian(phi: float) -> Array:
+    """V(φ) = (sin φ / φ) I + ((1 - cos φ) / φ) J, the translation part of SE(2)'s exponential."""
+    if abs(phi) < 1e-6:
+        a, b = 1.0 - phi * phi / 6.0, 0.5 * phi
+    else:
+        a, b = math.sin(phi) / phi, (1.0 - math.cos(phi)) / phi
+    return np.array([[a, -b], [b, a]])
+
+
+def retract(mu: ArrayLike, xi: ArrayLike) -> Array:
+    """exp(ξ) X̂ as a state vector: θ + ξ_θ, and each point v -> R(ξ_θ) v + V(ξ_θ) ξ_v.
+
+    The invariant filter's correction of eq. (16): μ̂ <- exp(K ν) μ̂ instead of μ̂ + K ν. The
+    heading is wrapped to [-π, π).
+    """
+    mu = np.asarray(mu, dtype=float)
+    xi = np.asarray(xi, dtype=float)
+    w = float(xi[2])
+    c, s = math.cos(w), math.sin(w)
+    Rw, V = np.array([[c, -s], [s, c]]), so2_left_jacobian(w)
+    points = np.concatenate([mu[:2], mu[3:]]).reshape(-1, 2)
+    steps = np.concatenate([xi[:2], xi[3:]]).reshape(-1, 2)
+    moved = points @ Rw.T + steps @ V.T
+    out = np.concatenate([moved[0], [mu[2] + w], moved[1:].ravel()])
+    out[2] = (out[2] + math.pi) % (2.0 * math.pi) - math.pi
+    return out

@@ -1,0 +1,165 @@
+"""The invariant EKF: its error map, its block form against the filter, its Cartesian reports."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ekfslam import pipeline
+from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
+from ekfslam.core.invariant import error_map, from_cartesian, noise_map, retract, to_cartesian
+from ekfslam.core.models import observation_noise
+from ekfslam.core.noise import default_noise
+from ekfslam.core.steps import new_landmark_step, predict_step
+from ekfslam.errors import ConfigError
+from ekfslam.logs.runlog import read_run
+from ekfslam.places import seed_runs_dir
+from ekfslam.teaching.reference import LiteralEKFSLAM
+
+Q = observation_noise(0.05, 0.03)
+R = np.diag([1e-4, 2e-4, 1e-3])
+INVARIANT = FilterConfig(linearization="invariant", gate=None)
+
+
+def test_the_error_map_and_its_inverse():
+    mu = np.array([1.5, -2.0, 0.4, 3.0, 1.0, -1.0, 2.5])
+    rng = np.random.default_rng(0)
+    A = rng.normal(size=(7, 7))
+    P = A @ A.T
+    T = error_map(mu)
+    np.testing.assert_allclose(to_cartesian(P, mu), T @ P @ T.T, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(from_cartesian(to_cartesian(P, mu), mu), P, rtol=0, atol=1e-12)
+    # a small ξ moves the state by T ξ to first order: the error is second order
+    xi = 1e-5 * rng.normal(size=7)
+    moved = retract(mu, xi) - mu
+    assert np.abs(moved - T @ xi).max() < 1e-9
+    # the noise map is T⁻¹ at the pose rows: T A = F_xᵀ
+    F = np.zeros((7, 3))
+    F[:3] = np.eye(3)
+    np.testing.assert_allclose(T @ noise_map(mu), F, rtol=0, atol=1e-15)
+
+
+def test_a_rotation_of_the_whole_map_is_the_same_invariant_error_anywhere():
+    # the unobservable direction (turn everything about the origin) is ξ = e₃ at any estimate:
+    # what makes the invariant filter's Jacobians blind to where the estimate is along it
+    for mu in (np.array([0.0, 0.0, 0.0, 1.0, 2.0]), np.array([-3.0, 4.0, 2.0, 5.0, -1.0])):
+        turn = 1e-6
+        c, s = np.cos(turn), np.sin(turn)
+        rot = np.array([[c, -s], [s, c]])
+        turned = np.concatenate([rot @ mu[:2], [mu[2] + turn], rot @ mu[3:]])
+        xi = np.linalg.solve(error_map(mu), turned - mu)
+        np.testing.assert_allclose(xi / turn, [0, 0, 1, 0, 0], rtol=0, atol=1e-5)
+
+
+def two_filters():
+    return [
+        EKFSLAM([-2.0, -2.0, -0.4], np.diag([1e-4, 1e-4, 1e-4]), FilterConfig(gate=None)),
+        EKFSLAM([-2.0, -2.0, -0.4], np.diag([1e-4, 1e-4, 1e-4]), INVARIANT),
+    ]
+
+
+def test_before_any_correction_the_invariant_covariance_is_the_standard_one():
+    # propagation and initialisation are linear changes of coordinates of each other (T'⁻¹ G T
+    # = I): until an update moves the means apart, the Cartesian covariances are equal
+    filters = two_filters()
+    for f in filters:
+        f.predict([0.1, 0.0, 0.1], R)
+        f.update(1, [1.0, 0.3], Q)
+        f.update(2, [2.0, -0.3], Q)
+        f.predict_many([[0.1, 0.02, 0.1]] * 3, [0.1] * 3, [1.0, 2.0, 3.0], R=R)
+    standard, invariant = filters
+    np.testing.assert_allclose(invariant.Sigma, standard.Sigma, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(invariant.mu, standard.mu, rtol=0, atol=1e-15)
+
+
+def test_the_filter_steps_as_the_block_form():
+    f = EKFSLAM([0.3, -0.2, 1.0], np.diag([1e-4, 1e-4, 1e-4]), INVARIANT)
+    mu, P = f.mu.copy(), f.invariant_covariance
+    for k, z in enumerate([[1.0, 0.3], [2.0, -0.3], [1.5, 2.0]]):
+        f.update(k, z, Q)
+        mu, P = new_landmark_step(mu, P, z, Q, invariant=True)
+    np.testing.assert_allclose(f.invariant_covariance, P, rtol=0, atol=1e-15)
+    for u in ([0.1, 0.0, 0.2], [0.05, 0.01, -0.3]):
+        f.predict(u, R)
+        mu, P = predict_step(mu, P, u, R, invariant=True)
+    np.testing.assert_allclose(f.mu, mu, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(f.invariant_covariance, P, rtol=0, atol=1e-15)
+
+
+def test_every_report_of_the_invariant_filter_is_cartesian():
+    f = EKFSLAM([1.0, 2.0, 0.5], np.diag([1e-3, 2e-3, 4e-3]), INVARIANT)
+    # the start covariance is taken as Cartesian
+    np.testing.assert_allclose(f.pose_covariance, np.diag([1e-3, 2e-3, 4e-3]), atol=1e-15)
+    f.update(7, [1.5, 0.4], Q)
+    f.predict([0.2, 0.0, 0.3], R)
+    f.update(7, [1.3, 0.2], Q)
+    Sigma, h = f.Sigma, f.history()
+    np.testing.assert_allclose(Sigma, to_cartesian(f.invariant_covariance, f.mu), atol=1e-15)
+    np.testing.assert_allclose(f.pose_covariance, Sigma[:3, :3], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(h.pose_cov[-1], Sigma[:3, :3], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(h.pose_cov[1], h.pose_cov[1].T, rtol=0, atol=0)
+    _, cov = f.landmark(7)
+    np.testing.assert_allclose(cov, Sigma[3:5, 3:5], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(h.obs_landmark_cov[-1], cov, rtol=0, atol=1e-15)
+    assert not np.allclose(f.invariant_covariance, Sigma)  # they are different coordinates
+
+
+def test_only_the_invariant_filter_has_an_invariant_covariance():
+    with pytest.raises(AttributeError, match="invariant"):
+        _ = EKFSLAM([0.0, 0.0, 0.0]).invariant_covariance
+    with pytest.raises(ConfigError, match=r"'invariant'.*got 'iekf'"):
+        FilterConfig(linearization="iekf")
+
+
+def test_the_heading_noise_owed_to_the_map_is_in_every_report():
+    # the map block's share of the prediction noise waits for the next correction's pass;
+    # what is read before (a rejected sighting's record, a landmark, Σ) includes it
+    f = EKFSLAM(
+        [1.0, 2.0, 0.5], np.diag([1e-4, 1e-4, 1e-4]), FilterConfig(linearization="invariant")
+    )
+    twin = EKFSLAM(
+        [1.0, 2.0, 0.5], np.diag([1e-4, 1e-4, 1e-4]), FilterConfig(linearization="invariant")
+    )
+    for g in (f, twin):
+        g.update(1, [1.5, 0.4], Q)
+        g.update(2, [2.5, -0.4], Q)
+        g.predict_many([[0.1, 0.0, 0.2]] * 4, [0.1] * 4, [1.0, 2.0, 3.0, 4.0], R=R)
+    assert f.update(1, [4.0, 2.0], Q).label == "rejected"  # far outside the gate
+    _, cov = f.landmark(1)
+    np.testing.assert_allclose(f.history().obs_landmark_cov[-1], cov, rtol=0, atol=1e-15)
+    _ = twin.Sigma  # settles what is owed at once: the same state as correcting with it owed
+    for g in (f, twin):
+        g.update(2, [2.3, -0.6], Q)
+    np.testing.assert_allclose(f.Sigma, twin.Sigma, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(f.mu, twin.mu, rtol=0, atol=1e-15)
+
+
+def test_the_invariant_filter_replays_a_seed_run_as_the_literal_reference():
+    # the seed's octagon, event by event: the compiled filter (batched predictions, the owed
+    # map-block noise) against the literal F_x form (a full-size step each), to 1e-9
+    run = read_run(seed_runs_dir() / "octagon-2laps")
+    upto, us, dts, ends, M, R_fixed, ids, times, zs, Q_run = pipeline._schedule(
+        run, default_noise(run)
+    )
+    config = FilterConfig(linearization="invariant")
+    start = run.meta.nominal_start
+    fast, slow = EKFSLAM(start, None, config), LiteralEKFSLAM(start, None, config)
+
+    def R_of(theta: float, dt: float) -> np.ndarray:
+        c, s = math.cos(theta), math.sin(theta)
+        V = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return V @ (M * dt) @ V.T if M is not None else R_fixed
+
+    done = 0
+    for i, p in enumerate(upto):
+        if p > done:
+            fast.predict_many(us[done:p], dts[done:p], ends[done:p], M, R_fixed)
+            for k in range(done, p):
+                slow.predict(us[k], R_of(slow.mu[2], dts[k]))
+            done = p
+        assert fast.update(ids[i], zs[i], Q_run, times[i]) == slow.update(ids[i], zs[i], Q_run)
+    assert fast.counts.accepted > 500 and fast.n_landmarks == 8
+    np.testing.assert_allclose(fast.mu, slow.mu, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fast.Sigma, slow.cartesian_Sigma, rtol=0, atol=1e-9)
