@@ -300,7 +300,9 @@ def _feed_hidden(
         if p > done:
             ekf.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
             done = p
-        associating.observe(det_z[i:k], Q, det_time[i])
+        # the turn rate of the piece that ends at the sightings (a time-stamp error moves bearings)
+        omega = us[p - 1, 2] / dts[p - 1] if p > 0 and dts[p - 1] > 0 else 0.0
+        associating.observe(det_z[i:k], Q, det_time[i], omega)
         i = k
     if done < len(us):
         ekf.predict_many(us[done:], dts[done:], ends[done:], M, R)

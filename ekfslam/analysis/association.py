@@ -14,12 +14,25 @@ import dataclasses
 
 import numpy as np
 
-from ekfslam.core.association import Confusion, confusion
+from ekfslam.core.association import AssociationConfig, Confusion, confusion
+from ekfslam.logs.mrclam import defaults as mrclam_defaults
 from ekfslam.logs.runlog import RunLog
 from ekfslam.pipeline import ReplayResult
 
 #: How eq. (17) matched landmarks, said in the output.
 MATCHED_THROUGH_MAPPING = "estimated landmarks matched to true ids through the association mapping"
+
+
+def association_config(run: RunLog, method: str) -> AssociationConfig:
+    """The association a run is replayed with: `method`, and its source's time-stamp uncertainty.
+
+    MRCLAM's camera time stamps are off the odometry's by tenths of a second
+    (`ekfslam.logs.mrclam.defaults.MRCLAM_TIME_SIGMA`); every other run's are exact.
+    """
+    exact = run.meta.defaults != mrclam_defaults.NAME
+    return AssociationConfig(
+        method=method, time_sigma=0.0 if exact else mrclam_defaults.MRCLAM_TIME_SIGMA
+    )
 
 
 def score(run: RunLog, result: ReplayResult) -> tuple[ReplayResult, Confusion]:

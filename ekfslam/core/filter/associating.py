@@ -10,6 +10,12 @@ so it runs compiled (`ekfslam.core.filter.kernels.nearest`, O(m n)) and costs ab
 updates do; ``jcbb`` needs the cross blocks too, and builds H Σ Hᵀ (`predicted`). The EKF
 itself is unchanged: its gate and re-initialisation still apply to each update.
 
+Two sightings of one time never come from one landmark (the assumption JCBB's pairing makes):
+a sighting JCBB left unpaired is judged ambiguous only against the landmarks no other sighting
+of its time took (`_nearest_unclaimed`). A time stamp that may be off by
+`AssociationConfig.time_sigma` makes a sighting taken while turning uncertain in bearing, and
+its Q says so.
+
 A sighting paired with nothing:
 
 - ambiguous (its smallest NIS lies between the gate and the new-landmark threshold): dropped,
@@ -108,13 +114,17 @@ class AssociatingFilter:
              "budget_hits", "nodes"), 0,
         )  # fmt: skip
 
-    def observe(self, zs: ArrayLike, Q: ArrayLike, t: float) -> list[int]:
+    def observe(self, zs: ArrayLike, Q: ArrayLike, t: float, omega: float = 0.0) -> list[int]:
         """Use the sightings taken at time t (s): zs (m, 2) range (m), bearing (rad); Q (2, 2).
 
+        omega : rad/s, the robot's turn rate at t; with `AssociationConfig.time_sigma` it adds
+        (omega time_sigma)² to the bearing variance of these sightings (a time-stamp error).
         Returns the estimated landmark id each sighting was used for (-1: none).
         """
         zs = np.asarray(zs, dtype=float).reshape(-1, 2)
         Q = np.asarray(Q, dtype=float)
+        if self.config.time_sigma and omega:
+            Q = Q + np.diag([0.0, (omega * self.config.time_sigma) ** 2])
         if self._tentative:
             self._expire(t)
         m = len(zs)
@@ -125,12 +135,12 @@ class AssociatingFilter:
             Qs = np.broadcast_to(Q, (m, 2, 2))
             nu, P = self.predicted(zs)
             nis = individual_nis(nu, P, Qs)
-            nearest = nis.min(axis=1) if nis.shape[1] else np.full(m, math.inf)
             found = jcbb(
                 nu, P, Qs, self.config.gate, self.config.joint_probability,
                 self.config.node_budget,
             )  # fmt: skip
             pairing = found.pairing.tolist()
+            nearest = _nearest_unclaimed(nis, found.pairing)
             self._counts["nodes"] += found.nodes
             self._counts["budget_hits"] += found.budget_hit
         used = [UNPAIRED] * m
@@ -231,3 +241,21 @@ class AssociatingFilter:
             decision=tuple(self._decision),
             counts=AssociationCounts(**counts),
         )
+
+
+def _nearest_unclaimed(nis: Array, pairing: Array) -> list[float]:
+    """Each sighting's smallest NIS over the landmarks no other sighting of its time took.
+
+    JCBB's hypothesis says one landmark gives at most one sighting per time; under it a
+    sighting left unpaired cannot be of a landmark its neighbours took, so only the rest can
+    make it ambiguous. Without this, the second tag of a close pair seen with the first would
+    be ambiguous against the first forever, and never mapped.
+    """
+    m, n = nis.shape
+    if n == 0:
+        return [math.inf] * m
+    free = np.ones(n, dtype=bool)
+    free[pairing[pairing != UNPAIRED]] = False
+    if not free.any():
+        return [math.inf] * m
+    return nis[:, free].min(axis=1).tolist()
