@@ -44,8 +44,21 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         "branch and bound (jcbb); eq. (17) then matches landmarks through the estimated-to-true "
         "mapping",
     )  # fmt: skip
+    run.add_argument(
+        "--match", choices=tuple(assoc.MATCHINGS), default="mapping",
+        help="with --association nn|jcbb, how eq. (17) pairs estimated with true landmarks: "
+        "through the association's mapping (the default), or by position (nearest neighbour "
+        "after a robust fit, as for sightings without true ids)",
+    )  # fmt: skip
+    run.add_check(_match_needs_hidden_ids)
     ca.add_noise_arguments(run)
     run.set_defaults(func=cmd_run)
+
+
+def _match_needs_hidden_ids(args: argparse.Namespace) -> str | None:
+    if args.match != "mapping" and args.association == "known":
+        return "argument --match: needs --association nn or jcbb (known ids match by id)"
+    return None
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -57,13 +70,13 @@ def cmd_run(args: argparse.Namespace) -> int:
         result = pipeline.replay(
             run, noise, config, association=assoc.association_config(run, args.association)
         )
-        result, found = assoc.score(run, result)
+        result, found = assoc.score(run, result, args.match)
     else:
         result = pipeline.replay(run, noise, config)
     summary = summarize(run, result, method=args.align)
     out = summary.as_dict()
     if hidden:
-        out["association"] = assoc.as_dict(result, found)
+        out["association"] = assoc.as_dict(result, found, args.match)
     out["seed_report"] = _seed_report(run)
     out["detections"] = _detections_source(run, report)
     if report is not None:
