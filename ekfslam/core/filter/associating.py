@@ -7,12 +7,14 @@ predictions from the filter's state, lets `ekfslam.core.association` choose the 
 estimated id (0, 1, 2 ... in the order they become permanent), one after the other as the
 replay does with known ids. ``nn`` needs only each landmark's own 2x2 block of that covariance,
 so it runs compiled (`ekfslam.core.filter.kernels.nearest`, O(m n)) and costs about what the
-updates do; ``jcbb`` needs the cross blocks too, and builds H Σ Hᵀ (`predicted`). The EKF
+updates do; ``jcbb`` needs the cross blocks too: H Σ Hᵀ and the search run compiled
+(`ekfslam.core.filter.jcbb_kernels`), deciding as `ekfslam.core.association.jcbb` over
+`predicted`, the readable forms. The EKF
 itself is unchanged: its gate and re-initialisation still apply to each update.
 
 Two sightings of one time never come from one landmark (the assumption JCBB's pairing makes):
 a sighting JCBB left unpaired is judged ambiguous only against the landmarks no other sighting
-of its time took (`_nearest_unclaimed`). A time stamp that may be off by
+of its time took (`AssociatingFilter._jcbb`). A time stamp that may be off by
 `AssociationConfig.time_sigma` makes a sighting taken while turning uncertain in bearing, and
 its Q says so.
 
@@ -44,10 +46,10 @@ from numpy.typing import ArrayLike, NDArray
 from ekfslam.core.association import (
     UNPAIRED,
     AssociationConfig,
-    individual_nis,
-    jcbb,
+    JcbbResult,
+    chi2_even_quantile,
 )
-from ekfslam.core.filter import kernels
+from ekfslam.core.filter import jcbb_kernels, kernels
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.models import inverse_observation, inverse_observation_jacobians
 
@@ -109,6 +111,7 @@ class AssociatingFilter:
         self._tentative: list[tuple[float, Array, Array, Array]] = []  # t, p, cov, pose cov
         self._estimated: list[int] = []
         self._decision: list[str] = []
+        self._chi2: dict[int, Array] = {}  # m -> the joint gates of 0..m pairs
         self._counts = dict.fromkeys(
             ("associated", "confirmed", "tentative", "tentative_discarded", "ambiguous",
              "budget_hits", "nodes"), 0,
@@ -132,15 +135,8 @@ class AssociatingFilter:
         if self.config.method == "nn":  # compiled, O(m n): no H Σ Hᵀ (see `kernels.nearest`)
             pairing, nearest = self._nearest(zs, Q)
         else:
-            Qs = np.broadcast_to(Q, (m, 2, 2))
-            nu, P = self.predicted(zs)
-            nis = individual_nis(nu, P, Qs)
-            found = jcbb(
-                nu, P, Qs, self.config.gate, self.config.joint_probability,
-                self.config.node_budget,
-            )  # fmt: skip
-            pairing = found.pairing.tolist()
-            nearest = _nearest_unclaimed(nis, found.pairing)
+            found, unclaimed = self._jcbb(zs, Q)
+            pairing, nearest = found.pairing.tolist(), unclaimed.tolist()
             self._counts["nodes"] += found.nodes
             self._counts["budget_hits"] += found.budget_hit
         used = [UNPAIRED] * m
@@ -173,6 +169,33 @@ class AssociatingFilter:
             ekf._mu, ekf._Sigma, ekf._dim, zs, q00, q01, q11, self.config.gate, pairing, smallest
         )
         return pairing.tolist(), smallest.tolist()
+
+    def _jcbb(self, zs: Array, Q: Array) -> tuple[JcbbResult, Array]:
+        """`jcbb` over `predicted` and `individual_nis`, compiled (`jcbb_kernels`): the same
+        decision; and each sighting's smallest NIS over the landmarks no sighting took (m,).
+
+        One landmark gives at most one sighting per time (JCBB's own hypothesis), so a sighting
+        left unpaired is ambiguous only against landmarks no other sighting of its time took:
+        else the second tag of a close pair, seen with the first, would be ambiguous against
+        the first for ever, and never mapped.
+        """
+        ekf, m, n = self.ekf, len(zs), self.ekf.n_landmarks
+        mu, S, d = ekf._mu, ekf._Sigma, ekf._dim
+        nu, P, nis = np.empty((m, n, 2)), np.empty((2 * n, 2 * n)), np.empty((m, n))
+        (q00, q01), (_, q11) = Q.tolist()
+        # positional, each argument named as the kernel's parameter (see `EKFSLAM._propagate`)
+        jcbb_kernels.predict_all(mu, S, d, zs, q00, q01, q11, nu, P, nis)
+        if m not in self._chi2:
+            p = self.config.joint_probability
+            gates = [chi2_even_quantile(2 * k, p) for k in range(1, m + 1)]
+            self._chi2[m] = np.array([0.0, *gates])
+        chi2, gate, budget = self._chi2[m], self.config.gate, self.config.node_budget
+        Q = np.ascontiguousarray(np.broadcast_to(Q, (m, 2, 2)))
+        pairing, unclaimed = np.empty(m, dtype=np.int64), np.empty(m)
+        value, nodes, hit = jcbb_kernels.search(
+            nu, P, Q, nis, gate, chi2, budget, pairing, unclaimed
+        )
+        return JcbbResult(pairing, value, nodes, hit), unclaimed
 
     def predicted(self, zs: Array) -> tuple[Array, Array]:
         """Innovations ν (m, n, 2) of every sighting against every landmark, and P = H Σ Hᵀ."""
@@ -241,21 +264,3 @@ class AssociatingFilter:
             decision=tuple(self._decision),
             counts=AssociationCounts(**counts),
         )
-
-
-def _nearest_unclaimed(nis: Array, pairing: Array) -> list[float]:
-    """Each sighting's smallest NIS over the landmarks no other sighting of its time took.
-
-    JCBB's hypothesis says one landmark gives at most one sighting per time; under it a
-    sighting left unpaired cannot be of a landmark its neighbours took, so only the rest can
-    make it ambiguous. Without this, the second tag of a close pair seen with the first would
-    be ambiguous against the first forever, and never mapped.
-    """
-    m, n = nis.shape
-    if n == 0:
-        return [math.inf] * m
-    free = np.ones(n, dtype=bool)
-    free[pairing[pairing != UNPAIRED]] = False
-    if not free.any():
-        return [math.inf] * m
-    return nis[:, free].min(axis=1).tolist()
