@@ -190,10 +190,11 @@ class AssociatingFilter:
             gates = [chi2_even_quantile(2 * k, p) for k in range(1, m + 1)]
             self._chi2[m] = np.array([0.0, *gates])
         chi2, gate, budget = self._chi2[m], self.config.gate, self.config.node_budget
-        Q = np.ascontiguousarray(np.broadcast_to(Q, (m, 2, 2)))
+        Qs = np.empty((m, 2, 2))  # each sighting's noise: the kernel takes a stack
+        Qs[:] = Q
         pairing, unclaimed = np.empty(m, dtype=np.int64), np.empty(m)
         value, nodes, hit = jcbb_kernels.search(
-            nu, P, Q, nis, gate, chi2, budget, pairing, unclaimed
+            nu, P, Qs, nis, gate, chi2, budget, pairing, unclaimed
         )
         return JcbbResult(pairing, value, nodes, hit), unclaimed
 

@@ -88,7 +88,7 @@ def predict_all(mu, S, d, zs, q00, q01, q11, nu, P, nis):
 
 
 @njit(cache=True)
-def _extend(L, w, k, pair_land, i, j, nu, P, Q, X):
+def _extend(L, w, k, pair_land, i, j, nu, P, Qs, X):
     """Append pair (i, j) to the factor L (2k x 2k) and w of the current k pairs: returns the
     joint NIS's increase, inf when the new covariance is not positive definite."""
     kk = 2 * k
@@ -127,7 +127,7 @@ def _extend(L, w, k, pair_land, i, j, nu, P, Q, X):
 
 
 @njit(cache=True)
-def search(nu, P, Q, nis, gate, chi2, budget, pairing, unclaimed):
+def search(nu, P, Qs, nis, gate, chi2, budget, pairing, unclaimed):
     """`ekfslam.core.association.jcbb`'s search over nis (m, n); chi2[k]: the joint gate of k
     pairs (chi2[0] unused). Writes the best pairing (m,), -1 for unpaired, and each sighting's
     smallest NIS over the landmarks the pairing left free (inf: none) to unclaimed (m,);
@@ -184,7 +184,7 @@ def search(nu, P, Q, nis, gate, chi2, budget, pairing, unclaimed):
                     hit, pop = True, True
                     break
                 nodes += 1
-                d2 = value[i] + _extend(L, w, k, pair_land, i, j, nu, P, Q, X)
+                d2 = value[i] + _extend(L, w, k, pair_land, i, j, nu, P, Qs, X)
                 if d2 <= chi2[k + 1]:
                     used[j] = True
                     pair_land[k], current[i] = j, j
