@@ -88,7 +88,7 @@ def predict_all(mu, S, d, zs, q00, q01, q11, nu, P, nis):
 
 
 @njit(cache=True)
-def _extend(L, w, k, pair_land, i, j, nu, P, Qs, X):
+def _extend(L, w, k, pair_land, i, j, nu, P, Q, X):
     """Append pair (i, j) to the factor L (2k x 2k) and w of the current k pairs: returns the
     joint NIS's increase, inf when the new covariance is not positive definite."""
     kk = 2 * k
