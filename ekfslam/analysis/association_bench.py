@@ -8,8 +8,8 @@ Part of ``python -m ekfslam bench`` (`ekfslam.analysis.bench`):
   (compiled, `ekfslam.core.filter.kernels.nearest`), the JCBB decision the filter makes
   (compiled, `ekfslam.core.filter.jcbb_kernels`) and its readable numpy form
   (`AssociatingFilter.predicted`, `ekfslam.core.association.jcbb`), over a map of `MAP_SIZE`
-  landmarks on a circle the robot sits in, its pose uncertain (`POSE_SIGMA`), each sighting noisy; the JCBB
-  nodes and whether the budget was hit.
+  landmarks on a circle the robot sits in, its pose uncertain (`POSE_SIGMA`), each sighting
+  noisy; the JCBB nodes and whether the budget was hit.
 """
 
 from __future__ import annotations
