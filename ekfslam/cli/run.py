@@ -63,8 +63,9 @@ def _match_needs_hidden_ids(args: argparse.Namespace) -> str | None:
 
 def cmd_run(args: argparse.Namespace) -> int:
     run, report = load_run(args)
-    noise, config = noise_from_args(args, run)
     hidden = getattr(args, "association", "known") != "known"
+    # with the ids hidden, a noise whose Σ the association's χ² tests can trust
+    noise, config = noise_from_args(args, run, assoc.association_noise(run) if hidden else None)
     # looked up here: tests may replace it (and, with known ids, call it as before)
     if hidden:
         result = pipeline.replay(
