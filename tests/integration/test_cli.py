@@ -388,5 +388,8 @@ def test_score_mrclam_with_the_barcodes_hidden_reports_every_robot(mrclam7: Path
     ]
     for r in rows:
         assert r["ratio"] == pytest.approx(r["aligned_error"] / r["known_error"])
+        assert r["ratio_same_noise"] == pytest.approx(r["aligned_error"] / r["known_same_noise"])
         assert r["correct"] + r["wrong"] + r["missed"] > 1000
         assert 0.4 < r["correct_fraction"] < 1.0  # the close pairs: far from the seed's 100%
+    for r in (r for r in rows if r["method"] == "jcbb"):  # 2026-12-01: 73-82%, 1.1-2.5x
+        assert r["correct_fraction"] > 0.7 and r["ratio_same_noise"] < 3.0, r
