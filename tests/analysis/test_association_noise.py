@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
+
 from ekfslam.analysis import association as assoc
 from ekfslam.analysis.mrclam_consistency import MRCLAM_CONSISTENT_NOISE
 from ekfslam.core.noise import default_noise
@@ -23,3 +25,17 @@ def test_mrclam_hides_its_barcodes_with_the_consistent_noise_and_uncertain_time_
     assert mrclam_defaults.MRCLAM_TIME_SIGMA == 0.2
     assert assoc.association_noise(seed) == default_noise(seed)
     assert assoc.association_config(seed, "nn").time_sigma == 0.0
+
+
+def test_deciding_from_the_known_state_errs_nowhere_on_the_octagon():
+    from ekfslam.core.association import AssociationConfig
+    from ekfslam.pipeline import decisions_from_known_state
+
+    run = read_run(seed_runs_dir() / "octagon-2laps")
+    chosen = decisions_from_known_state(run, association=AssociationConfig(method="jcbb"))
+    truth = run.detections.tag_id
+    first = {tag: run.detections.t[truth == tag].min() for tag in set(truth.tolist())}
+    mapped = np.array([first[g] < t for g, t in zip(truth.tolist(), run.detections.t, strict=True)])
+    assert len(chosen) == len(truth) and mapped.sum() > 500
+    assert (chosen[mapped] == truth[mapped]).all()
+    assert (chosen[~mapped] == -1).all()  # a landmark not yet on the map is no one's

@@ -139,3 +139,15 @@ def test_a_sighting_taken_while_turning_is_uncertain_in_bearing_by_the_time_sigm
         f.observe(sightings(LANDMARKS[0]), Q, 0.0)
         f.observe(sightings(LANDMARKS[0]), Q, 1.0)
         assert f.observe(z[None], Q, 2.0, omega) == [expected]
+
+
+def test_decide_says_what_observe_would_pair_and_changes_nothing():
+    for method in ("nn", "jcbb"):
+        f = make(method)
+        f.observe(sightings(*LANDMARKS), Q, 0.0)
+        f.observe(sightings(*LANDMARKS), Q, 1.0)
+        mu, Sigma = f.ekf.mu.copy(), f.ekf.Sigma.copy()
+        assert f.decide(sightings(LANDMARKS[1], LANDMARKS[0]), Q) == [1, 0]
+        np.testing.assert_array_equal(f.ekf.mu, mu)
+        np.testing.assert_array_equal(f.ekf.Sigma, Sigma)
+        assert len(f.finish().estimated) == 4  # the decision was not logged

@@ -158,6 +158,21 @@ class AssociatingFilter:
             self._counts[what] += 1
         return used
 
+    def decide(self, zs: ArrayLike, Q: ArrayLike, omega: float = 0.0) -> list[int]:
+        """The landmark ids `observe` would pair the sightings with now (-1: none), changing
+        nothing: to ask how well the association does from a given state (the one the filter
+        reaches with the true ids, say)."""
+        zs = np.asarray(zs, dtype=float).reshape(-1, 2)
+        Q = np.asarray(Q, dtype=float)
+        if self.config.time_sigma and omega:
+            Q = Q + np.diag([0.0, (omega * self.config.time_sigma) ** 2])
+        if self.config.method == "nn":
+            pairing = self._nearest(zs, Q)[0]
+        else:
+            pairing = self._jcbb(zs, Q)[0].pairing.tolist()
+        ids = self.ekf.landmark_ids
+        return [UNPAIRED if j == UNPAIRED else ids[j] for j in pairing]
+
     def _nearest(self, zs: Array, Q: Array) -> tuple[list[int], list[float]]:
         """`nearest_neighbour` over `individual_nis`, compiled: pairing and smallest NIS."""
         ekf = self.ekf
