@@ -110,4 +110,8 @@ def as_dict(result: ReplayResult, found: Confusion, match: str = "mapping") -> d
         "jcbb_nodes": c.nodes,
         "mapping": {str(e): t for e, t in sorted(found.mapping.items())},
         "alignment_matching": MATCHINGS[match],
+        "noise": {  # `association_noise`'s choice, with any overrides: what the χ² tests used
+            k: getattr(result.noise, k)
+            for k in ("sigma_x", "sigma_y", "sigma_theta", "sigma_range", "sigma_bearing")
+        },
     }

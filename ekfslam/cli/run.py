@@ -42,7 +42,8 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         help="which landmark each sighting is: the detections' ids (known, the default), or, "
         "with the ids hidden from the filter, nearest neighbour (nn) or joint compatibility "
         "branch and bound (jcbb); eq. (17) then matches landmarks through the estimated-to-true "
-        "mapping",
+        "mapping. A MRCLAM run then replays with its noise tuned for consistency (the "
+        "association trusts the filter's covariance), with each sighting's time 0.2 s uncertain",
     )  # fmt: skip
     run.add_argument(
         "--match", choices=tuple(assoc.MATCHINGS), default="mapping",

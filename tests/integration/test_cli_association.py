@@ -19,7 +19,7 @@ def test_jcbb_adds_the_association_block_and_known_does_not():
     assert hidden.returncode == 0, hidden.stderr
     out = json.loads(hidden.stdout)
     block = out["association"]
-    for key in ("method", "correct", "wrong", "new", "ambiguous", "correct_fraction"):
+    for key in ("method", "correct", "wrong", "new", "ambiguous", "correct_fraction", "noise"):
         assert key in block
     assert block["method"] == "jcbb"
     assert block["correct_fraction"] >= 0.99
