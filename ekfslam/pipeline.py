@@ -7,6 +7,10 @@ prediction runs on to the end of the controls.
 
 The filter never learns where the data came from: a simulated run, a CSV log, MRCLAM or camera
 frames all arrive here as a `ekfslam.logs.runlog.RunLog`.
+
+Over 400 lines because the three ways of feeding the filter (ids known, ids hidden, and the
+association judged from the state the ids give) walk one schedule (`_schedule`) and must stay
+side by side, so that they predict and correct at exactly the same moments.
 """
 
 from __future__ import annotations
@@ -361,12 +365,52 @@ def _feed_hidden(
         if p > done:
             ekf.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
             done = p
-        associating.observe(det_z[i:k], Q, det_time[i])
+        # the turn rate of the piece that ends at the sightings (a time-stamp error moves bearings)
+        omega = us[p - 1, 2] / dts[p - 1] if p > 0 and dts[p - 1] > 0 else 0.0
+        associating.observe(det_z[i:k], Q, det_time[i], omega)
         i = k
     if pause is not None:
         pause(n, done)
     if done < len(us):
         ekf.predict_many(us[done:], dts[done:], ends[done:], M, R)
+
+
+def decisions_from_known_state(
+    run: RunLog,
+    noise: NoiseConfig | None = None,
+    config: FilterConfig | None = None,
+    *,
+    association: AssociationConfig,
+) -> NDArray[np.int64]:
+    """What `association` would decide for each detection from the state the ids give.
+
+    The run is replayed with its ids (as `replay`), and before the updates of each time the
+    sightings of that time are also associated (`AssociatingFilter.decide`), which changes
+    nothing. Returns (N,) the landmark id chosen for each detection, -1 for none: against the
+    detections' ids, how often the method errs when its map and pose are as good as the ids
+    make them, its wrong decisions not fed back.
+    """
+    noise = noise or default_noise(run)
+    ekf = EKFSLAM(run.meta.nominal_start, None, config or default_config(run))
+    judge = AssociatingFilter(ekf, association)
+    upto, us, dts, ends, M, R, det_id, det_time, det_z, Q = _schedule(run, noise)
+    chosen: list[int] = []
+    done, i, n = 0, 0, len(upto)
+    with np.errstate(all="ignore"):
+        while i < n:
+            k = i + 1
+            while k < n and det_time[k] == det_time[i]:
+                k += 1
+            p = upto[i]
+            if p > done:
+                ekf.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
+                done = p
+            omega = us[p - 1, 2] / dts[p - 1] if p > 0 and dts[p - 1] > 0 else 0.0
+            chosen += judge.decide(det_z[i:k], Q, omega)
+            for a in range(i, k):
+                ekf.update(det_id[a], det_z[a], Q, det_time[a])
+            i = k
+    return np.array(chosen, dtype=np.int64)
 
 
 def _check_finite(ekf: EKFSLAM, where: str) -> None:

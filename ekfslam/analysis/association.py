@@ -5,7 +5,9 @@ detections still carry the true ids. `score` maps each estimated landmark to the
 its sightings had (`ekfslam.core.association.confusion`) and returns the replay with its map keyed
 by true id through that mapping, so the alignment of eq. (17) and every score downstream compare
 the same landmarks as with known ids. An estimated landmark whose true id a more-seen one
-already has (a duplicate) is left out of that map, and counted.
+already has (a duplicate) is left out of that map, and counted. With ``match="position"`` the map
+is keyed instead by matching positions, as for a run whose sightings carry no true ids
+(`ekfslam.analysis.alignment_unlabelled`); the decisions are still scored against the ids.
 """
 
 from __future__ import annotations
@@ -14,19 +16,58 @@ import dataclasses
 
 import numpy as np
 
-from ekfslam.core.association import Confusion, confusion
+from ekfslam.analysis.alignment_unlabelled import MATCHED_BY_NEAREST, match_by_position
+from ekfslam.analysis.mrclam_consistency import MRCLAM_CONSISTENT_NOISE
+from ekfslam.core.association import AssociationConfig, Confusion, confusion
+from ekfslam.core.noise import NoiseConfig, default_noise
+from ekfslam.logs.mrclam import defaults as mrclam_defaults
 from ekfslam.logs.runlog import RunLog
 from ekfslam.pipeline import ReplayResult
 
 #: How eq. (17) matched landmarks, said in the output.
 MATCHED_THROUGH_MAPPING = "estimated landmarks matched to true ids through the association mapping"
+#: `score`'s matchings, and what the output says of each.
+MATCHINGS = {"mapping": MATCHED_THROUGH_MAPPING, "position": MATCHED_BY_NEAREST}
 
 
-def score(run: RunLog, result: ReplayResult) -> tuple[ReplayResult, Confusion]:
+def association_config(run: RunLog, method: str) -> AssociationConfig:
+    """The association a run is replayed with: `method`, and its source's time-stamp uncertainty.
+
+    MRCLAM's camera time stamps are off the odometry's by tenths of a second
+    (`ekfslam.logs.mrclam.defaults.MRCLAM_TIME_SIGMA`); every other run's are exact.
+    """
+    exact = run.meta.defaults != mrclam_defaults.NAME
+    return AssociationConfig(
+        method=method, time_sigma=0.0 if exact else mrclam_defaults.MRCLAM_TIME_SIGMA
+    )
+
+
+def association_noise(run: RunLog) -> NoiseConfig:
+    """The noise a replay with hidden ids starts from: the run's default, except on MRCLAM.
+
+    Association is a χ² test on the filter's Σ, so it needs a Σ as large as the errors really
+    are. MRCLAM's default (`ekfslam.logs.mrclam.defaults.MRCLAM_NOISE`) was tuned for the map
+    with the barcodes and leaves Σ too small (pose NEES 12-83 against an ideal 3,
+    ``consistency mrclam 7``): the true landmark falls outside its gate, the sighting founds a
+    duplicate, and a robot without corrections gets lost. The setting tuned for consistency,
+    `ekfslam.analysis.mrclam_consistency.MRCLAM_CONSISTENT_NOISE` (NEES 6.1), is used instead.
+    """
+    if run.meta.defaults == mrclam_defaults.NAME:
+        return MRCLAM_CONSISTENT_NOISE
+    return default_noise(run)
+
+
+def score(
+    run: RunLog, result: ReplayResult, match: str = "mapping"
+) -> tuple[ReplayResult, Confusion]:
     """The replay with its landmarks keyed by true id, and the confusion of its decisions.
 
     `result` must come from a replay with hidden ids (``result.association`` set), of `run`.
+    match : "mapping" keys the map through the association's mapping; "position" by matching
+        the estimated landmarks to the run's tag map by position (`match_by_position`).
     """
+    if match not in MATCHINGS:
+        raise ValueError(f"match must be one of {', '.join(MATCHINGS)}, got {match!r}")
     log = result.association
     if log is None:
         raise ValueError("this replay used the known ids: there is nothing to score")
@@ -34,16 +75,22 @@ def score(run: RunLog, result: ReplayResult) -> tuple[ReplayResult, Confusion]:
     if len(truth) != len(log.estimated):
         raise ValueError(f"{len(log.estimated)} decisions for {len(truth)} detections")
     found = confusion(log.estimated, truth)
-    keep = [e for e in result.landmarks if e in found.mapping and e not in found.duplicates]
+    if match == "position":
+        if not run.meta.tag_map or len(result.landmarks) < 2:
+            return dataclasses.replace(result, landmarks={}, landmark_covariances={}), found
+        mapping = match_by_position(result.landmarks, run.meta.tag_map).mapping
+    else:
+        mapping = {e: t for e, t in found.mapping.items() if e not in found.duplicates}
+    keep = [e for e in result.landmarks if e in mapping]
     relabelled = dataclasses.replace(
         result,
-        landmarks={found.mapping[e]: result.landmarks[e] for e in keep},
-        landmark_covariances={found.mapping[e]: result.landmark_covariances[e] for e in keep},
+        landmarks={mapping[e]: result.landmarks[e] for e in keep},
+        landmark_covariances={mapping[e]: result.landmark_covariances[e] for e in keep},
     )
     return relabelled, found
 
 
-def as_dict(result: ReplayResult, found: Confusion) -> dict:
+def as_dict(result: ReplayResult, found: Confusion, match: str = "mapping") -> dict:
     """The ``association`` block of ``run --json``: the method, the confusion, the counts."""
     log = result.association
     assert log is not None  # score() refused a replay with known ids
@@ -62,5 +109,9 @@ def as_dict(result: ReplayResult, found: Confusion) -> dict:
         "jcbb_budget_hits": c.budget_hits,
         "jcbb_nodes": c.nodes,
         "mapping": {str(e): t for e, t in sorted(found.mapping.items())},
-        "alignment_matching": MATCHED_THROUGH_MAPPING,
+        "alignment_matching": MATCHINGS[match],
+        "noise": {  # `association_noise`'s choice, with any overrides: what the χ² tests used
+            k: getattr(result.noise, k)
+            for k in ("sigma_x", "sigma_y", "sigma_theta", "sigma_range", "sigma_bearing")
+        },
     }

@@ -88,9 +88,12 @@ def with_start(run: RunLog, args: argparse.Namespace) -> RunLog:
     return replace(run, meta=replace(run.meta, nominal_start=np.array(start, dtype=np.float64)))
 
 
-def noise_from_args(args: argparse.Namespace, run: RunLog) -> tuple[NoiseConfig, FilterConfig]:
-    """The run's default noise and filter choices, with the command line's overrides."""
-    base = default_noise(run)
+def noise_from_args(
+    args: argparse.Namespace, run: RunLog, base: NoiseConfig | None = None
+) -> tuple[NoiseConfig, FilterConfig]:
+    """The run's default noise (or `base`) and filter choices, with the command line's
+    overrides."""
+    base = default_noise(run) if base is None else base
     overrides = {
         name: getattr(args, name)
         for name in ("sigma_x", "sigma_y", "sigma_theta", "sigma_range", "sigma_bearing")

@@ -14,7 +14,7 @@ from ekfslam.analysis.evaluation import SEED_TABLE1, RunSummary, seed_experiment
 from ekfslam.cli import animate as animate_args
 from ekfslam.cli import args as ca
 from ekfslam.cli.common import arena_half_size, load_run, noise_from_args
-from ekfslam.core.association import METHODS, AssociationConfig
+from ekfslam.core.association import METHODS
 from ekfslam.files import save_figure
 from ekfslam.logs.mrclam.load import MrclamLoadReport
 from ekfslam.logs.runlog import RunLog
@@ -44,16 +44,31 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         help="which landmark each sighting is: the detections' ids (known, the default), or, "
         "with the ids hidden from the filter, nearest neighbour (nn) or joint compatibility "
         "branch and bound (jcbb); eq. (17) then matches landmarks through the estimated-to-true "
-        "mapping",
+        "mapping. A MRCLAM run then replays with its noise tuned for consistency (the "
+        "association trusts the filter's covariance), with each sighting's time 0.2 s uncertain",
     )  # fmt: skip
+    run.add_argument(
+        "--match", choices=tuple(assoc.MATCHINGS), default="mapping",
+        help="with --association nn|jcbb, how eq. (17) pairs estimated with true landmarks: "
+        "through the association's mapping (the default), or by position (nearest neighbour "
+        "after a robust fit, as for sightings without true ids)",
+    )  # fmt: skip
+    run.add_check(_match_needs_hidden_ids)
     ca.add_noise_arguments(run)
     run.set_defaults(func=cmd_run)
 
 
+def _match_needs_hidden_ids(args: argparse.Namespace) -> str | None:
+    if args.match != "mapping" and args.association == "known":
+        return "argument --match: needs --association nn or jcbb (known ids match by id)"
+    return None
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     run, report = load_run(args)
-    noise, config = noise_from_args(args, run)
     hidden = getattr(args, "association", "known") != "known"
+    # with the ids hidden, a noise whose Σ the association's χ² tests can trust
+    noise, config = noise_from_args(args, run, assoc.association_noise(run) if hidden else None)
     animate = getattr(args, "animate", None)
     # only an animation needs copies of the whole state (`Keyframes`); a plain replay keeps none
     frames = (
@@ -62,9 +77,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     # looked up here: tests may replace it (and, with known ids, call it as before)
     if hidden:
         result = pipeline.replay(
-            run, noise, config, association=AssociationConfig(method=args.association), **frames
-        )
-        result, found = assoc.score(run, result)
+            run, noise, config, association=assoc.association_config(run, args.association),
+            **frames,
+        )  # fmt: skip
+        result, found = assoc.score(run, result, args.match)
         labels = None if animate is None else animate_args.true_labels(result, found.mapping)
     else:
         result = pipeline.replay(run, noise, config, **frames)
@@ -72,7 +88,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     summary = summarize(run, result, method=args.align)
     out = summary.as_dict()
     if hidden:
-        out["association"] = assoc.as_dict(result, found)
+        out["association"] = assoc.as_dict(result, found, args.match)
     out["seed_report"] = _seed_report(run)
     out["detections"] = _detections_source(run, report)
     if report is not None:

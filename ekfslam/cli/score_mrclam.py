@@ -1,4 +1,9 @@
-"""``python -m ekfslam score-mrclam [DATASET] [--json]``: the README's MRCLAM table, measured."""
+"""``python -m ekfslam score-mrclam [DATASET] [--association nn jcbb] [--json]``: MRCLAM, scored.
+
+Without ``--association``: the README's MRCLAM table. With it: each robot with the barcodes hidden
+from the filter, by the methods named, against the same robot with them known
+(`ekfslam.analysis.association_mrclam`).
+"""
 
 from __future__ import annotations
 
@@ -7,6 +12,7 @@ import dataclasses
 import json
 import math
 
+from ekfslam.analysis.association_mrclam import association_robots, association_table
 from ekfslam.analysis.mrclam_tuning import score_robots, scores_table
 from ekfslam.cli import args as ca
 from ekfslam.cli.common import mrclam_folder
@@ -17,6 +23,9 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     p = subparsers.add_parser(name, help=help)
     p.add_argument("dataset", type=ca.mrclam_dataset, nargs="?", default=7, metavar="DATASET",
                    help="a MRCLAM dataset: its folder or its number 1-9 (default: 7)")  # fmt: skip
+    p.add_argument("--association", nargs="+", choices=("nn", "jcbb"), metavar="METHOD",
+                   help="hide the barcodes and associate by METHOD (nn, jcbb; one or both): "
+                   "each robot's map error against known's, and the decisions")  # fmt: skip
     ca.add_json_argument(p, "print one JSON object: {robots: [{robot, landmarks, ...}, ...]}")
     p.set_defaults(func=cmd_score_mrclam)
 
@@ -24,15 +33,27 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
 def cmd_score_mrclam(args: argparse.Namespace) -> int:
     # not found: one line saying how to fetch it (an InputError), not a traceback
     folder = mrclam_folder(args.dataset)
+    if args.association:
+        rows = association_robots(folder, tuple(dict.fromkeys(args.association)))
+        if args.json:
+            print(json.dumps({"dataset": str(folder), "rows": [_finite(r) for r in rows]},
+                             indent=2, allow_nan=False))  # fmt: skip
+        else:
+            print(association_table(rows))
+        return 0
     scores = score_robots(folder)
     if args.json:
         # JSON has no NaN: a robot without Vicon has no unaligned error or ATE
-        robots = [
-            {k: None if isinstance(v, float) and not math.isfinite(v) else v
-             for k, v in dataclasses.asdict(s).items()}
-            for s in scores
-        ]  # fmt: skip
+        robots = [_finite(s) for s in scores]
         print(json.dumps({"dataset": str(folder), "robots": robots}, indent=2, allow_nan=False))
     else:
         print(scores_table(scores))
     return 0
+
+
+def _finite(row) -> dict:
+    """A result row as a dict for JSON, which has no NaN: a missing figure is null."""
+    return {
+        k: None if isinstance(v, float) and not math.isfinite(v) else v
+        for k, v in dataclasses.asdict(row).items()
+    }

@@ -92,6 +92,12 @@ class AssociationConfig:
     joint_probability : the joint gate of a k-pair hypothesis is χ²(2k) at this probability.
     node_budget : JCBB search nodes per time step before it returns the best pairing so far.
     tentative_life : s. A tentative landmark not seen again within this time is discarded.
+    time_sigma : s. How uncertain a sighting's time stamp is against the odometry's. A sighting
+        taken while the robot turns at ω has its bearing off by ω δt for a time error δt, so
+        each sighting's Q gets ω² time_sigma² more bearing variance, in the association test
+        and in the update it leads to (`ekfslam.core.filter.associating`). 0 (the default): the
+        time stamps are exact (our simulator's). A data source knows its value
+        (`ekfslam.logs.mrclam.defaults.MRCLAM_TIME_SIGMA`).
     """
 
     method: Literal["known", "nn", "jcbb"] = "known"
@@ -100,6 +106,7 @@ class AssociationConfig:
     joint_probability: float = 0.99
     node_budget: int = 10_000
     tentative_life: float = 10.0
+    time_sigma: float = 0.0
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -116,6 +123,8 @@ class AssociationConfig:
             raise ConfigError(f"node_budget must be at least 1, got {self.node_budget}")
         if not self.tentative_life > 0:
             raise ConfigError(f"tentative_life must be positive, got {self.tentative_life}")
+        if not 0.0 <= self.time_sigma < math.inf:
+            raise ConfigError(f"time_sigma must be finite and >= 0, got {self.time_sigma}")
 
 
 def individual_nis(nu: ArrayLike, P: ArrayLike, Q: ArrayLike) -> Array:

@@ -12,10 +12,12 @@ def test_association_bench_measures_every_method_and_every_m():
     assert all(per[m] > 0 for m in ("known", "nn", "jcbb"))
     assert set(r["association_step_ms"]) == {str(m) for m in SIGHTINGS}
     for step in r["association_step_ms"].values():
-        assert step["nn"] > 0 and step["jcbb"] > 0 and step["jcbb_nodes"] >= 1
+        assert step["nn"] > 0 and step["jcbb"] > 0 and step["jcbb_numpy"] > 0
+        assert step["jcbb_nodes"] >= 1
         assert step["jcbb_correct"] and not step["budget_hit"]  # a clean scene: no excuse
     table = "\n".join(association_lines(r))
     assert "| association, octagon replay | known | nn | jcbb |" in table
+    assert "| jcbb, numpy form (ms) |" in table
     assert association_lines({}) == []  # an older bench.json has no association section
 
 

@@ -9,6 +9,7 @@ from ekfslam.core.association import (
     UNPAIRED,
     AssociationConfig,
     individual_nis,
+    jcbb,
     nearest_neighbour,
 )
 from ekfslam.core.filter.associating import AMBIGUOUS, AssociatingFilter
@@ -113,3 +114,71 @@ def test_a_drifted_robot_does_not_confirm_a_tentative_with_its_neighbours_sighti
     assert f.observe(sightings(beside), Q, 1.0) == [UNPAIRED]  # a second tentative
     assert f.observe(sightings(here), Q, 2.0) == [0]  # confirms the first
     assert f.finish().counts.tentative == 2 and f.ekf.n_landmarks == 1
+
+
+def test_the_second_tag_of_a_close_pair_seen_with_the_first_becomes_a_landmark():
+    """B lies inside A's gate; A is mapped and seen with B. JCBB pairs A's sighting with A, and
+    one landmark gives one sighting per time, so B's is of no mapped landmark: it starts a
+    tentative and is confirmed, rather than being ambiguous against A for ever."""
+    a, b = LANDMARKS[0], LANDMARKS[0] + [0.0, 0.05]
+    f = make("jcbb")
+    f.observe(sightings(a), Q, 0.0)
+    f.observe(sightings(a), Q, 1.0)  # A is mapped
+    nu, P = f.predicted(sightings(b))
+    assert individual_nis(nu, P, Q[None])[0, 0] < 9.21  # B alone would be taken for A
+    for t in (2.0, 3.0, 4.0):
+        f.observe(sightings(a, b), Q, t)
+    log = f.finish()
+    assert f.ekf.n_landmarks == 2
+    assert log.counts.ambiguous == 0
+    assert log.decision[-2:] == ("associated", "associated")
+    assert np.allclose(f.ekf.landmark(1)[0], b, atol=0.01)
+
+
+def test_a_sighting_taken_while_turning_is_uncertain_in_bearing_by_the_time_sigma():
+    """A bearing 0.06 rad off (6 sigma) is no sighting of the landmark for a robot standing
+    still, and is one when the robot turns at 0.5 rad/s and its time stamp may be 0.2 s off."""
+    z = observation(POSE, LANDMARKS[0]) + np.array([0.0, 0.06])
+    for omega, expected in ((0.0, UNPAIRED), (0.5, 0)):
+        ekf = EKFSLAM(POSE)
+        f = AssociatingFilter(ekf, AssociationConfig(method="jcbb", time_sigma=0.2))
+        f.observe(sightings(LANDMARKS[0]), Q, 0.0)
+        f.observe(sightings(LANDMARKS[0]), Q, 1.0)
+        assert f.observe(z[None], Q, 2.0, omega) == [expected]
+
+
+def test_decide_says_what_observe_would_pair_and_changes_nothing():
+    for method in ("nn", "jcbb"):
+        f = make(method)
+        f.observe(sightings(*LANDMARKS), Q, 0.0)
+        f.observe(sightings(*LANDMARKS), Q, 1.0)
+        mu, Sigma = f.ekf.mu.copy(), f.ekf.Sigma.copy()
+        assert f.decide(sightings(LANDMARKS[1], LANDMARKS[0]), Q) == [1, 0]
+        np.testing.assert_array_equal(f.ekf.mu, mu)
+        np.testing.assert_array_equal(f.ekf.Sigma, Sigma)
+        assert len(f.finish().estimated) == 4  # the decision was not logged
+
+
+@pytest.mark.parametrize("linearization", ["standard", "invariant"])
+def test_the_compiled_jcbb_decides_as_the_numpy_reference(linearization):
+    # as above for JCBB: the compiled H Σ Hᵀ and search against `predicted` (Cartesian Σ) and
+    # the numpy `jcbb`. Before, the kernel read the invariant filter's ξ covariance with the
+    # standard H (heading column -1): the wrong S, other pairings.
+    rng = np.random.default_rng(5)
+    config = FilterConfig(linearization=linearization)
+    ekf = EKFSLAM(np.zeros(3), np.diag([0.04, 0.04, 0.01]), config)
+    marks = rng.uniform(-4.0, 4.0, size=(10, 2))
+    for j, p in enumerate(marks):
+        ekf.update(j, observation(np.zeros(3), p), Q)
+    ekf.predict([0.3, 0.1, 0.4], np.diag([0.01, 0.01, 0.02]))
+    f = AssociatingFilter(ekf, AssociationConfig(method="jcbb"))
+    pose = ekf.pose
+    points = np.vstack([marks[:6] + rng.normal(0, 0.05, (6, 2)), rng.uniform(-5, 5, (2, 2))])
+    zs = np.array([observation(pose, p) for p in points])
+    nu, P = f.predicted(zs)
+    Qs = np.broadcast_to(Q, (len(zs), 2, 2))
+    want = jcbb(nu, P, Qs, f.config.gate, f.config.joint_probability, f.config.node_budget)
+    got, _ = f._jcbb(zs, Q)
+    assert got.pairing.tolist() == want.pairing.tolist()
+    assert sum(p != UNPAIRED for p in got.pairing) >= 5
+    np.testing.assert_allclose(got.joint_nis, want.joint_nis, rtol=1e-9)

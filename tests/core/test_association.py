@@ -104,3 +104,9 @@ def test_config_refuses_a_new_landmark_threshold_inside_the_gate():
         AssociationConfig(method="nn", gate=9.0, new_landmark=5.0)
     with pytest.raises(ConfigError):
         AssociationConfig(method="bogus")  # type: ignore[arg-type]
+
+
+def test_config_refuses_a_negative_or_infinite_time_sigma():
+    for bad in (-0.1, float("inf"), float("nan")):
+        with pytest.raises(ConfigError, match="time_sigma"):
+            AssociationConfig(method="jcbb", time_sigma=bad)

@@ -390,3 +390,22 @@ def test_a_warning_on_the_command_line_is_one_line(monkeypatch, capsys):
     monkeypatch.setattr(run_command, "cmd_run", warns)
     assert cli.main(["run", str(REPO / "data/runs/octagon-2laps")]) == 0
     assert capsys.readouterr().err == "warning: S was singular for 3 updates; they were skipped\n"
+
+
+@pytest.mark.slow
+@pytest.mark.shared_data
+def test_score_mrclam_with_the_barcodes_hidden_reports_every_robot(mrclam7: Path, monkeypatch):
+    monkeypatch.setenv("EKFSLAM_SHARED_DATA", str(mrclam7.parents[1]))
+    out = cli("score-mrclam", "7", "--association", "nn", "jcbb", "--json")
+    assert out.returncode == 0, out.stderr
+    rows = json.loads(out.stdout)["rows"]
+    assert [(r["robot"], r["method"]) for r in rows] == [
+        (robot, m) for robot in (1, 2, 3, 4, 5) for m in ("nn", "jcbb")
+    ]
+    for r in rows:
+        assert r["ratio"] == pytest.approx(r["aligned_error"] / r["known_error"])
+        assert r["ratio_same_noise"] == pytest.approx(r["aligned_error"] / r["known_same_noise"])
+        assert r["correct"] + r["wrong"] + r["missed"] > 1000
+        assert 0.4 < r["correct_fraction"] < 1.0  # the close pairs: far from the seed's 100%
+    for r in (r for r in rows if r["method"] == "jcbb"):  # 2026-12-01: 73-82%, 1.1-2.5x
+        assert r["correct_fraction"] > 0.7 and r["ratio_same_noise"] < 3.0, r

@@ -19,7 +19,7 @@ def test_jcbb_adds_the_association_block_and_known_does_not():
     assert hidden.returncode == 0, hidden.stderr
     out = json.loads(hidden.stdout)
     block = out["association"]
-    for key in ("method", "correct", "wrong", "new", "ambiguous", "correct_fraction"):
+    for key in ("method", "correct", "wrong", "new", "ambiguous", "correct_fraction", "noise"):
         assert key in block
     assert block["method"] == "jcbb"
     assert block["correct_fraction"] >= 0.99
@@ -35,3 +35,16 @@ def test_the_table_says_how_it_associated_and_a_bad_method_is_one_line():
     bad = cli("run", str(OCTAGON), "--association", "guess")
     assert bad.returncode == 2
     assert bad.stderr.count("\n") == 1 and "--association" in bad.stderr
+
+
+def test_match_by_position_says_so_and_finds_the_mappings_map():
+    """The octagon's eight tags are far apart: matching by position pairs them as the mapping."""
+    by_map = json.loads(cli("run", str(OCTAGON), "--association", "jcbb", "--json").stdout)
+    out = cli("run", str(OCTAGON), "--association", "jcbb", "--match", "position", "--json")
+    assert out.returncode == 0, out.stderr
+    by_position = json.loads(out.stdout)
+    assert "robust fit" in by_position["association"]["alignment_matching"]
+    assert by_position["alignment"] == by_map["alignment"]
+    bad = cli("run", str(OCTAGON), "--match", "position")  # known ids: nothing to match
+    assert bad.returncode == 2
+    assert bad.stderr.count("\n") == 1 and "--match" in bad.stderr

@@ -7,8 +7,16 @@ predictions from the filter's state, lets `ekfslam.core.association` choose the 
 estimated id (0, 1, 2 ... in the order they become permanent), one after the other as the
 replay does with known ids. ``nn`` needs only each landmark's own 2x2 block of that covariance,
 so it runs compiled (`ekfslam.core.filter.nearest.nearest`, O(m n)) and costs about what the
-updates do; ``jcbb`` needs the cross blocks too, and builds H Σ Hᵀ (`predicted`). The EKF
+updates do; ``jcbb`` needs the cross blocks too: H Σ Hᵀ and the search run compiled
+(`ekfslam.core.filter.jcbb_kernels`), deciding as `ekfslam.core.association.jcbb` over
+`predicted`, the readable forms. The EKF
 itself is unchanged: its gate and re-initialisation still apply to each update.
+
+Two sightings of one time never come from one landmark (the assumption JCBB's pairing makes):
+a sighting JCBB left unpaired is judged ambiguous only against the landmarks no other sighting
+of its time took (`AssociatingFilter._jcbb`). A time stamp that may be off by
+`AssociationConfig.time_sigma` makes a sighting taken while turning uncertain in bearing, and
+its Q says so.
 
 A sighting paired with nothing:
 
@@ -38,9 +46,10 @@ from numpy.typing import ArrayLike, NDArray
 from ekfslam.core.association import (
     UNPAIRED,
     AssociationConfig,
-    individual_nis,
-    jcbb,
+    JcbbResult,
+    chi2_even_quantile,
 )
+from ekfslam.core.filter import jcbb_kernels
 from ekfslam.core.filter import nearest as nearest_kernel
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.models import inverse_observation, inverse_observation_jacobians
@@ -103,18 +112,23 @@ class AssociatingFilter:
         self._tentative: list[tuple[float, Array, Array, Array]] = []  # t, p, cov, pose cov
         self._estimated: list[int] = []
         self._decision: list[str] = []
+        self._chi2: dict[int, Array] = {}  # m -> the joint gates of 0..m pairs
         self._counts = dict.fromkeys(
             ("associated", "confirmed", "tentative", "tentative_discarded", "ambiguous",
              "budget_hits", "nodes"), 0,
         )  # fmt: skip
 
-    def observe(self, zs: ArrayLike, Q: ArrayLike, t: float) -> list[int]:
+    def observe(self, zs: ArrayLike, Q: ArrayLike, t: float, omega: float = 0.0) -> list[int]:
         """Use the sightings taken at time t (s): zs (m, 2) range (m), bearing (rad); Q (2, 2).
 
+        omega : rad/s, the robot's turn rate at t; with `AssociationConfig.time_sigma` it adds
+        (omega time_sigma)² to the bearing variance of these sightings (a time-stamp error).
         Returns the estimated landmark id each sighting was used for (-1: none).
         """
         zs = np.asarray(zs, dtype=float).reshape(-1, 2)
         Q = np.asarray(Q, dtype=float)
+        if self.config.time_sigma and omega:
+            Q = Q + np.diag([0.0, (omega * self.config.time_sigma) ** 2])
         if self._tentative:
             self._expire(t)
         m = len(zs)
@@ -122,15 +136,8 @@ class AssociatingFilter:
         if self.config.method == "nn":  # compiled, O(m n): no H Σ Hᵀ (see `nearest.nearest`)
             pairing, nearest = self._nearest(zs, Q)
         else:
-            Qs = np.broadcast_to(Q, (m, 2, 2))
-            nu, P = self.predicted(zs)
-            nis = individual_nis(nu, P, Qs)
-            nearest = nis.min(axis=1) if nis.shape[1] else np.full(m, math.inf)
-            found = jcbb(
-                nu, P, Qs, self.config.gate, self.config.joint_probability,
-                self.config.node_budget,
-            )  # fmt: skip
-            pairing = found.pairing.tolist()
+            found, unclaimed = self._jcbb(zs, Q)
+            pairing, nearest = found.pairing.tolist(), unclaimed.tolist()
             self._counts["nodes"] += found.nodes
             self._counts["budget_hits"] += found.budget_hit
         used = [UNPAIRED] * m
@@ -152,6 +159,21 @@ class AssociatingFilter:
             self._counts[what] += 1
         return used
 
+    def decide(self, zs: ArrayLike, Q: ArrayLike, omega: float = 0.0) -> list[int]:
+        """The landmark ids `observe` would pair the sightings with now (-1: none), changing
+        nothing: to ask how well the association does from a given state (the one the filter
+        reaches with the true ids, say)."""
+        zs = np.asarray(zs, dtype=float).reshape(-1, 2)
+        Q = np.asarray(Q, dtype=float)
+        if self.config.time_sigma and omega:
+            Q = Q + np.diag([0.0, (omega * self.config.time_sigma) ** 2])
+        if self.config.method == "nn":
+            pairing = self._nearest(zs, Q)[0]
+        else:
+            pairing = self._jcbb(zs, Q)[0].pairing.tolist()
+        ids = self.ekf.landmark_ids
+        return [UNPAIRED if j == UNPAIRED else ids[j] for j in pairing]
+
     def _nearest(self, zs: Array, Q: Array) -> tuple[list[int], list[float]]:
         """`nearest_neighbour` over `individual_nis`, compiled: pairing and smallest NIS."""
         ekf = self.ekf
@@ -165,6 +187,35 @@ class AssociatingFilter:
             pairing, smallest,
         )  # fmt: skip
         return pairing.tolist(), smallest.tolist()
+
+    def _jcbb(self, zs: Array, Q: Array) -> tuple[JcbbResult, Array]:
+        """`jcbb` over `predicted` and `individual_nis`, compiled (`jcbb_kernels`): the same
+        decision; and each sighting's smallest NIS over the landmarks no sighting took (m,).
+
+        One landmark gives at most one sighting per time (JCBB's own hypothesis), so a sighting
+        left unpaired is ambiguous only against landmarks no other sighting of its time took:
+        else the second tag of a close pair, seen with the first, would be ambiguous against
+        the first for ever, and never mapped.
+        """
+        ekf, m, n = self.ekf, len(zs), self.ekf.n_landmarks
+        ekf._settle()  # the invariant filter's owed heading noise, before Σ is read
+        mu, S, d = ekf._mu, ekf._Sigma, ekf._dim
+        nu, P, nis = np.empty((m, n, 2)), np.empty((2 * n, 2 * n)), np.empty((m, n))
+        (q00, q01), (_, q11) = Q.tolist()
+        # positional, each argument named as the kernel's parameter (see `EKFSLAM._propagate`)
+        jcbb_kernels.predict_all(mu, S, d, zs, q00, q01, q11, ekf._invariant, nu, P, nis)
+        if m not in self._chi2:
+            p = self.config.joint_probability
+            gates = [chi2_even_quantile(2 * k, p) for k in range(1, m + 1)]
+            self._chi2[m] = np.array([0.0, *gates])
+        chi2, gate, budget = self._chi2[m], self.config.gate, self.config.node_budget
+        Qs = np.empty((m, 2, 2))  # each sighting's noise: the kernel takes a stack
+        Qs[:] = Q
+        pairing, unclaimed = np.empty(m, dtype=np.int64), np.empty(m)
+        value, nodes, hit = jcbb_kernels.search(
+            nu, P, Qs, nis, gate, chi2, budget, pairing, unclaimed
+        )
+        return JcbbResult(pairing, value, nodes, hit), unclaimed
 
     def predicted(self, zs: Array) -> tuple[Array, Array]:
         """Innovations ν (m, n, 2) of every sighting against every landmark, and P = H Σ Hᵀ."""

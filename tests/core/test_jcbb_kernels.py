@@ -1,0 +1,69 @@
+"""The compiled JCBB decides as the readable reference (`ekfslam.core.association.jcbb`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ekfslam.core import models
+from ekfslam.core.association import AssociationConfig, individual_nis, jcbb
+from ekfslam.core.filter import jcbb_kernels
+from ekfslam.core.filter.associating import AssociatingFilter
+from ekfslam.core.filter.ekf import EKFSLAM
+from ekfslam.core.models import observation, observation_noise
+
+
+def test_the_range_floor_is_the_models():
+    assert jcbb_kernels.MIN_RANGE_SQUARED == models.MIN_RANGE_SQUARED
+
+
+def random_case(seed: int, budget: int = 10_000):
+    """A map of close pairs and lone tags, a drifted pose, sightings of some, and strays."""
+    rng = np.random.default_rng(seed)
+    ekf = EKFSLAM(np.zeros(3), np.diag([0.04, 0.04, 0.01]))
+    lone = rng.uniform(-4.0, 4.0, size=(6, 2))
+    pairs = rng.uniform(-4.0, 4.0, size=(3, 2))
+    marks = np.vstack([lone, pairs, pairs + rng.normal(0.0, 0.2, pairs.shape)])
+    Q = observation_noise(0.05, 0.03)
+    for j, p in enumerate(marks):
+        ekf.update(j, observation(np.zeros(3), p), Q)
+    ekf.predict(np.array([0.1, 0.0, 0.05]), np.diag([1e-3, 1e-3, 4e-3]))
+    seen = rng.choice(len(marks), size=rng.integers(1, 9), replace=False)
+    points = np.vstack([marks[seen], rng.uniform(-5.0, 5.0, (rng.integers(0, 3), 2))])
+    zs = np.array([observation(ekf.pose, p) for p in points])
+    zs += rng.normal(0.0, [0.05, 0.03], zs.shape)
+    f = AssociatingFilter(ekf, AssociationConfig(method="jcbb", node_budget=budget))
+    return f, zs, Q
+
+
+@pytest.mark.parametrize("budget", [10_000, 5])
+def test_compiled_jcbb_decides_as_the_reference(budget):
+    hits = 0
+    for seed in range(40):
+        f, zs, Q = random_case(seed, budget)
+        nu, P = f.predicted(zs)
+        Qs = np.broadcast_to(Q, (len(zs), 2, 2))
+        want = jcbb(nu, P, Qs, f.config.gate, f.config.joint_probability, budget)
+        got, unclaimed = f._jcbb(zs, Q)
+        assert got.pairing.tolist() == want.pairing.tolist(), seed
+        assert got.nodes == want.nodes and got.budget_hit == want.budget_hit, seed
+        assert got.joint_nis == pytest.approx(want.joint_nis, rel=1e-9, abs=1e-12)
+        nis = individual_nis(nu, P, Qs)
+        free = np.ones(nis.shape[1], dtype=bool)
+        free[want.pairing[want.pairing >= 0]] = False
+        smallest = nis[:, free].min(axis=1) if free.any() else np.full(len(zs), np.inf)
+        np.testing.assert_allclose(unclaimed, smallest, rtol=1e-9, atol=1e-12)
+        hits += got.budget_hit
+    assert (hits > 0) == (budget == 5)  # the small budget is reached, the default not
+
+
+def test_compiled_predictions_are_h_sigma_ht():
+    f, zs, Q = random_case(7)
+    nu, P = f.predicted(zs)
+    m, n = nu.shape[:2]
+    got_nu, got_P, nis = np.empty((m, n, 2)), np.empty((2 * n, 2 * n)), np.empty((m, n))
+    e = f.ekf
+    q00, q01, q11 = Q[0, 0], Q[0, 1], Q[1, 1]
+    jcbb_kernels.predict_all(e._mu, e._Sigma, e._dim, zs, q00, q01, q11, False, got_nu, got_P, nis)
+    np.testing.assert_allclose(got_nu, nu, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(got_P, P, rtol=1e-9, atol=1e-15)
