@@ -17,7 +17,6 @@ import dataclasses
 import numpy as np
 
 from ekfslam.analysis.alignment_unlabelled import MATCHED_BY_NEAREST, match_by_position
-from ekfslam.analysis.mrclam_consistency import MRCLAM_CONSISTENT_NOISE
 from ekfslam.core.association import AssociationConfig, Confusion, confusion
 from ekfslam.core.noise import NoiseConfig, default_noise
 from ekfslam.logs.mrclam import defaults as mrclam_defaults
@@ -50,10 +49,10 @@ def association_noise(run: RunLog) -> NoiseConfig:
     with the barcodes and leaves Σ too small (pose NEES 12-83 against an ideal 3,
     ``consistency mrclam 7``): the true landmark falls outside its gate, the sighting founds a
     duplicate, and a robot without corrections gets lost. The setting tuned for consistency,
-    `ekfslam.analysis.mrclam_consistency.MRCLAM_CONSISTENT_NOISE` (NEES 6.1), is used instead.
+    `ekfslam.logs.mrclam.defaults.MRCLAM_CONSISTENT_NOISE` (NEES 6.1), is used instead.
     """
     if run.meta.defaults == mrclam_defaults.NAME:
-        return MRCLAM_CONSISTENT_NOISE
+        return mrclam_defaults.MRCLAM_CONSISTENT_NOISE
     return default_noise(run)
 
 

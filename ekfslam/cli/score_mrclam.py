@@ -2,7 +2,7 @@
 
 Without ``--association``: the README's MRCLAM table. With it: each robot with the barcodes hidden
 from the filter, by the methods named, against the same robot with them known
-(`ekfslam.analysis.association_mrclam`).
+(`ekfslam.analysis.association_mrclam`); ``--linearization L`` runs those replays with filter L.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from ekfslam.analysis.association_mrclam import association_robots, association_
 from ekfslam.analysis.mrclam_tuning import score_robots, scores_table
 from ekfslam.cli import args as ca
 from ekfslam.cli.common import mrclam_folder
+from ekfslam.core.filter.config import LINEARIZATIONS
 
 
 def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) -> None:
@@ -26,7 +27,18 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     p.add_argument("--association", nargs="+", choices=("nn", "jcbb"), metavar="METHOD",
                    help="hide the barcodes and associate by METHOD (nn, jcbb; one or both): "
                    "each robot's map error against known's, and the decisions")  # fmt: skip
+    p.add_argument("--linearization", choices=LINEARIZATIONS, default=None,
+                   help="with --association: the filter of the replays that associate (and of "
+                   "'known, same noise'); known's column stays the shipped standard EKF "
+                   "(default: standard)")  # fmt: skip
     ca.add_json_argument(p, "print one JSON object: {robots: [{robot, landmarks, ...}, ...]}")
+
+    def check(args: argparse.Namespace) -> str | None:
+        if args.linearization is not None and not args.association:
+            return "argument --linearization: only with --association"
+        return None
+
+    p.add_check(check)
     p.set_defaults(func=cmd_score_mrclam)
 
 
@@ -34,7 +46,8 @@ def cmd_score_mrclam(args: argparse.Namespace) -> int:
     # not found: one line saying how to fetch it (an InputError), not a traceback
     folder = mrclam_folder(args.dataset)
     if args.association:
-        rows = association_robots(folder, tuple(dict.fromkeys(args.association)))
+        methods = tuple(dict.fromkeys(args.association))
+        rows = association_robots(folder, methods, linearization=args.linearization or "standard")
         if args.json:
             print(json.dumps({"dataset": str(folder), "rows": [_finite(r) for r in rows]},
                              indent=2, allow_nan=False))  # fmt: skip

@@ -7,9 +7,9 @@ import dataclasses
 import numpy as np
 
 from ekfslam.analysis import association as assoc
-from ekfslam.analysis.mrclam_consistency import MRCLAM_CONSISTENT_NOISE
 from ekfslam.core.noise import default_noise
 from ekfslam.logs.mrclam import defaults as mrclam_defaults
+from ekfslam.logs.mrclam.defaults import MRCLAM_CONSISTENT_NOISE
 from ekfslam.logs.runlog import read_run
 from ekfslam.places import seed_runs_dir
 

@@ -19,14 +19,13 @@ from ekfslam_cli import run_ekfslam
 from ekfslam.analysis.mrclam_consistency import (
     INTERVAL,
     MAP_TARGETS,
-    MRCLAM_CONSISTENT_NOISE,
     mrclam_consistency,
     table,
     tune_for_consistency,
     vicon_errors,
 )
 from ekfslam.analysis.mrclam_tuning import score_robots
-from ekfslam.logs.mrclam.defaults import MRCLAM_NOISE
+from ekfslam.logs.mrclam.defaults import MRCLAM_CONSISTENT_NOISE, MRCLAM_NOISE
 from ekfslam.viz.consistency import plot_mrclam_nees
 
 REPO = Path(__file__).resolve().parents[2]

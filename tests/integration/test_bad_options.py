@@ -171,6 +171,8 @@ CASES: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "consistency mrclam dataset ten": ("consistency mrclam 10", "DATASET", ()),
     "score-mrclam dataset zero": ("score-mrclam 0", "DATASET", ()),
     "score-mrclam dataset missing folder": ("score-mrclam {tmp}/nowhere", "DATASET", ()),
+    "score-mrclam linearization without association": ("score-mrclam 7 --linearization fej",
+                                                         "--linearization", ()),
     "bench mrclam dataset twelve": ("bench --mrclam 12", "--mrclam", ()),
     "convert mrclam dataset ninety-nine": ("convert mrclam 99 --robot 1 --out {tmp}/mr99",
                                            "dataset", ("{tmp}/mr99",)),
