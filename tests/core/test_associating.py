@@ -78,21 +78,29 @@ def test_a_sighting_between_the_gate_and_the_new_landmark_threshold_is_dropped()
     np.testing.assert_array_equal(f.ekf.mu, mean_before)  # dropped: the state is untouched
 
 
+def correlated(linearization, seed, count, motion, method):
+    """A correlated map (pose uncertain, `count` landmarks seen from two poses), its
+    associating filter, and the landmarks' true places."""
+    rng = np.random.default_rng(seed)
+    ekf = EKFSLAM(
+        np.zeros(3), np.diag([0.04, 0.04, 0.01]), FilterConfig(linearization=linearization)
+    )
+    marks = rng.uniform(-4.0, 4.0, size=(count, 2))
+    for j, p in enumerate(marks):
+        ekf.update(j, observation(np.zeros(3), p), Q)
+    ekf.predict(*motion)
+    return AssociatingFilter(ekf, AssociationConfig(method=method)), marks, rng
+
+
 @pytest.mark.parametrize("linearization", ["standard", "invariant"])
 def test_the_compiled_nearest_neighbour_decides_as_the_numpy_reference(linearization):
     # a correlated map (pose uncertain, landmarks seen from two poses) and sightings near,
     # between and far from its landmarks: nearest.nearest agrees with individual_nis then
     # nearest_neighbour on every pairing, and on the smallest NIS to rounding. The invariant
     # filter's kernel reads its ξ covariance, the numpy one the Cartesian Σ: the same S.
-    rng = np.random.default_rng(3)
-    config = FilterConfig(linearization=linearization)
-    ekf = EKFSLAM(np.zeros(3), np.diag([0.04, 0.04, 0.01]), config)
-    marks = rng.uniform(-4.0, 4.0, size=(12, 2))
-    for j, p in enumerate(marks):
-        ekf.update(j, observation(np.zeros(3), p), Q)
-    ekf.predict([0.3, 0.1, 0.2], np.diag([0.01, 0.01, 0.004]))
-    f = AssociatingFilter(ekf, AssociationConfig(method="nn"))
-    pose = ekf.pose
+    motion = ([0.3, 0.1, 0.2], np.diag([0.01, 0.01, 0.004]))
+    f, marks, rng = correlated(linearization, 3, 12, motion, "nn")
+    pose = f.ekf.pose
     points = np.vstack([marks + rng.normal(0, 0.05, marks.shape), rng.uniform(-5, 5, (8, 2))])
     zs = np.array([observation(pose, p) for p in points])
     nu, P = f.predicted(zs)
@@ -164,15 +172,9 @@ def test_the_compiled_jcbb_decides_as_the_numpy_reference(linearization):
     # as above for JCBB: the compiled H Σ Hᵀ and search against `predicted` (Cartesian Σ) and
     # the numpy `jcbb`. Before, the kernel read the invariant filter's ξ covariance with the
     # standard H (heading column -1): the wrong S, other pairings.
-    rng = np.random.default_rng(5)
-    config = FilterConfig(linearization=linearization)
-    ekf = EKFSLAM(np.zeros(3), np.diag([0.04, 0.04, 0.01]), config)
-    marks = rng.uniform(-4.0, 4.0, size=(10, 2))
-    for j, p in enumerate(marks):
-        ekf.update(j, observation(np.zeros(3), p), Q)
-    ekf.predict([0.3, 0.1, 0.4], np.diag([0.01, 0.01, 0.02]))
-    f = AssociatingFilter(ekf, AssociationConfig(method="jcbb"))
-    pose = ekf.pose
+    motion = ([0.3, 0.1, 0.4], np.diag([0.01, 0.01, 0.02]))
+    f, marks, rng = correlated(linearization, 5, 10, motion, "jcbb")
+    pose = f.ekf.pose
     points = np.vstack([marks[:6] + rng.normal(0, 0.05, (6, 2)), rng.uniform(-5, 5, (2, 2))])
     zs = np.array([observation(pose, p) for p in points])
     nu, P = f.predicted(zs)
