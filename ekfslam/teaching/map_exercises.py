@@ -1,6 +1,7 @@
 """The lab's exercises on the map: the predicted observation, eqs. (13)-(14) (exercise 4), the
 new landmark, eq. (12) (exercise 5), both in notebook 04, and the update, eqs. (15)-(16)
-(exercise 6, notebook 05); the machinery is `ekfslam.teaching.verdicts`."""
+(exercise 6, notebook 05: 6a Joseph's form, 6b the update that uses it); the machinery is
+`ekfslam.teaching.verdicts`."""
 
 from __future__ import annotations
 
@@ -149,6 +150,59 @@ def _check_new_landmark(
 # --- exercise 6: the update, eqs. (15)-(16), bearing innovation wrapped, Joseph's form ----------
 
 
+def _joseph_cases(rng: np.random.Generator) -> list[tuple[str, Array, Array, Array, Array]]:
+    """(gain, Sigma, K, H, Q): gains that are not eq. (15)'s, where (I - KH)Σ and Joseph's form
+    part by much more than rounding (1.2 K; K on the robot's and the seen landmark's rows only,
+    the shortcut of notebook 05; a random gain), on states of 1-3 landmarks."""
+    Q = np.diag([9e-4, 4e-3])
+    cases = []
+    for n, j in ((1, 0), (2, 1), (3, 2)):
+        d = 3 + 2 * n
+        A = rng.normal(size=(d, d))
+        Sigma = 1e-3 * (A @ A.T + np.eye(d))
+        H = np.zeros((2, d))
+        H[:, :3], H[:, 3 + 2 * j : 5 + 2 * j] = rng.normal(size=(2, 3)), rng.normal(size=(2, 2))
+        K = Sigma @ H.T @ np.linalg.inv(H @ Sigma @ H.T + Q)  # eq. (15)
+        rows = np.zeros((d, 1))
+        rows[:3] = rows[3 + 2 * j : 5 + 2 * j] = 1.0
+        gains = {"1.2 K": 1.2 * K, "K on the robot and the seen landmark only": rows * K}
+        gains["a random gain"] = rng.normal(0, 0.5, (d, 2))
+        cases += [(name, Sigma, G, H, Q) for name, G in gains.items()]
+    return cases
+
+
+def check_joseph(joseph: Callable[[Array, Array, Array, Array], object]) -> bool:
+    """Exercise 6a: `joseph(Sigma (d, d), K (d, 2), H (2, d), Q (2, 2)) -> Sigma (d, d)`, the
+    covariance after an update with the gain K in Joseph's form, (I - KH) Σ (I - KH)ᵀ + K Q Kᵀ
+    (eq. 16 done right; `ekfslam.core.steps.update_steps` computes it as `Sigma_joseph`). It is
+    tried with gains that are not the optimal one of eq. (15), where the seed's (I - KH)Σ is
+    wrong, so that form does not pass."""
+
+    def check() -> None:
+        for gain, Sigma, K, H, Q in _joseph_cases(np.random.default_rng(RNG_SEED)):
+            d = len(Sigma)
+            got = joseph(Sigma.copy(), K.copy(), H.copy(), Q.copy())
+            got = as_array(got, (d, d), f"your Σ (with {gain})")
+            I_KH = np.eye(d) - K @ H
+            want = I_KH @ Sigma @ I_KH.T + K @ Q @ K.T
+            if close(got, want, atol=1e-12):
+                continue
+            if close(got, I_KH @ Sigma, atol=1e-12):
+                raise Wrong(
+                    f"that is the seed's (I - KH)Σ, which is right only for the optimal gain of "
+                    f"eq. (15); with {gain} it is not the covariance of μ + Kν."
+                )
+            if close(got, I_KH @ Sigma @ I_KH.T, atol=1e-12):
+                raise Wrong("the measurement noise's share K Q Kᵀ is missing.")
+            if close(got, I_KH.T @ Sigma @ I_KH + K @ Q @ K.T, atol=1e-12):
+                raise Wrong("the transposes are on the wrong side: (I - KH) comes first.")
+            if not close(got, got.T, atol=1e-12):
+                raise Wrong(f"your Σ is not symmetric (with {gain}).")
+            raise Wrong(f"your Σ is wrong with {gain} (Joseph's form holds for any gain).")
+
+    return attempt("6a", check)
+
+
 def _update_cases(rng: np.random.Generator) -> list[tuple[Array, Array, int, Array, Array]]:
     """(mu, Sigma, j, z, Q); the first sees its landmark right behind the robot, where ẑ's
     bearing is near +π and z's near -π, so an unwrapped innovation is off by 2π."""
@@ -171,9 +225,11 @@ def _update_cases(rng: np.random.Generator) -> list[tuple[Array, Array, int, Arr
 
 
 def check_update(update: Callable[[Array, Array, int, Array, Array], object]) -> bool:
-    """Exercise 6: `update(mu (d,), Sigma (d, d), j, z (2,), Q (2, 2)) -> (mu, Sigma)`, one
-    correction with landmark slot j, eqs. (13)-(16) in Joseph's form (the answer is
-    `ekfslam.core.steps.update_steps`: its mu_post and Sigma_joseph)."""
+    """Exercise 6b: `update(mu (d,), Sigma (d, d), j, z (2,), Q (2, 2)) -> (mu, Sigma)`, one
+    correction with landmark slot j, eqs. (13)-(16), its Σ from the student's `joseph` of
+    exercise 6a (the answer is `ekfslam.core.steps.update_steps`: its mu_post and Sigma_joseph).
+    With the optimal gain Joseph's form and (I - KH)Σ agree, so the form is 6a's check; here a
+    `joseph` in the update's module is watched, and an update that never calls it is told so."""
 
     def check() -> None:
         for mu, Sigma, j, z, Q in _update_cases(np.random.default_rng(RNG_SEED)):
@@ -210,7 +266,31 @@ def check_update(update: Callable[[Array, Array, int, Array, Array], object]) ->
                     raise Wrong("your posterior Σ is not symmetric.")
                 raise Wrong("the posterior covariance is wrong (eq. 16, Joseph's form).")
 
-    return attempt("6", check)
+    return attempt("6b", lambda: _watching_joseph(update, check))
+
+
+def _watching_joseph(update: Callable, check: Callable[[], None]) -> None:
+    """Run `check` with the `joseph` that `update` would call (a notebook's global) counted."""
+    names = getattr(update, "__globals__", {})
+    joseph = names.get("joseph")
+    if not callable(joseph):
+        return check()
+    calls = []
+
+    def watched(*args, **kwargs):
+        calls.append(1)
+        try:
+            return joseph(*args, **kwargs)
+        except NotImplementedError:
+            raise Wrong("your update calls joseph, and exercise 6a is not done yet.") from None
+
+    names["joseph"] = watched
+    try:
+        check()
+    finally:
+        names["joseph"] = joseph
+    if not calls:
+        raise Wrong("your update does not call your joseph(Sigma, K, H, Q) of exercise 6a for Σ.")
 
 
 # --- exercise 7: the NIS gate, νᵀ S⁻¹ ν against the chi-square quantile of 2 dof ---------------

@@ -53,12 +53,28 @@ def plot_consistency(
         ax.set_ylabel(f"average {label}")
         ax.set_yscale("log")
         ax.yaxis.set_major_formatter(ScalarFormatter())  # 3, not 3 x 10^0
-        ax.yaxis.set_minor_formatter(ScalarFormatter())
         ax.grid(True, alpha=0.3, which="both")
         ax.legend(loc="upper left", fontsize=11)
     axes[-1].set_xlabel("time (s)")
+    for ax in axes:  # once the limits are final: how many minor labels fit depends on them
+        ax.yaxis.set_minor_formatter(_minor_labels(ax))
     fig.suptitle(title or f"Consistency on the {results[0].scenario} scenario")
     return fig
+
+
+def _minor_labels(ax) -> FuncFormatter:
+    """Labels for a log axis's minor ticks: every one (3, 4, 5, ...) when the axis spans under
+    half a decade, else only 2, 3 and 5 x 10^k, so that 0.6, 0.7, 0.8, 0.9 below a major 1 do not
+    run into each other at 11 pt."""
+    low, high = ax.get_ylim()
+    decades = np.log10(high / low) if low > 0 and high > low else 1.0
+    keep = None if decades < 0.5 else {2, 3, 5}
+
+    def label(value: float, _pos: int) -> str:
+        mantissa = round(value / 10.0 ** np.floor(np.log10(value) + 1e-9))
+        return f"{value:g}" if keep is None or mantissa in keep else ""
+
+    return FuncFormatter(label)
 
 
 def plot_mrclam_nees(study: MrclamConsistency, figsize=None, floor: float = 0.01) -> Figure:

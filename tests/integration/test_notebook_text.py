@@ -55,3 +55,18 @@ def test_notebook_03_says_what_sigma_0_of_eq_2_means() -> None:
     text = prose(ROOT / "notebooks" / "solutions" / "03-motion-and-prediction.ipynb")
     assert "eq. (2)" in text and "gauge" in text and "rigid transform" in text
     assert "eq. (17)" in text and "eq. (12)" in text  # recovered by 17; landmarks enter by 12
+
+
+def test_notebooks_09_and_10_state_the_lag_and_the_short_drive_notebook_10_measures(
+    mrclam7,
+) -> None:
+    """Notebook 10's cell fits robot 3's lag and distance scale; both texts quote them."""
+    from ekfslam.logs.mrclam.calibration import fit_command_calibration
+    from ekfslam.logs.mrclam.load import load_mrclam
+
+    fit = fit_command_calibration([load_mrclam(mrclam7, 3)[0]])
+    short = f"about {round(100 * (1 - fit.v_scale))} % short"
+    assert short == "about 13 % short" and round(fit.lag_s, 1) == 0.3
+    nine, ten = notebook("09-trust-the-ellipses.ipynb"), notebook("10-real-robots.ipynb")
+    assert short in ten and short in nine.replace("\n  ", " ")
+    assert f"lags\n  the commands by about {fit.lag_s:.1f} s" in nine

@@ -34,7 +34,8 @@ LAB = {
     "4a": ("derive_observation", mx.check_observation_model),
     "4b": ("predict_z", mx.check_predicted_observation),
     "5": ("add_landmark", mx.check_new_landmark),
-    "6": ("update", mx.check_update),
+    "6a": ("joseph", mx.check_joseph),
+    "6b": ("update", mx.check_update),
     "7": ("nis_gate", mx.check_nis_gate),
     "8": ("replay_loop", lambda loop: lc.check_replay(loop, octagon())),
     "9": ("align_map", lc.check_alignment),
@@ -315,3 +316,54 @@ def test_check_update_names_the_unwrapped_innovation_and_the_missing_Q(capsys) -
     check = mx.check_update
     assert "bearing innovation z - ẑ is not wrapped" in verdict(check, unwrapped, capsys)
     assert "Q is missing from S = H Σ Hᵀ + Q" in verdict(check, no_Q, capsys)
+
+
+def _short_form(Sigma, K, H, Q):  # the seed's eq. (16)
+    return (np.eye(len(Sigma)) - K @ H) @ Sigma
+
+
+def test_check_joseph_tells_the_seeds_short_form_the_missing_KQK_and_the_transposes(capsys) -> None:
+    def no_KQK(Sigma, K, H, Q):
+        I_KH = np.eye(len(Sigma)) - K @ H
+        return I_KH @ Sigma @ I_KH.T
+
+    def transposed(Sigma, K, H, Q):
+        I_KH = np.eye(len(Sigma)) - K @ H
+        return I_KH.T @ Sigma @ I_KH + K @ Q @ K.T
+
+    check = mx.check_joseph
+    out = verdict(check, _short_form, capsys)
+    assert "that is the seed's (I - KH)Σ, which is right only for the optimal gain" in out
+    assert "with 1.2 K" in out
+    assert "K Q Kᵀ is missing" in verdict(check, no_KQK, capsys)
+    assert "transposes are on the wrong side" in verdict(check, transposed, capsys)
+
+
+def _exercise_6(*edits: tuple[str, str]) -> dict:
+    """The names exercise 6's cell defines, with each (old, new) text replaced first."""
+    source = exercise_cells()["6b"]
+    for old, new in edits:
+        assert source.count(old) == 1, old
+        source = source.replace(old, new)
+    namespace = {"np": np}
+    exec(compile(source, "<exercise cell 6>", "exec"), namespace)
+    return namespace
+
+
+JOSEPH = "return I_KH @ Sigma @ I_KH.T + K @ Q @ K.T"
+SHORT = "return I_KH @ Sigma"
+
+
+def test_the_short_form_passes_the_update_but_not_joseph(capsys) -> None:
+    cell = _exercise_6((JOSEPH, SHORT))
+    assert mx.check_update(cell["update"]) is True  # the optimal gain: both forms agree
+    assert mx.check_joseph(cell["joseph"]) is False  # other gains: 6a tells them apart
+
+
+def test_check_update_says_when_the_update_does_not_use_joseph_or_joseph_is_a_stub(capsys) -> None:
+    inline = "return mu, (np.eye(d) - K @ H) @ Sigma"
+    cell = _exercise_6(("return mu, joseph(Sigma, K, H, Q)  # exercise 6a", inline))
+    out = verdict(mx.check_update, cell["update"], capsys)
+    assert "does not call your joseph(Sigma, K, H, Q) of exercise 6a" in out
+    cell = _exercise_6(("I_KH = np.eye(len(Sigma)) - K @ H", "raise NotImplementedError"))
+    assert "exercise 6a is not done yet" in verdict(mx.check_update, cell["update"], capsys)

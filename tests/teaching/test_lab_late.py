@@ -79,9 +79,13 @@ def test_check_replay_catches_the_order_lost_detections_and_a_wrong_R(capsys, mo
 
     assert "fed 620 of the run's 622 detections" in verdict(check, skips_the_first, capsys)
     # the octagon's σx = σy, so an R without V would pass; an R per control row, not per second,
-    # does not: M dt for dt = 0.05 s, not M
+    # does not: M dt for dt = 0.05 s, not M (the octagon's pieces are all 0.05 s long, so this
+    # is exactly an R not scaled by dt, and the check says so)
     real = models.motion_noise
     monkeypatch.setattr(models, "motion_noise", lambda pose, M: real(pose, 20.0 * M))
+    assert "builds each piece's R from M itself" in verdict(check, right, capsys)
+    # an R wrong in another way is not one of the typical loops: the general verdict
+    monkeypatch.setattr(models, "motion_noise", lambda pose, M: real(pose, 3.0 * M))
     assert "its own R" in verdict(check, right, capsys)
 
 

@@ -57,6 +57,14 @@ def test_no_notebook_asks_for_a_size_below_11_pt_and_each_sets_11_pt() -> None:
             assert '"font.size": 11' in code, f"{path.name} does not set font.size to 11"
 
 
+def test_notebook_06s_animation_frames_keep_11_pt_text_readable_on_screen() -> None:
+    """The jshtml frames are pixels shown at their own size: at dpi 60 an 11 pt label was
+    9 px high on the page (the rendered notebook), at 80 it is about 12 px, a browser's own."""
+    code = code_of(ROOT / "notebooks" / "solutions" / "06-full-slam.ipynb")
+    (dpi,) = re.findall(r"ReplayFrames\((?:[^()]|\([^()]*\))*?\bdpi=(\d+)", code)
+    assert PROJECTOR_PT * int(dpi) / 72 >= 12.0, f"11 pt at dpi {dpi}"
+
+
 @pytest.fixture
 def projector_rc():
     with matplotlib.rc_context(NOTEBOOK_RC):
