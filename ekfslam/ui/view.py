@@ -19,6 +19,7 @@ from ekfslam.core.filter.history import Outcome
 from ekfslam.logs.runlog import RunLog
 from ekfslam.pipeline import ReplayResult
 from ekfslam.ui.blit import Blitter, can_blit
+from ekfslam.ui.glyphs import CachedGlyphText
 from ekfslam.viz.plotting import ellipse_parameters
 from ekfslam.viz.tables import PANEL, Row, table1_lines
 
@@ -83,8 +84,10 @@ class TuningView:
         # it is data (typesetting monospace text is a good part of a blitted move).
         self.header = fig.suptitle("", family="monospace", fontsize=TITLE_PT)
         below = offset_copy(fig.transFigure, fig, y=-TITLE_PT * 1.2, units="points")
-        self.text = fig.text(0.5, 0.98, "", family="monospace", fontsize=TITLE_PT, ha="center",
-                             va="top", transform=below)  # fmt: skip
+        # (its glyphs rasterised once: `ekfslam.ui.glyphs`, the same pixels as a Text's)
+        self.text = fig.add_artist(CachedGlyphText(0.5, 0.98, "", family="monospace",
+                                                   fontsize=TITLE_PT, ha="center", va="top",
+                                                   transform=below))  # fmt: skip
         self._decades, self._limits_set = (0, 0), False
         data = [self.true_path, self.path, self.true_tags, self.tags, self.start, self.accepted]
         data += [self.rejected, self.gate_line, self.text]
