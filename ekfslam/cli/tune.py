@@ -74,7 +74,8 @@ def cmd_tune(args: argparse.Namespace) -> int:
             f"+ summary and artists {r['update_ms'] - r['replay_ms']:.1f} ms "
             f"+ render to PNG {r['draw_ms']:.1f} ms; CPU time {r['cpu_ms']:.1f} ms "
             f"({r['samples']} samples; target 100 ms); blitted as on ipympl "
-            f"{r['blit_ms']:.1f} ms before its PNG"
+            f"{r['blit_ms']:.1f} ms, of which the frame (diff and PNG, "
+            f"{r['frame_kib']:.0f} KiB) {r['frame_ms']:.1f} ms"
         )
     return 0
 

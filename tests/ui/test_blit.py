@@ -111,6 +111,8 @@ def test_after_an_idle_spell_a_change_runs_at_once():
 def test_the_in_process_benchmark_times_the_blitted_move(runs):
     report = benchmark({"square": runs["square"]}, repeats=2)["square"]
     assert 0 < report["replay_ms"] < report["blit_ms"]
+    assert 0 < report["frame_ms"] < report["blit_ms"]
+    assert 10 < report["frame_kib"] < 500  # a diff frame: the changed pixels of 900 x 600
 
 
 def _frame(canvas, get_diff_image) -> tuple[str, np.ndarray]:
