@@ -98,7 +98,19 @@ def _browser(args: argparse.Namespace) -> int:
             f"{name:<26} key press to new pixels: median {r['median_ms']:6.1f} ms, "
             f"p90 {r['p90_ms']:6.1f} ms; figure changed {r['changed']}/{r['moves']} moves"
         )
+        if r["pieces"]:
+            print(f"{'':<26} where it went (medians, ms): " + _pieces(r["pieces"]))
     return 0
+
+
+def _pieces(p: dict[str, float]) -> str:
+    return (
+        f"key to websocket {p['key_to_send']:.1f}, to the kernel's first reply "
+        f"{p['send_to_reply']:.1f}, to the frame {p['reply_to_frame']:.1f} "
+        f"({p['frame_kib']:.0f} KiB), to its blob {p['frame_to_blob']:.1f}, ipympl's "
+        f"toDataURL {p['png_copy']:.1f}, blob loaded {p['blob_to_loaded']:.1f}, "
+        f"painted {p['loaded_to_painted']:.1f}"
+    )
 
 
 def _classroom(args: argparse.Namespace) -> int:

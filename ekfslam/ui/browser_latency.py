@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import secrets
 import socket
@@ -62,6 +63,53 @@ _HASH = """() => {
 _STATE = """() => [window.__ekfslamLatency.keys.slice(-1)[0] ?? null,
   window.__ekfslamLatency.draws.slice(),
   document.querySelector('.ekfslam-timing')?.innerText ?? '']"""
+# Installed before a page loads (`open_panel`): where a move's time goes in the browser. The
+# kernel's websocket is wrapped from its creation; ipympl turns each frame into a PNG blob
+# URL for an Image, and copies its canvas with toDataURL on every frame.
+_SPLIT = """(() => {
+  const T = window.__ekfslamSplit = {keys: [], sends: [], recvs: [], blobs: [], loads: [],
+                                     copies: []};
+  document.addEventListener('keydown', () => T.keys.push(performance.now()), true);
+  const send = WebSocket.prototype.send;
+  WebSocket.prototype.send = function (d) {
+    T.sends.push(performance.now());
+    return send.call(this, d);
+  };
+  const Socket = window.WebSocket;
+  window.WebSocket = function (...a) {
+    const ws = new Socket(...a);
+    ws.addEventListener('message', (e) => T.recvs.push([performance.now(),
+      typeof e.data === 'string' ? e.data.length : (e.data.byteLength ?? e.data.size)]));
+    return ws;
+  };
+  window.WebSocket.prototype = Socket.prototype;
+  Object.assign(window.WebSocket, Socket);
+  const blob = URL.createObjectURL;
+  URL.createObjectURL = function (b) {
+    if (b && b.type === 'image/png') T.blobs.push([performance.now(), b.size]);
+    return blob.call(this, b);
+  };
+  const copy = HTMLCanvasElement.prototype.toDataURL;
+  HTMLCanvasElement.prototype.toDataURL = function (...a) {
+    const t0 = performance.now(), out = copy.apply(this, a);
+    T.copies.push([t0, performance.now() - t0]);
+    return out;
+  };
+  const src = Object.getOwnPropertyDescriptor(HTMLImageElement.prototype, 'src');
+  Object.defineProperty(HTMLImageElement.prototype, 'src', {
+    set(v) {
+      if (String(v).startsWith('blob:')) {
+        this.addEventListener('load', () => T.loads.push(performance.now()), {once: true});
+      }
+      src.set.call(this, v);
+    },
+    get() { return src.get.call(this); },
+  });
+})();"""
+#: The pieces `pieces` reports, in the order a move goes through them (ms).
+PIECES = ("key_to_send", "send_to_reply", "reply_to_frame", "frame_to_blob", "png_copy",
+          "blob_to_loaded", "loaded_to_painted", "frame_kib")  # fmt: skip
+
 #: A move is over when the kernel reported a new replay and the canvas was quiet this long (s).
 QUIET_S = 0.4
 
@@ -118,6 +166,37 @@ def measure_together(pages, moves: int = 20, slider: str = "Q: σr", timeout: fl
                 raise TimeoutError(f"move {k + 1} ({key}): no repaint after {timeout:.0f} s")
             time.sleep(0.05)
     return out
+
+
+def pieces(page) -> dict[str, float]:
+    """Medians over the moves measured on `page` (opened by `open_panel`) of where the time
+    from the key press to the repaint went (ms; `PIECES`): the key to the websocket message,
+    to the kernel's first reply (the server's and kernel's reading), to the frame (the largest
+    message: the kernel's replay, drawing and PNG), to ipympl's blob URL, ipympl's own copy
+    of its canvas (toDataURL, on every frame), the blob loaded as an image, and painted; and
+    the frame's size (KiB). Moves whose trail is incomplete are left out."""
+    t, draws = page.evaluate("() => [window.__ekfslamSplit, window.__ekfslamLatency.draws]")
+    rows = []
+    for k, key in enumerate(t["keys"]):
+        end = t["keys"][k + 1] if k + 1 < len(t["keys"]) else math.inf
+        sends = [x for x in t["sends"] if key <= x < end]
+        blobs = [b for b in t["blobs"] if key <= b[0] < end]
+        if not sends or not blobs:
+            continue
+        blob = blobs[0][0]
+        recvs = [r for r in t["recvs"] if sends[0] <= r[0] <= blob]
+        loads = [x for x in t["loads"] if blob <= x < end]
+        painted = [x for x in draws if loads and loads[0] <= x < end]
+        if not recvs or not painted:
+            continue
+        frame = max(recvs, key=lambda r: r[1])
+        copy = sum(d for t0, d in t["copies"] if blob <= t0 < loads[0])
+        rows.append((sends[0] - key, recvs[0][0] - sends[0], frame[0] - recvs[0][0],
+                     blob - frame[0], copy, loads[0] - blob, painted[0] - loads[0],
+                     frame[1] / 1024))  # fmt: skip
+    if not rows:
+        return {}
+    return dict(zip(PIECES, np.median(np.array(rows), axis=0).tolist(), strict=True))
 
 
 def performance_quiet(page, last_draw: float) -> bool:
@@ -204,6 +283,7 @@ def voila_server(folder: Path, tmp: Path, startup_s: float = 120.0) -> Iterator[
 def open_panel(browser, base: str, token: str, name: str):
     """A new page showing ``{name}.ipynb`` as served by `voila_server`, once its figure is drawn."""
     page = browser.new_page(viewport={"width": 1400, "height": 1000})
+    page.add_init_script(_SPLIT)
     page.goto(f"{base}/voila/render/{name}.ipynb?token={token}", timeout=240_000)
     page.wait_for_selector(".ekfslam-timing", timeout=240_000)
     page.wait_for_selector(".jupyter-matplotlib-canvas-div canvas", timeout=60_000)
@@ -216,7 +296,8 @@ def browser_benchmark(setups: dict[str, str], moves: int = 20, rounds: int = 2) 
 
     setups : {label: a code cell that defines ``panel``}, e.g. ``panel = tuning_panel(blit=False)``.
     Each label gets its own page (and kernel); the pages take turns, `moves` // `rounds` moves at a
-    time, so a busy spell on the shared machine hits every setup alike. Returns {label: `stats`}.
+    time, so a busy spell on the shared machine hits every setup alike. Returns {label: `stats`
+    and "pieces", the medians of `pieces`}.
     """
     from playwright.sync_api import sync_playwright  # lazy: a test-only dependency
 
@@ -234,7 +315,8 @@ def browser_benchmark(setups: dict[str, str], moves: int = 20, rounds: int = 2) 
                 n = moves // rounds + (r < moves % rounds)
                 for label, page in zip(setups, pages, strict=True):
                     results[label] += measure_moves(page, n)
+            split = {label: pieces(page) for label, page in zip(setups, pages, strict=True)}
             for page in pages:
                 page.close(run_before_unload=True)
             browser.close()
-    return {label: stats(ms) for label, ms in results.items()}
+    return {label: {**stats(ms), "pieces": split[label]} for label, ms in results.items()}
