@@ -75,15 +75,13 @@ _SPLIT = """(() => {
     T.sends.push(performance.now());
     return send.call(this, d);
   };
-  const Socket = window.WebSocket;
-  window.WebSocket = function (...a) {
-    const ws = new Socket(...a);
-    ws.addEventListener('message', (e) => T.recvs.push([performance.now(),
-      typeof e.data === 'string' ? e.data.length : (e.data.byteLength ?? e.data.size)]));
-    return ws;
+  window.WebSocket = class extends window.WebSocket {  // (keeps OPEN, CLOSED, ... and instanceof)
+    constructor(...a) {
+      super(...a);
+      this.addEventListener('message', (e) => T.recvs.push([performance.now(),
+        typeof e.data === 'string' ? e.data.length : (e.data.byteLength ?? e.data.size)]));
+    }
   };
-  window.WebSocket.prototype = Socket.prototype;
-  Object.assign(window.WebSocket, Socket);
   const blob = URL.createObjectURL;
   URL.createObjectURL = function (b) {
     if (b && b.type === 'image/png') T.blobs.push([performance.now(), b.size]);
