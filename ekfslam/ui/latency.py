@@ -11,6 +11,7 @@ import time
 from collections.abc import Mapping
 
 import numpy as np
+from matplotlib.backends.backend_webagg_core import FigureCanvasWebAggCore, FigureManagerWebAgg
 from matplotlib.figure import Figure
 
 from ekfslam.ui.tuning import DEFAULT_FIGSIZE, RunSource, Tuner, seed_runs
@@ -30,9 +31,8 @@ def benchmark(runs: Mapping[str, RunSource] | None = None, repeats: int = 15) ->
     pixels, as a webagg canvas sends it), of which "frame_ms" the frame (diff and PNG) and
     "frame_kib" its size.
     """
-    # lazy: matplotlib's canvases are only for this measurement, not for the panel's import
+    # lazy: matplotlib's Agg canvas is only for this measurement, not for the panel's import
     from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.backends.backend_webagg_core import FigureCanvasWebAggCore, FigureManagerWebAgg
 
     class _Canvas(FigureCanvasAgg):
         def draw_idle(self, *args, **kwargs) -> None:  # ipympl's: a message, no drawing
