@@ -169,6 +169,8 @@ class TuningView:
         self.gate_line.set_ydata([math.log10(gate or 1.0)] * 2)
         nis = h.obs_nis[np.isfinite(h.obs_nis)]
         top = max(math.ceil(math.log10(max(float(nis.max()), 1.0))) if len(nis) else 2, 2)
+        if self._decades[1] - 1 == top:  # one decade less: keep it as headroom. Settings on
+            top = self._decades[1]  # both sides of a decade would redraw the axis every move
         bottom = round(math.log10(NIS_FLOOR))
         self.nis_ax.set_ylim(bottom - 0.2, top + 0.2)
         if (bottom, top) != self._decades:  # the decade labels change only with the range

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import io
+import math
 import time
 import zlib
 
@@ -198,3 +199,20 @@ def test_a_blitted_figure_is_not_left_stale(runs):
     tuner.apply(sigma_range=0.01)
     assert tuner.view.blitter.backgrounds >= 1
     assert not tuner.figure.stale
+
+
+def test_moves_across_a_decade_of_nis_keep_the_axis_and_its_background(runs):
+    # Found in the browser: with σr five times too small the largest NIS crossed 10**2 from one
+    # key press to the next, so the NIS axis got new decade labels, and the whole background was
+    # drawn again, on every move (330 ms in Voila against 50).
+    tuner = blitting_tuner({"square": runs["square"]}, Webagg)
+    tuner.figure.canvas.syncing_data_url = False
+    sigma = tuner.settings.noise.sigma_range
+    tuner.apply(sigma_range=sigma / 10**0.8)
+    before = tuner.view.blitter.backgrounds
+    for k in range(6):
+        state = tuner.apply(sigma_range=sigma / 10 ** (0.9 if k % 2 == 0 else 0.8))
+        nis = state.result.history.obs_nis
+        top = math.log10(np.nanmax(nis))
+        assert top <= tuner.view.nis_ax.get_ylim()[1]  # every point still on the axis
+    assert tuner.view.blitter.backgrounds - before <= 1
