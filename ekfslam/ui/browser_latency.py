@@ -251,14 +251,20 @@ def panel_notebook(setup: str) -> dict:
 
 
 @contextlib.contextmanager
-def voila_server(folder: Path, tmp: Path, startup_s: float = 120.0) -> Iterator[str]:
-    """A Voila server on 127.0.0.1 over `folder` until the block ends; yields its base URL."""
+def voila_server(
+    folder: Path, tmp: Path, startup_s: float = 120.0, pythonpath: str | None = None
+) -> Iterator[str]:
+    """A Voila server on 127.0.0.1 over `folder` until the block ends; yields its base URL.
+    With `pythonpath`, its kernels import ekfslam from there (another checkout)."""
     port, token = free_port(), secrets.token_hex(16)
     cmd = [sys.executable, "-m", "voila", str(folder), "--no-browser", "--Voila.ip=127.0.0.1"]
     cmd += [f"--port={port}", f"--token={token}"]
     log = tmp / "voila.log"
     with open(log, "wb") as out:
-        proc = subprocess.Popen(cmd, env=jupyter_home(tmp), cwd=folder, stdout=out,
+        env = jupyter_home(tmp)
+        if pythonpath is not None:
+            env["PYTHONPATH"] = pythonpath
+        proc = subprocess.Popen(cmd, env=env, cwd=folder, stdout=out,
                                 stderr=subprocess.STDOUT, start_new_session=True)  # fmt: skip
     try:
         deadline = time.monotonic() + startup_s
@@ -289,32 +295,51 @@ def open_panel(browser, base: str, token: str, name: str):
     return page
 
 
-def browser_benchmark(setups: dict[str, str], moves: int = 20, rounds: int = 2) -> dict:
+def browser_benchmark(
+    setups: dict[str, str], moves: int = 20, rounds: int = 2, against: Path | None = None
+) -> dict:
     """Latency per notebook setup, measured alternately in one Voila server and one browser.
 
     setups : {label: a code cell that defines ``panel``}, e.g. ``panel = tuning_panel(blit=False)``.
     Each label gets its own page (and kernel); the pages take turns, `moves` // `rounds` moves at a
-    time, so a busy spell on the shared machine hits every setup alike. Returns {label: `stats`
-    and "pieces", the medians of `pieces`}.
+    time, so a busy spell on the shared machine hits every setup alike. With `against` (another
+    checkout's folder), each setup also runs from a second server whose kernels import that
+    checkout's ekfslam, labelled ``"{label} ({against.name})"``, its turn right after or (every
+    other round) right before the setup's own: before and after, A B B A A B ... in one sitting.
+    Returns {label: `stats` and "pieces", the medians of `pieces`}.
     """
     from playwright.sync_api import sync_playwright  # lazy: a test-only dependency
 
-    with tempfile.TemporaryDirectory(prefix="ekfslam-latency-") as tmp_name:
-        tmp = Path(tmp_name)
-        folder = tmp / "notebooks"
-        folder.mkdir()
-        for k, setup in enumerate(setups.values()):
-            (folder / f"panel{k}.ipynb").write_text(json.dumps(panel_notebook(setup)))
-        with voila_server(folder, tmp) as (base, token, _pid), sync_playwright() as p:
-            browser = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-            pages = [open_panel(browser, base, token, f"panel{k}") for k in range(len(setups))]
-            results: dict[str, list[Move]] = {label: [] for label in setups}
-            for r in range(rounds):
-                n = moves // rounds + (r < moves % rounds)
-                for label, page in zip(setups, pages, strict=True):
-                    results[label] += measure_moves(page, n)
-            split = {label: pieces(page) for label, page in zip(setups, pages, strict=True)}
-            for page in pages:
-                page.close(run_before_unload=True)
-            browser.close()
+    sources = [("", None)] + ([(f" ({against.name})", str(against))] if against else [])
+    with (
+        tempfile.TemporaryDirectory(prefix="ekfslam-latency-") as tmp_name,
+        contextlib.ExitStack() as stack,
+    ):
+        tmp, servers = Path(tmp_name), []
+        for k, (_suffix, path) in enumerate(sources):
+            folder = tmp / f"server{k}" / "notebooks"
+            folder.mkdir(parents=True)
+            for j, setup in enumerate(setups.values()):
+                (folder / f"panel{j}.ipynb").write_text(json.dumps(panel_notebook(setup)))
+            servers.append(
+                stack.enter_context(voila_server(folder, folder.parent, pythonpath=path))
+            )
+        p = stack.enter_context(sync_playwright())
+        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        pages = {
+            label + suffix: open_panel(browser, base, token, f"panel{j}")
+            for j, label in enumerate(setups)
+            for (suffix, _path), (base, token, _pid) in zip(sources, servers, strict=True)
+        }
+        results: dict[str, list[Move]] = {label: [] for label in pages}
+        for r in range(rounds):
+            n = moves // rounds + (r < moves % rounds)
+            for label in setups:
+                pair = [label + suffix for suffix, _path in sources]
+                for name in pair if r % 2 == 0 else pair[::-1]:
+                    results[name] += measure_moves(pages[name], n)
+        split = {label: pieces(page) for label, page in pages.items()}
+        for page in pages.values():
+            page.close(run_before_unload=True)
+        browser.close()
     return {label: {**stats(ms), "pieces": split[label]} for label, ms in results.items()}

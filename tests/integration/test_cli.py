@@ -374,3 +374,12 @@ def test_a_warning_on_the_command_line_is_one_line(monkeypatch, capsys):
     monkeypatch.setattr(run_command, "cmd_run", warns)
     assert cli.main(["run", str(REPO / "data/runs/octagon-2laps")]) == 0
     assert capsys.readouterr().err == "warning: S was singular for 3 updates; they were skipped\n"
+
+
+def test_tune_browser_against_a_folder_that_is_no_checkout_names_it(tmp_path: Path):
+    out = run_ekfslam("tune", "--browser", "--against", str(tmp_path))
+    assert out.returncode == 2
+    assert out.stderr.strip().splitlines() == [
+        f"error: {tmp_path}: not a checkout of ekfslam (no ekfslam/__init__.py)"
+    ]
+    assert "Traceback" not in out.stderr
