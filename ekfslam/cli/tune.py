@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 
 import numpy as np
 
@@ -48,6 +49,9 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     p.add_argument("--bench", action="store_true", help="time the panel's update")
     p.add_argument("--browser", action="store_true",
                    help="time key press to new pixels in headless Chromium (Voila)")  # fmt: skip
+    p.add_argument("--against", type=Path, metavar="DIR",
+                   help="with --browser: the panel also from another checkout DIR (its "
+                   "ekfslam/), alternately; e.g. main against a branch")  # fmt: skip
     p.add_argument("--classroom", type=ca.whole(1, 12, why="one machine"), metavar="N",
                    help="1 .. N concurrent Voila sessions: memory and latency")  # fmt: skip
     p.add_argument("--repeats", type=ca.whole(1, 1000), default=None,
@@ -74,21 +78,33 @@ def cmd_tune(args: argparse.Namespace) -> int:
             f"+ summary and artists {r['update_ms'] - r['replay_ms']:.1f} ms "
             f"+ render to PNG {r['draw_ms']:.1f} ms; CPU time {r['cpu_ms']:.1f} ms "
             f"({r['samples']} samples; target 100 ms); blitted as on ipympl "
-            f"{r['blit_ms']:.1f} ms before its PNG"
+            f"{r['blit_ms']:.1f} ms, of which the frame (diff and PNG, "
+            f"{r['frame_kib']:.0f} KiB) {r['frame_ms']:.1f} ms"
         )
     return 0
 
 
 def _browser(args: argparse.Namespace) -> int:
-    setups = {"seed, before": BEFORE.format(runs=""), "seed, now": AFTER.format(runs="")}
+    against = args.against
+    if against is not None and not (against / "ekfslam" / "__init__.py").is_file():
+        raise InputError(against, None, "not a checkout of ekfslam (no ekfslam/__init__.py)")
+    if against is None:
+        setups = {"seed, before": BEFORE.format(runs=""), "seed, now": AFTER.format(runs="")}
+    else:  # this checkout's panel against the other's, as each draws it
+        setups = {"seed": AFTER.format(runs="")}
     try:  # dataset 7: the one with the robots' true paths (the figure's grey line)
         code = MRCLAM_RUNS.format(folder=str(find_dataset(7)))
     except InputError as exc:
         print(f"(no MRCLAM robot: {exc})")
     else:
-        setups["MRCLAM 7 robot 1, before"] = code + BEFORE.format(runs="runs, ")
-        setups["MRCLAM 7 robot 1, now"] = code + AFTER.format(runs="runs, ")
-    results = browser_benchmark(setups, moves=args.repeats or 20)
+        if against is None:
+            setups["MRCLAM 7 robot 1, before"] = code + BEFORE.format(runs="runs, ")
+            setups["MRCLAM 7 robot 1, now"] = code + AFTER.format(runs="runs, ")
+        else:
+            setups["MRCLAM 7 robot 1"] = code + AFTER.format(runs="runs, ")
+    results = browser_benchmark(
+        setups, moves=args.repeats or 20, rounds=2 if against is None else 4, against=against
+    )
     if args.json:
         print(json.dumps(results, indent=2, allow_nan=False))
         return 0
@@ -97,7 +113,19 @@ def _browser(args: argparse.Namespace) -> int:
             f"{name:<26} key press to new pixels: median {r['median_ms']:6.1f} ms, "
             f"p90 {r['p90_ms']:6.1f} ms; figure changed {r['changed']}/{r['moves']} moves"
         )
+        if r["pieces"]:
+            print(f"{'':<26} where it went (medians, ms): " + _pieces(r["pieces"]))
     return 0
+
+
+def _pieces(p: dict[str, float]) -> str:
+    return (
+        f"key to websocket {p['key_to_send']:.1f}, to the kernel's first reply "
+        f"{p['send_to_reply']:.1f}, to the frame {p['reply_to_frame']:.1f} "
+        f"({p['frame_kib']:.0f} KiB), to its blob {p['frame_to_blob']:.1f}, ipympl's "
+        f"toDataURL {p['png_copy']:.1f}, blob loaded {p['blob_to_loaded']:.1f}, "
+        f"painted {p['loaded_to_painted']:.1f}"
+    )
 
 
 def _classroom(args: argparse.Namespace) -> int:

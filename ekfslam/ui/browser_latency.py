@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import secrets
 import socket
@@ -62,6 +63,51 @@ _HASH = """() => {
 _STATE = """() => [window.__ekfslamLatency.keys.slice(-1)[0] ?? null,
   window.__ekfslamLatency.draws.slice(),
   document.querySelector('.ekfslam-timing')?.innerText ?? '']"""
+# Installed before a page loads (`open_panel`): where a move's time goes in the browser. The
+# kernel's websocket is wrapped from its creation; ipympl turns each frame into a PNG blob
+# URL for an Image, and copies its canvas with toDataURL on every frame.
+_SPLIT = """(() => {
+  const T = window.__ekfslamSplit = {keys: [], sends: [], recvs: [], blobs: [], loads: [],
+                                     copies: []};
+  document.addEventListener('keydown', () => T.keys.push(performance.now()), true);
+  const send = WebSocket.prototype.send;
+  WebSocket.prototype.send = function (d) {
+    T.sends.push(performance.now());
+    return send.call(this, d);
+  };
+  window.WebSocket = class extends window.WebSocket {  // (keeps OPEN, CLOSED, ... and instanceof)
+    constructor(...a) {
+      super(...a);
+      this.addEventListener('message', (e) => T.recvs.push([performance.now(),
+        typeof e.data === 'string' ? e.data.length : (e.data.byteLength ?? e.data.size)]));
+    }
+  };
+  const blob = URL.createObjectURL;
+  URL.createObjectURL = function (b) {
+    if (b && b.type === 'image/png') T.blobs.push([performance.now(), b.size]);
+    return blob.call(this, b);
+  };
+  const copy = HTMLCanvasElement.prototype.toDataURL;
+  HTMLCanvasElement.prototype.toDataURL = function (...a) {
+    const t0 = performance.now(), out = copy.apply(this, a);
+    T.copies.push([t0, performance.now() - t0]);
+    return out;
+  };
+  const src = Object.getOwnPropertyDescriptor(HTMLImageElement.prototype, 'src');
+  Object.defineProperty(HTMLImageElement.prototype, 'src', {
+    set(v) {
+      if (String(v).startsWith('blob:')) {
+        this.addEventListener('load', () => T.loads.push(performance.now()), {once: true});
+      }
+      src.set.call(this, v);
+    },
+    get() { return src.get.call(this); },
+  });
+})();"""
+#: The pieces `pieces` reports, in the order a move goes through them (ms).
+PIECES = ("key_to_send", "send_to_reply", "reply_to_frame", "frame_to_blob", "png_copy",
+          "blob_to_loaded", "loaded_to_painted", "frame_kib")  # fmt: skip
+
 #: A move is over when the kernel reported a new replay and the canvas was quiet this long (s).
 QUIET_S = 0.4
 
@@ -120,6 +166,37 @@ def measure_together(pages, moves: int = 20, slider: str = "Q: σr", timeout: fl
     return out
 
 
+def pieces(page) -> dict[str, float]:
+    """Medians over the moves measured on `page` (opened by `open_panel`) of where the time
+    from the key press to the repaint went (ms; `PIECES`): the key to the websocket message,
+    to the kernel's first reply (the server's and kernel's reading), to the frame (the largest
+    message: the kernel's replay, drawing and PNG), to ipympl's blob URL, ipympl's own copy
+    of its canvas (toDataURL, on every frame), the blob loaded as an image, and painted; and
+    the frame's size (KiB). Moves whose trail is incomplete are left out."""
+    t, draws = page.evaluate("() => [window.__ekfslamSplit, window.__ekfslamLatency.draws]")
+    rows = []
+    for k, key in enumerate(t["keys"]):
+        end = t["keys"][k + 1] if k + 1 < len(t["keys"]) else math.inf
+        sends = [x for x in t["sends"] if key <= x < end]
+        blobs = [b for b in t["blobs"] if key <= b[0] < end]
+        if not sends or not blobs:
+            continue
+        blob = blobs[0][0]
+        recvs = [r for r in t["recvs"] if sends[0] <= r[0] <= blob]
+        loads = [x for x in t["loads"] if blob <= x < end]
+        painted = [x for x in draws if loads and loads[0] <= x < end]
+        if not recvs or not painted:
+            continue
+        frame = max(recvs, key=lambda r: r[1])
+        copy = sum(d for t0, d in t["copies"] if blob <= t0 < loads[0])
+        rows.append((sends[0] - key, recvs[0][0] - sends[0], frame[0] - recvs[0][0],
+                     blob - frame[0], copy, loads[0] - blob, painted[0] - loads[0],
+                     frame[1] / 1024))  # fmt: skip
+    if not rows:
+        return {}
+    return dict(zip(PIECES, np.median(np.array(rows), axis=0).tolist(), strict=True))
+
+
 def performance_quiet(page, last_draw: float) -> bool:
     """Whether the page's clock is `QUIET_S` past `last_draw` (both in performance.now() ms)."""
     return page.evaluate("() => performance.now()") - last_draw > QUIET_S * 1e3
@@ -174,14 +251,20 @@ def panel_notebook(setup: str) -> dict:
 
 
 @contextlib.contextmanager
-def voila_server(folder: Path, tmp: Path, startup_s: float = 120.0) -> Iterator[str]:
-    """A Voila server on 127.0.0.1 over `folder` until the block ends; yields its base URL."""
+def voila_server(
+    folder: Path, tmp: Path, startup_s: float = 120.0, pythonpath: str | None = None
+) -> Iterator[str]:
+    """A Voila server on 127.0.0.1 over `folder` until the block ends; yields its base URL.
+    With `pythonpath`, its kernels import ekfslam from there (another checkout)."""
     port, token = free_port(), secrets.token_hex(16)
     cmd = [sys.executable, "-m", "voila", str(folder), "--no-browser", "--Voila.ip=127.0.0.1"]
     cmd += [f"--port={port}", f"--token={token}"]
     log = tmp / "voila.log"
     with open(log, "wb") as out:
-        proc = subprocess.Popen(cmd, env=jupyter_home(tmp), cwd=folder, stdout=out,
+        env = jupyter_home(tmp)
+        if pythonpath is not None:
+            env["PYTHONPATH"] = pythonpath
+        proc = subprocess.Popen(cmd, env=env, cwd=folder, stdout=out,
                                 stderr=subprocess.STDOUT, start_new_session=True)  # fmt: skip
     try:
         deadline = time.monotonic() + startup_s
@@ -204,6 +287,7 @@ def voila_server(folder: Path, tmp: Path, startup_s: float = 120.0) -> Iterator[
 def open_panel(browser, base: str, token: str, name: str):
     """A new page showing ``{name}.ipynb`` as served by `voila_server`, once its figure is drawn."""
     page = browser.new_page(viewport={"width": 1400, "height": 1000})
+    page.add_init_script(_SPLIT)
     page.goto(f"{base}/voila/render/{name}.ipynb?token={token}", timeout=240_000)
     page.wait_for_selector(".ekfslam-timing", timeout=240_000)
     page.wait_for_selector(".jupyter-matplotlib-canvas-div canvas", timeout=60_000)
@@ -211,30 +295,51 @@ def open_panel(browser, base: str, token: str, name: str):
     return page
 
 
-def browser_benchmark(setups: dict[str, str], moves: int = 20, rounds: int = 2) -> dict:
+def browser_benchmark(
+    setups: dict[str, str], moves: int = 20, rounds: int = 2, against: Path | None = None
+) -> dict:
     """Latency per notebook setup, measured alternately in one Voila server and one browser.
 
     setups : {label: a code cell that defines ``panel``}, e.g. ``panel = tuning_panel(blit=False)``.
     Each label gets its own page (and kernel); the pages take turns, `moves` // `rounds` moves at a
-    time, so a busy spell on the shared machine hits every setup alike. Returns {label: `stats`}.
+    time, so a busy spell on the shared machine hits every setup alike. With `against` (another
+    checkout's folder), each setup also runs from a second server whose kernels import that
+    checkout's ekfslam, labelled ``"{label} ({against.name})"``, its turn right after or (every
+    other round) right before the setup's own: before and after, A B B A A B ... in one sitting.
+    Returns {label: `stats` and "pieces", the medians of `pieces`}.
     """
     from playwright.sync_api import sync_playwright  # lazy: a test-only dependency
 
-    with tempfile.TemporaryDirectory(prefix="ekfslam-latency-") as tmp_name:
-        tmp = Path(tmp_name)
-        folder = tmp / "notebooks"
-        folder.mkdir()
-        for k, setup in enumerate(setups.values()):
-            (folder / f"panel{k}.ipynb").write_text(json.dumps(panel_notebook(setup)))
-        with voila_server(folder, tmp) as (base, token, _pid), sync_playwright() as p:
-            browser = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-            pages = [open_panel(browser, base, token, f"panel{k}") for k in range(len(setups))]
-            results: dict[str, list[Move]] = {label: [] for label in setups}
-            for r in range(rounds):
-                n = moves // rounds + (r < moves % rounds)
-                for label, page in zip(setups, pages, strict=True):
-                    results[label] += measure_moves(page, n)
-            for page in pages:
-                page.close(run_before_unload=True)
-            browser.close()
-    return {label: stats(ms) for label, ms in results.items()}
+    sources = [("", None)] + ([(f" ({against.name})", str(against))] if against else [])
+    with (
+        tempfile.TemporaryDirectory(prefix="ekfslam-latency-") as tmp_name,
+        contextlib.ExitStack() as stack,
+    ):
+        tmp, servers = Path(tmp_name), []
+        for k, (_suffix, path) in enumerate(sources):
+            folder = tmp / f"server{k}" / "notebooks"
+            folder.mkdir(parents=True)
+            for j, setup in enumerate(setups.values()):
+                (folder / f"panel{j}.ipynb").write_text(json.dumps(panel_notebook(setup)))
+            servers.append(
+                stack.enter_context(voila_server(folder, folder.parent, pythonpath=path))
+            )
+        p = stack.enter_context(sync_playwright())
+        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        pages = {
+            label + suffix: open_panel(browser, base, token, f"panel{j}")
+            for j, label in enumerate(setups)
+            for (suffix, _path), (base, token, _pid) in zip(sources, servers, strict=True)
+        }
+        results: dict[str, list[Move]] = {label: [] for label in pages}
+        for r in range(rounds):
+            n = moves // rounds + (r < moves % rounds)
+            for label in setups:
+                pair = [label + suffix for suffix, _path in sources]
+                for name in pair if r % 2 == 0 else pair[::-1]:
+                    results[name] += measure_moves(pages[name], n)
+        split = {label: pieces(page) for label, page in pages.items()}
+        for page in pages.values():
+            page.close(run_before_unload=True)
+        browser.close()
+    return {label: {**stats(ms), "pieces": split[label]} for label, ms in results.items()}

@@ -1,6 +1,7 @@
 """How long the live panel takes from a changed value to an updated figure (`benchmark`).
 
-``python -m ekfslam.ui.widgets --bench`` prints it per seed run; the target is 100 ms.
+``python -m ekfslam tune --bench`` prints it per seed run; the browser's share is timed by
+``tune --browser`` (`ekfslam.ui.browser_latency`).
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ import time
 from collections.abc import Mapping
 
 import numpy as np
+from matplotlib.backends.backend_webagg_core import FigureCanvasWebAggCore, FigureManagerWebAgg
 from matplotlib.figure import Figure
 
 from ekfslam.ui.tuning import DEFAULT_FIGSIZE, RunSource, Tuner, seed_runs
@@ -25,8 +27,9 @@ def benchmark(runs: Mapping[str, RunSource] | None = None, repeats: int = 15) ->
     "median_ms" (the whole), "replay_ms", "update_ms" (replay to artists), "draw_ms", and
     "cpu_ms", the whole in this process's CPU time (steadier than wall time on a busy machine);
     "blit_ms", the same change as the panel draws it on ipympl (`ekfslam.ui.blit`: replay,
-    artists and the data drawn over the cached background; without the PNG of the changed
-    pixels, which ipympl's blit then encodes).
+    artists, the data drawn over the cached background and the PNG frame of the changed
+    pixels, as a webagg canvas sends it), of which "frame_ms" the frame (diff and PNG) and
+    "frame_kib" its size.
     """
     # lazy: matplotlib's Agg canvas is only for this measurement, not for the panel's import
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -43,9 +46,10 @@ def benchmark(runs: Mapping[str, RunSource] | None = None, repeats: int = 15) ->
         tuner.apply()
         fig.canvas.print_png(io.BytesIO())  # warm the font and text caches
         blit_fig = Figure(figsize=DEFAULT_FIGSIZE, dpi=100)
-        FigureCanvasAgg(blit_fig)
+        FigureManagerWebAgg(FigureCanvasWebAggCore(blit_fig), 1).web_sockets.add(_Socket())
         blitting = Tuner({name: source}, blit_fig, blit=True)
         blitting.apply()
+        frames = _timed_frames(blit_fig.canvas)
         samples, blits = [], []
         for k in range(repeats):
             started = time.perf_counter()
@@ -62,5 +66,33 @@ def benchmark(runs: Mapping[str, RunSource] | None = None, repeats: int = 15) ->
         out[name] = dict(zip(("median_ms", "replay_ms", "update_ms", "draw_ms", "cpu_ms"),
                              medians, strict=True))  # fmt: skip
         out[name]["blit_ms"] = float(np.median(blits) * 1e3)
+        seconds, sizes = np.array(frames).reshape(-1, 2).T
+        out[name]["frame_ms"] = float(np.median(seconds) * 1e3)
+        out[name]["frame_kib"] = float(np.median(sizes) / 1024)
         out[name]["samples"] = repeats
     return out
+
+
+class _Socket:
+    """A webagg client that takes the frames and the messages and does nothing with them."""
+
+    def send_binary(self, png: bytes) -> None:
+        pass
+
+    def send_json(self, content: dict) -> None:
+        pass
+
+
+def _timed_frames(canvas) -> list[tuple[float, int]]:
+    """Time each frame `canvas` makes (diff and PNG); returns the list it fills (s, bytes)."""
+    samples: list[tuple[float, int]] = []
+    make = canvas.get_diff_image  # `ekfslam.ui.blit.fast_png`'s, installed by the Tuner
+
+    def timed():
+        started = time.perf_counter()
+        png = make()
+        samples.append((time.perf_counter() - started, 0 if png is None else len(png)))
+        return png
+
+    canvas.get_diff_image = timed
+    return samples

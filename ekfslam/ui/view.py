@@ -19,6 +19,7 @@ from ekfslam.core.filter.history import Outcome
 from ekfslam.logs.runlog import RunLog
 from ekfslam.pipeline import ReplayResult
 from ekfslam.ui.blit import Blitter, can_blit
+from ekfslam.ui.glyphs import CachedGlyphText
 from ekfslam.viz.plotting import ellipse_parameters
 from ekfslam.viz.tables import PANEL, Row, table1_lines
 
@@ -83,8 +84,10 @@ class TuningView:
         # it is data (typesetting monospace text is a good part of a blitted move).
         self.header = fig.suptitle("", family="monospace", fontsize=TITLE_PT)
         below = offset_copy(fig.transFigure, fig, y=-TITLE_PT * 1.2, units="points")
-        self.text = fig.text(0.5, 0.98, "", family="monospace", fontsize=TITLE_PT, ha="center",
-                             va="top", transform=below)  # fmt: skip
+        # (its glyphs rasterised once: `ekfslam.ui.glyphs`, the same pixels as a Text's)
+        self.text = fig.add_artist(CachedGlyphText(0.5, 0.98, "", family="monospace",
+                                                   fontsize=TITLE_PT, ha="center", va="top",
+                                                   transform=below))  # fmt: skip
         self._decades, self._limits_set = (0, 0), False
         data = [self.true_path, self.path, self.true_tags, self.tags, self.start, self.accepted]
         data += [self.rejected, self.gate_line, self.text]
@@ -177,6 +180,8 @@ class TuningView:
         self.gate_line.set_ydata([math.log10(gate or 1.0)] * 2)
         nis = h.obs_nis[np.isfinite(h.obs_nis)]
         top = max(math.ceil(math.log10(max(float(nis.max()), 1.0))) if len(nis) else 2, 2)
+        if self._decades[1] - 1 == top:  # one decade less: keep it as headroom. Settings on
+            top = self._decades[1]  # both sides of a decade would redraw the axis every move
         bottom = round(math.log10(NIS_FLOOR))
         self.nis_ax.set_ylim(bottom - 0.2, top + 0.2)
         if (bottom, top) != self._decades:  # the decade labels change only with the range

@@ -409,3 +409,12 @@ def test_score_mrclam_with_the_barcodes_hidden_reports_every_robot(mrclam7: Path
         assert 0.4 < r["correct_fraction"] < 1.0  # the close pairs: far from the seed's 100%
     for r in (r for r in rows if r["method"] == "jcbb"):  # 2026-12-01: 73-82%, 1.1-2.5x
         assert r["correct_fraction"] > 0.7 and r["ratio_same_noise"] < 3.0, r
+
+
+def test_tune_browser_against_a_folder_that_is_no_checkout_names_it(tmp_path: Path):
+    out = run_ekfslam("tune", "--browser", "--against", str(tmp_path))
+    assert out.returncode == 2
+    assert out.stderr.strip().splitlines() == [
+        f"error: {tmp_path}: not a checkout of ekfslam (no ekfslam/__init__.py)"
+    ]
+    assert "Traceback" not in out.stderr

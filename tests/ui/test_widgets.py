@@ -33,7 +33,7 @@ from ekfslam.ui.tuning import (
     seed_runs,
 )
 from ekfslam.ui.view import status_text
-from ekfslam.ui.widgets import STATIC_CLASS, STATIC_CSS, tuning_panel
+from ekfslam.ui.widgets import STATIC_CLASS, STATIC_CSS, STATUS_DELAY, tuning_panel
 
 CHI2_95 = 5.991464547107979  # chi-square(2) 95% quantile: the radius² of a 95% ellipse
 CHI2_99 = 9.21034037197618  # and 99%: the default gate
@@ -283,6 +283,30 @@ def test_on_the_kernel_loop_values_queued_during_a_run_collapse():
     asyncio.run(main())
     assert done[-1] == 19
     assert len(done) <= 4  # a callback per value would have blocked for 20 x 50 ms
+
+
+def test_on_the_kernel_loop_the_text_follows_the_frame_and_shows_the_latest_state(square):
+    """In a kernel the text under the figure waits STATUS_DELAY after the frame; `apply`
+    (code cells) and errors show at once, and an error is never covered by an older state."""
+    panel = tuning_panel({"square": lambda: square}, figure=Figure())
+
+    async def main():
+        shown = panel.status.value
+        panel.tuner.apply(sigma_range=0.02)  # a slider's path: the tuner, then on_update
+        panel.tuner.apply(sigma_range=0.05)
+        assert panel.status.value == shown  # not yet: the frame goes first
+        await asyncio.sleep(STATUS_DELAY + 0.1)
+        latest = panel.status.value
+        assert latest != shown and f"{panel.tuner.renders} replays" in latest
+        panel.apply(sigma_range=0.03)  # a code cell: at once
+        assert panel.status.value != latest
+        panel.tuner.apply(sigma_range=0.04)  # waiting ...
+        panel.tuner.raise_errors = False
+        panel.tuner.set(gate=-1.0)  # ... when an error comes
+        await asyncio.sleep(STATUS_DELAY + 0.1)
+        assert "error:" in panel.status.value
+
+    asyncio.run(main())
 
 
 # --------------------------------------------------------------------------- errors surface
