@@ -29,7 +29,7 @@ from ekfslam.core.noise import NoiseConfig
 from ekfslam.errors import EkfSlamError
 from ekfslam.pipeline import replay
 from ekfslam.sim.config import REALISTIC
-from ekfslam.sim.scenarios import realistic
+from ekfslam.sim.scenarios import realistic, realistic_noise
 from ekfslam.sim.simulation import SimulationConfig, simulate
 
 
@@ -77,8 +77,13 @@ def map_error(
     noise: NoiseConfig | None = None,
     filter_config: FilterConfig | None = None,
 ) -> float:
-    """Simulate `config`, replay it and return the average aligned map error of eq. (17) (m)."""
+    """Simulate `config`, replay it and return the average aligned map error of eq. (17) (m).
+
+    noise : default the realistic robot's (`realistic_noise`), whichever sources are on, so
+    that rows of a budget differ only in the robot.
+    """
     run = simulate(config)
+    noise = realistic_noise() if noise is None else noise
     summary = summarize(run, replay(run, noise, filter_config))
     if summary.alignment is None:
         raise EkfSlamError(f"{run.meta.name}: no alignment ({summary.alignment_note})")
@@ -99,7 +104,8 @@ def error_budget(
     trajectory : "square" or "octagon" (two laps, the seed's start error; `realistic`).
     sources : names in `REALISTIC` (default all); the realistic robot has exactly these on.
     seeds : simulation seeds, the errors averaged over them (default the experiment's one).
-    noise, filter_config : what the filter replays with (default the generic ones).
+    noise, filter_config : what the filter replays with, the same in every row (default the
+        realistic robot's, `realistic_noise`: the noise a student would run this robot with).
 
     Returns
     -------
@@ -108,6 +114,7 @@ def error_budget(
     names = tuple(REALISTIC) if sources is None else tuple(sources)
     realistic(trajectory, names)  # refuses an unknown source or trajectory by name, up front
     seeds = (realistic(trajectory).seed,) if seeds is None else tuple(int(s) for s in seeds)
+    noise = realistic_noise() if noise is None else noise
     if not seeds:
         raise ValueError("error_budget needs at least one seed")
 

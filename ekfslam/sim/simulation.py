@@ -45,9 +45,11 @@ from ekfslam.core.camera import (
 )
 from ekfslam.core.kinematics import twist_to_wheels, wheels_to_twist
 from ekfslam.geometry import wrap_angle
+from ekfslam.logs import realistic_defaults
 from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta
 from ekfslam.sim.config import (  # noqa: F401  (re-exported: callers import them from here)
     DEFAULT_SIZE,
+    REALISTIC_ERRORS,
     SYSTEMATIC_FIELDS,
     TRAJECTORIES,
     SimulationConfig,
@@ -346,6 +348,8 @@ def simulate(config: SimulationConfig | None = None, arena: Arena = SEED_ARENA) 
         camera_mounting=np.array(c.camera_mounting, dtype=float),
         tag_map=arena.tag_map(),
         simulation=simulation,
+        # the realistic robot replays with the noise that allows for its errors (run.json keeps it)
+        defaults=realistic_defaults.NAME if _is_realistic(config_dict) else None,
     )
     return RunLog(
         meta=meta,
@@ -353,3 +357,8 @@ def simulate(config: SimulationConfig | None = None, arena: Arena = SEED_ARENA) 
         detections=detections,
         groundtruth=GroundTruth(t=plan.t.copy(), pose=truth),
     )
+
+
+def _is_realistic(config_dict: dict) -> bool:
+    """Whether a config's systematic errors are exactly `REALISTIC_ERRORS` (every source on)."""
+    return {k: config_dict.get(k) for k in SYSTEMATIC_FIELDS} == REALISTIC_ERRORS
