@@ -56,6 +56,8 @@ class ErrorBudget:
 
     ideal : the map error with no source on.  realistic : with every source on.
     seeds : the simulation seeds the errors are averaged over.
+    realistic_by_seed : the realistic robot's map error on each seed, in the order of `seeds`
+        (its spread: one seed's map is one draw of the tags, the slip and the noise).
     """
 
     trajectory: str
@@ -63,6 +65,7 @@ class ErrorBudget:
     ideal: float
     realistic: float
     rows: tuple[BudgetRow, ...]
+    realistic_by_seed: tuple[float, ...] = ()
 
     def row(self, source: str) -> BudgetRow:
         """The row of one source, by its name."""
@@ -118,10 +121,13 @@ def error_budget(
     if not seeds:
         raise ValueError("error_budget needs at least one seed")
 
-    def mean_error(on: Sequence[str]) -> float:
-        return float(np.mean([
+    def by_seed(on: Sequence[str]) -> tuple[float, ...]:
+        return tuple(
             map_error(realistic(trajectory, tuple(on), seed=s), noise, filter_config) for s in seeds
-        ]))  # fmt: skip
+        )
+
+    def mean_error(on: Sequence[str]) -> float:
+        return float(np.mean(by_seed(on)))
 
     rows = tuple(
         BudgetRow(
@@ -134,4 +140,5 @@ def error_budget(
         )
         for name in names
     )
-    return ErrorBudget(trajectory, seeds, mean_error(()), mean_error(names), rows)
+    every = by_seed(names)
+    return ErrorBudget(trajectory, seeds, mean_error(()), float(np.mean(every)), rows, every)

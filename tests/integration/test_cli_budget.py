@@ -18,6 +18,7 @@ def test_budget_prints_the_table_and_json_of_the_analysis(tmp_path: Path):
     data = json.loads(out.stdout)
     same = error_budget("octagon", seeds=(3,))  # what the command computes, in this process
     assert data["seeds"] == [3] and data["trajectory"] == "octagon"
+    assert data["realistic_by_seed"] == [pytest.approx(same.realistic, rel=1e-9)]
     assert data["realistic"] == pytest.approx(same.realistic, rel=1e-9)
     assert [r["source"] for r in data["rows"]] == [r.source for r in same.rows]
     for row, expected in zip(data["rows"], same.rows, strict=True):
