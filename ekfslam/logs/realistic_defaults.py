@@ -29,3 +29,6 @@ REALISTIC_NOISE = NoiseConfig(
 #: The filter's choices stay the generic ones: with `REALISTIC_NOISE` the gate rejects almost
 #: nothing and re-initialises no landmark, so there is nothing to change.
 REALISTIC_CONFIG = FilterConfig()
+
+#: What `ekfslam.logs.runjson.TUNED_DEFAULTS` holds under `NAME`: (noise, filter choices).
+DEFAULTS = (REALISTIC_NOISE, REALISTIC_CONFIG)

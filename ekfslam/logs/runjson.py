@@ -44,10 +44,7 @@ Array = NDArray[np.float64]
 #: A dataset's loader owns its values (`ekfslam.logs.mrclam.defaults`); run.json keeps the name.
 TUNED_DEFAULTS: dict[str, tuple[NoiseConfig, FilterConfig]] = {
     mrclam_defaults.NAME: (mrclam_defaults.MRCLAM_NOISE, mrclam_defaults.MRCLAM_CONFIG),
-    realistic_defaults.NAME: (
-        realistic_defaults.REALISTIC_NOISE,
-        realistic_defaults.REALISTIC_CONFIG,
-    ),
+    realistic_defaults.NAME: realistic_defaults.DEFAULTS,
 }
 
 
