@@ -160,8 +160,10 @@ def test_the_shipped_realistic_runs_replay_with_their_noise(trajectory, expected
     the octagon at 6 cm, under the seed's 0.130 m (its 45° turns swing the bearings less, and
     the rest is the map's own error: tags and range scale), where the ideal robot makes 5 mm.
 
-    With the ideal robot's noise the gate rejected 124 (square) and 155 (octagon) sightings and
-    re-initialised landmarks 6 and 7 times; with the realistic noise it rejects none."""
+    With the ideal robot's noise (`NoiseConfig()`) the gate rejects 73 (square) and 161
+    (octagon) sightings and re-initialises landmarks 4 and 7 times; with the realistic noise it
+    rejects none. Before the realistic noise existed the shipped runs (wheel errors of the other
+    sign) had 124 and 194 rejected, 6 and 11 re-initialised."""
     run = read_run(RUNS / f"{trajectory}-2laps-realistic")
     config = run.meta.simulation["config"]
     assert {k: config[k] for k in SYSTEMATIC_FIELDS} == REALISTIC_ERRORS
@@ -170,6 +172,9 @@ def test_the_shipped_realistic_runs_replay_with_their_noise(trajectory, expected
     summary = summarize(run, replay(run))
     assert summary.alignment.mean_error == pytest.approx(expected, abs=0.002)
     assert (summary.rejected, summary.reinitialised) == (0, 0)
+    ideal = summarize(run, replay(run, NoiseConfig()))
+    assert (ideal.rejected, ideal.reinitialised) == {"square": (73, 4), "octagon": (161, 7)}[
+        trajectory]  # fmt: skip
     assert json.loads((RUNS / f"{trajectory}-2laps-realistic" / "run.json").read_text())[
         "name"] == f"{trajectory}-2laps-realistic"  # fmt: skip
 
