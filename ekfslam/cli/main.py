@@ -59,6 +59,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "ekfslam.cli.consistency",
         "NEES/NIS over Monte Carlo runs; outlier gating; a long Σ run; MRCLAM against Vicon",
     ),
+    "budget": (
+        "ekfslam.cli.budget",
+        "the realistic robot's error budget: each error source alone and all but it",
+    ),
     "bench": ("ekfslam.cli.bench", "time replays and per-step costs against map size"),
     "tune": ("ekfslam.cli.tune", "time the live tuning panel's change-to-figure latency"),
 }

@@ -27,6 +27,7 @@ from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.kinematics import MecanumGeometry
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.errors import InputError
+from ekfslam.logs import realistic_defaults
 from ekfslam.logs.csvtable import read_lines
 from ekfslam.logs.jsonsafe import dump_json, is_number, line_of, load_json, shown
 from ekfslam.logs.mrclam import defaults as mrclam_defaults
@@ -43,6 +44,7 @@ Array = NDArray[np.float64]
 #: A dataset's loader owns its values (`ekfslam.logs.mrclam.defaults`); run.json keeps the name.
 TUNED_DEFAULTS: dict[str, tuple[NoiseConfig, FilterConfig]] = {
     mrclam_defaults.NAME: (mrclam_defaults.MRCLAM_NOISE, mrclam_defaults.MRCLAM_CONFIG),
+    realistic_defaults.NAME: realistic_defaults.DEFAULTS,
 }
 
 
@@ -92,8 +94,9 @@ class RunMeta:
     tags : the printed tags' family and size (`ekfslam.core.camera.TagSpec`), or None.
     frames : where the camera frames are (`FramesSpec`), or None for a run without frames.
     defaults : the name of the tuned noise and filter choices its loader chose for it (a key of
-        `TUNED_DEFAULTS`: "mrclam" for MRCLAM runs), or None for `NoiseConfig()` and
-        `FilterConfig()`; see `noise_defaults`, `filter_defaults`.
+        `TUNED_DEFAULTS`: "mrclam" for MRCLAM runs, "realistic" for the simulator's realistic
+        robot), or None for `NoiseConfig()` and `FilterConfig()`; see `noise_defaults`,
+        `filter_defaults`.
     """
 
     name: str

@@ -255,14 +255,14 @@ REALISTIC: dict[str, ErrorSource] = {
         "calibration: the distance z = f S / s_px comes out 3-5 % long",
     ),
     "wheel radius": ErrorSource(
-        "wheel_radius_scale", 1.015,
+        "wheel_radius_scale", 0.985,
         "the nominal 30 mm radius against the real rollers' rolling radius, read with a "
-        "ruler to half a millimetre: 1-2 %",
+        "ruler to half a millimetre, and the rubber flattens under the robot: 1-2 % smaller",
     ),
     "wheelbase": ErrorSource(
-        "wheelbase_scale", 1.03,
+        "wheelbase_scale", 0.97,
         "mecanum rollers touch the floor off the wheels' centre planes, so the effective "
-        "lx + ly differs from the ruler's by 2-4 %",
+        "lx + ly differs from the ruler's (taken to the wheels' outer faces) by 2-4 %",
     ),
     "wheel slip": ErrorSource(
         "slip_fraction", 0.02,

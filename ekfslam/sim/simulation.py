@@ -45,9 +45,11 @@ from ekfslam.core.camera import (
 )
 from ekfslam.core.kinematics import twist_to_wheels, wheels_to_twist
 from ekfslam.geometry import wrap_angle
+from ekfslam.logs import realistic_defaults
 from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta
 from ekfslam.sim.config import (  # noqa: F401  (re-exported: callers import them from here)
     DEFAULT_SIZE,
+    REALISTIC_ERRORS,
     SYSTEMATIC_FIELDS,
     TRAJECTORIES,
     SimulationConfig,
@@ -144,8 +146,34 @@ def _speed(remaining: float, previous: float, top: float, accel: float, dt: floa
     return min(top, previous + accel * dt, math.sqrt(2.0 * accel * remaining), remaining / dt)
 
 
+#: The fields of `SimulationConfig` the controller reads: runs that agree on them (an error
+#: budget's runs differ only in the seed and the systematic errors) share one plan.
+_PLAN_FIELDS = (
+    "trajectory", "size", "laps", "controls_hz", "max_speed", "max_turn_rate", "max_accel",
+    "max_angular_accel", "heading_gain", "stop_duration", "robot",
+)  # fmt: skip
+_PLANS: dict[tuple, CommandPlan] = {}
+
+
 def plan_commands(config: SimulationConfig, nominal_start: ArrayLike) -> CommandPlan:
-    """Run the waypoint controller on the believed (noise-free, dead-reckoned) pose."""
+    """Run the waypoint controller on the believed (noise-free, dead-reckoned) pose.
+
+    The plan depends on `_PLAN_FIELDS` and the start only, so the last few are kept (read-only)
+    and handed out again: a study that simulates one path many times plans it once.
+    """
+    key = (*(getattr(config, f) for f in _PLAN_FIELDS), *np.asarray(nominal_start, float).tolist())
+    plan = _PLANS.get(key)
+    if plan is None:
+        plan = _plan_commands(config, nominal_start)
+        for array in (plan.t, plan.wheels, plan.believed, plan.waypoints, plan.waypoint_index):
+            array.setflags(write=False)
+        if len(_PLANS) >= 8:
+            _PLANS.pop(next(iter(_PLANS)))
+        _PLANS[key] = plan
+    return plan
+
+
+def _plan_commands(config: SimulationConfig, nominal_start: ArrayLike) -> CommandPlan:
     c = config
     dt = 1.0 / c.controls_hz
     path = waypoints(c.trajectory, c.size, c.laps)
@@ -346,6 +374,8 @@ def simulate(config: SimulationConfig | None = None, arena: Arena = SEED_ARENA) 
         camera_mounting=np.array(c.camera_mounting, dtype=float),
         tag_map=arena.tag_map(),
         simulation=simulation,
+        # the realistic robot replays with the noise that allows for its errors (run.json keeps it)
+        defaults=realistic_defaults.NAME if _is_realistic(config_dict) else None,
     )
     return RunLog(
         meta=meta,
@@ -353,3 +383,8 @@ def simulate(config: SimulationConfig | None = None, arena: Arena = SEED_ARENA) 
         detections=detections,
         groundtruth=GroundTruth(t=plan.t.copy(), pose=truth),
     )
+
+
+def _is_realistic(config_dict: dict) -> bool:
+    """Whether a config's systematic errors are exactly `REALISTIC_ERRORS` (every source on)."""
+    return {k: config_dict.get(k) for k in SYSTEMATIC_FIELDS} == REALISTIC_ERRORS

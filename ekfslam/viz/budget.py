@@ -6,6 +6,7 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import matplotlib.pyplot as plt
+import numpy as np
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -46,6 +47,11 @@ def budget_text(budget: ErrorBudget) -> str:
         lines.append(f"{r.source:<{width}}{1000 * r.alone:>8.0f}{1000 * r.all_but:>10.0f}")
     lines.append(f"{'none (ideal)':<{width}}{1000 * budget.ideal:>8.0f}")
     lines.append(f"{'all (realistic)':<{width}}{1000 * budget.realistic:>8.0f}")
+    if len(budget.realistic_by_seed) > 1:
+        spread = sorted(1000 * e for e in budget.realistic_by_seed)
+        median = float(np.median(spread))
+        lines.append(f"{'  by seed':<{width}}min {spread[0]:.0f}, median {median:.0f}, "
+                     f"max {spread[-1]:.0f}")  # fmt: skip
     return "\n".join(lines)
 
 

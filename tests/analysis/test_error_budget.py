@@ -9,7 +9,8 @@ import pytest
 
 from ekfslam.analysis.error_budget import BudgetRow, ErrorBudget, error_budget, map_error
 from ekfslam.analysis.lab_checks import check_sources_above
-from ekfslam.sim.scenarios import realistic
+from ekfslam.core.noise import NoiseConfig
+from ekfslam.sim.scenarios import realistic, realistic_noise
 
 NOTEBOOKS = Path(__file__).resolve().parents[2] / "notebooks"
 
@@ -24,13 +25,21 @@ def test_a_two_source_budget_is_made_of_the_runs_it_names():
     assert budget.seeds == (1,)  # the seed's square experiment
     assert budget.ideal == pytest.approx(0.005, abs=0.002)
     # each source alone is several centimetres; together they add about in quadrature
-    assert tags.alone == pytest.approx(0.040, abs=0.005)
-    assert scale.alone == pytest.approx(0.041, abs=0.005)
-    assert budget.realistic == pytest.approx(0.058, abs=0.01)
+    assert tags.alone == pytest.approx(0.042, abs=0.003)
+    assert scale.alone == pytest.approx(0.041, abs=0.003)
+    assert budget.realistic == pytest.approx(0.053, abs=0.003)
     assert budget.realistic < tags.alone + scale.alone
     assert (tags.field, tags.value) == ("tag_position_sigma", 0.03)
     with pytest.raises(KeyError, match="no error source 'slip'"):
         budget.row("slip")
+
+
+def test_every_row_replays_with_the_realistic_robots_noise():
+    """The rows differ only in the robot: each replays with `realistic_noise`, the noise
+    run.json gives the realistic runs, not the generic noise a run with some sources gets."""
+    config = realistic("square", ("range scale",))
+    assert map_error(config) == map_error(config, realistic_noise())
+    assert map_error(config) != map_error(config, NoiseConfig())
 
 
 def test_seeds_are_averaged_and_bad_sources_are_named():
@@ -80,5 +89,5 @@ def test_notebook_07s_answer_is_right_on_the_budget_it_shows(capsys):
     exec(answer, namespace)
     budget = error_budget("square", seeds=(1, 2, 3, 4))
     assert check_sources_above(namespace["over_1cm"], budget) is True
-    assert budget.realistic == pytest.approx(0.124, abs=0.005)
+    assert budget.realistic == pytest.approx(0.122, abs=0.003)
     assert max(r.alone for r in budget.rows if r.source.startswith("wheel")) < 0.01

@@ -15,6 +15,7 @@ import pytest
 
 from ekfslam.core.arena import SEED_ARENA, Arena, Tag
 from ekfslam.core.camera import Camera, pinhole_camera
+from ekfslam.sim.scenarios import realistic
 from ekfslam.sim.simulation import (
     SimulationConfig,
     arc_increment,
@@ -470,3 +471,16 @@ def test_a_run_is_named_after_what_makes_it_differ_from_the_seeds():
     seed5 = SimulationConfig(trajectory="octagon", seed=5).to_dict()
     assert seed_experiment({"config": seed5}) is None
     assert seed_experiment(None) is None and seed_experiment({"seed": 2}) is None
+
+
+def test_a_path_is_planned_once_for_the_runs_that_drive_it():
+    """The controller's plan depends on the path and the controller only: runs that differ in
+    the seed or a systematic error share it, read-only, and a different path gets its own."""
+    a = realistic("square")
+    start = SEED_ARENA.nominal_start
+    plan = plan_commands(a, start)
+    assert plan_commands(realistic("square", ("range scale",), seed=7), start) is plan
+    assert plan_commands(realistic("square", size=0.6), start) is not plan
+    with pytest.raises(ValueError, match="read-only"):
+        plan.wheels[0, 0] = 1.0
+    assert simulate(a).controls.values.flags.writeable  # the run's own copy

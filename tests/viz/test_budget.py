@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 from ekfslam.analysis.error_budget import BudgetRow, ErrorBudget
 from ekfslam.viz.budget import budget_figure, budget_markdown, budget_text
 
@@ -29,6 +31,10 @@ def test_the_table_gives_each_source_alone_and_all_but_in_mm_with_the_seeds_row(
     text = budget_text(budgets[0]).splitlines()
     assert text[0] == "square (seeds 1, 2): map error, mm"
     assert text[2].split() == ["tag", "placement", "35", "80"]
+    assert len(text) == 6  # one seed's errors are not given: no spread line
+    spread = dataclasses.replace(budgets[0], realistic_by_seed=(0.0904, 0.0796, 0.120))
+    assert budget_text(spread).splitlines()[-1].split() == [
+        "by", "seed", "min", "80,", "median", "90,", "max", "120"]  # fmt: skip
 
 
 def test_the_figure_has_a_panel_per_path_with_the_sources_on_top_first():
