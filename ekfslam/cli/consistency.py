@@ -266,8 +266,9 @@ def nees_table(r: Consistency) -> str:
         f"averages over the runs and the {CONFIDENCE:.0%} chi-square band",
         f"{'':<16}{'mean':>8}{'max':>8}   {'band (median)':<16}{'steps in band':>14}",
     ]
-    for key, label in (("nees_pose", "pose NEES"), ("nees_heading", "heading NEES"),
-                       ("nees_landmark", "landmark NEES"), ("nis", "NIS")):  # fmt: skip
+    for key, label in (("nees_pose", "pose NEES"), ("nees_pose_xi", "pose NEES in ξ"),
+                       ("nees_heading", "heading NEES"), ("nees_landmark", "landmark NEES"),
+                       ("nis", "NIS")):  # fmt: skip
         q = d[key]
         band = f"[{q['band'][0]:.2f}, {q['band'][1]:.2f}]"
         lines.append(
