@@ -271,7 +271,7 @@ def test_a_short_long_run_keeps_sigma_positive_semidefinite(linearization):
 def test_the_counts_line_puts_each_label_with_its_number():
     """Regression: "updates predictions 25740, initialised 160" ran the labels together."""
     from ekfslam.analysis.consistency import counts_line
-    from ekfslam.core.filter.ekf import FilterCounts
+    from ekfslam.core.filter.config import FilterCounts
 
     counts = FilterCounts(
         predictions=25740, accepted=9000, rejected=12, refused=1, initialised=160, reinitialised=2
