@@ -124,6 +124,9 @@ def test_every_report_of_the_invariant_filter_is_cartesian():
     np.testing.assert_allclose(cov, Sigma[3:5, 3:5], rtol=0, atol=1e-15)
     np.testing.assert_allclose(h.obs_landmark_cov[-1], cov, rtol=0, atol=1e-15)
     assert not np.allclose(f.invariant_covariance, Sigma)  # they are different coordinates
+    # and back: the NEES in ξ (`analysis.consistency.pose_nees_xi`) scores against the filter's P
+    P = f.invariant_covariance[:3, :3]
+    np.testing.assert_allclose(from_cartesian(h.pose_cov[-1], h.pose[-1]), P, rtol=0, atol=1e-15)
 
 
 def test_only_the_invariant_filter_has_an_invariant_covariance():
