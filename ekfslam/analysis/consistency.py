@@ -10,9 +10,11 @@ standard linearisation gains information about the global heading that it cannot
 al., IROS 2006; Huang, Mourikis & Roumeliotis, IJRR 2010); the FEJ-EKF
 (`FilterConfig.linearization="fej"`) is the cheap fix, the invariant EKF (Barrau & Bonnabel 2015,
 `"invariant"`) the one whose Jacobians do not depend on the estimate along the unobservable
-rotation. Its covariance is that of the invariant error; the NEES here uses the Cartesian one
+rotation. Its covariance is that of the invariant error; `nees_pose` uses the Cartesian one
 it reports, T P Tᵀ (`ekfslam.core.invariant.to_cartesian`, first order), like every other
-filter's.
+filter's. `nees_pose_xi` scores the pose the way Barrau & Bonnabel do: the exact invariant error
+ξ = log(X X̂⁻¹) (`ekfslam.core.invariant.pose_error`) against T⁻¹ Σ T⁻ᵀ, which for the invariant
+filter is its own P; for the others it is their Σ seen in the same coordinates.
 
 Monte Carlo runs are simulated with *correctly specified noise*: `noise_for_simulation` gives the
 filter the simulator's own R (eq. 9) and Q (eq. 11). The filter starts at the robot's TRUE start
@@ -37,6 +39,7 @@ from scipy.special import gammaincinv
 from ekfslam.analysis.parallel import run_tasks
 from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig, FilterCounts
 from ekfslam.core.filter.history import Outcome
+from ekfslam.core.invariant import pose_error
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runlog import RunLog
@@ -66,7 +69,8 @@ class RunErrors:
     """One run's normalised errors at the K ground-truth times t (K,) s.
 
     nees_pose (K,) 3 dof and nees_heading (K,) 1 dof of the posterior at each time (NaN while the
-    covariance is singular, e.g. at the start). landmark_sum/landmark_count (K,): NEES (2 dof)
+    covariance is singular, e.g. at the start); nees_pose_xi (K,) 3 dof, the pose NEES in the
+    invariant error's coordinates (`pose_nees_xi`). landmark_sum/landmark_count (K,): NEES (2 dof)
     of every landmark sighted at that time, its estimate right after the sighting. nis_sum /
     nis_count (K,): NIS of every innovation the filter computed there, accepted or gated.
     map_nees : the whole final map's NEES, map_dof = 2n its dof.
@@ -75,6 +79,7 @@ class RunErrors:
     t: Array
     nees_pose: Array
     nees_heading: Array
+    nees_pose_xi: Array
     landmark_sum: Array
     landmark_count: Array
     nis_sum: Array
@@ -109,12 +114,28 @@ def pose_errors(run: RunLog, result: ReplayResult) -> tuple[Array, Array, Array]
     return np.asarray(gt.t, dtype=float), e, h.pose_cov[np.maximum(idx, 0)]
 
 
+def pose_nees_xi(truth: Array, estimate: Array, P: Array) -> Array:
+    """Pose NEES (K,) in the invariant error's coordinates, the way Barrau & Bonnabel score it.
+
+    truth, estimate (K, 3) poses; P (K, 3, 3) the Cartesian pose covariance. The error is the
+    exact ξ = log(X X̂⁻¹) (`ekfslam.core.invariant.pose_error`) and its covariance
+    T⁻¹ P T⁻ᵀ, T⁻¹ = I - (-ŷ, x̂, 0) e₃ᵀ: the exact inverse of the map the invariant filter
+    reports P with, so for that filter this is its own covariance.
+    """
+    Tinv = np.broadcast_to(np.eye(3), (len(P), 3, 3)).copy()
+    Tinv[:, 0, 2], Tinv[:, 1, 2] = estimate[:, 1], -estimate[:, 0]
+    P_xi = Tinv @ P @ Tinv.transpose(0, 2, 1)
+    return nees(pose_error(truth, estimate), P_xi)
+
+
 def run_errors(run: RunLog, result: ReplayResult) -> RunErrors:
     """Score a replay of a simulated run against its ground truth (see `RunErrors`)."""
     t, e, P = pose_errors(run, result)
     h, gt, tags = result.history, run.groundtruth, run.meta.tag_map or {}
     k = len(t)
     nees_pose, nees_heading = nees(e, P), nees(e[:, 2:], P[:, 2:, 2:])
+    estimate = gt.pose + e  # NaN before the first event, and then so is the NEES
+    nees_xi = pose_nees_xi(gt.pose, estimate, P)
     step = np.minimum(np.searchsorted(gt.t, h.obs_t, side="left"), k - 1)
     seen = np.isfinite(h.obs_landmark[:, 0]) & np.isin(h.obs_id, list(tags))
     truth = np.array([tags[i] for i in h.obs_id[seen].tolist()]).reshape(-1, 2)
@@ -129,6 +150,7 @@ def run_errors(run: RunLog, result: ReplayResult) -> RunErrors:
         t=t,
         nees_pose=nees_pose,
         nees_heading=nees_heading,
+        nees_pose_xi=nees_xi,
         landmark_sum=np.bincount(step[seen][np.isfinite(lm)], lm[np.isfinite(lm)], k),
         landmark_count=np.bincount(step[seen][np.isfinite(lm)], minlength=k).astype(float),
         nis_sum=np.bincount(step[computed], h.obs_nis[computed], k),
@@ -144,11 +166,13 @@ class Consistency:
     """The average of `runs` runs at each of K steps, with its 95% bands.
 
     t (K,) s. nees_pose (K,), nees_heading (K,): averages over runs; band_pose, band_heading
-    (2,) their bands. nees_landmark (K,): per run the mean NEES of the landmarks sighted at that
-    step, averaged over the runs that sighted one; band_landmark (2, K) for that many runs of
-    2 dof (conservative: it treats one run's sightings as one draw). nis (K,): the mean NIS of
-    every innovation computed at that step in any run; band_nis (2, K) for that many 2-dof
-    draws (sequential innovations are uncorrelated). map_nees (runs,): final map NEES, 2n dof.
+    (2,) their bands. nees_pose_xi (K,): the pose NEES in the invariant error's coordinates
+    (`pose_nees_xi`), averaged, in band_pose too. nees_landmark (K,): per run the mean NEES
+    of the landmarks sighted at that step, averaged over the runs that sighted one;
+    band_landmark (2, K) for that many runs of 2 dof (conservative: it treats one run's
+    sightings as one draw). nis (K,): the mean NIS of every innovation computed at that step in
+    any run; band_nis (2, K) for that many 2-dof draws (sequential innovations are
+    uncorrelated). map_nees (runs,): final map NEES, 2n dof.
     counts : the filters' counts summed over the runs.
     """
 
@@ -158,6 +182,7 @@ class Consistency:
     t: Array
     nees_pose: Array
     nees_heading: Array
+    nees_pose_xi: Array
     nees_landmark: Array
     nis: Array
     band_pose: Array
@@ -175,6 +200,11 @@ class Consistency:
     def confidence(self) -> float:
         """The two-sided confidence of the bands (`CONFIDENCE`), for a figure to say."""
         return CONFIDENCE
+
+    @property
+    def band_pose_xi(self) -> Array:
+        """The band of `nees_pose_xi`: the pose's, 3 dof."""
+        return self.band_pose
 
     def fraction_in_band(self, name: str) -> float:
         """Share of the steps with a value (not NaN) whose average lies inside its band."""
@@ -208,6 +238,7 @@ class Consistency:
             "band": [float(b) for b in self.band_pose],
             "nees_pose": stats("nees_pose"),
             "nees_heading": stats("nees_heading"),
+            "nees_pose_xi": stats("nees_pose_xi"),
             "nees_landmark": stats("nees_landmark"),
             "nis": stats("nis") | {"innovations": self.counts.accepted + self.counts.rejected},
             "map_nees_final": {
@@ -317,6 +348,7 @@ def _average(name, errors, config, counts, noise, seconds) -> Consistency:
         t=errors[0].t,
         nees_pose=mean_over_runs(stack["nees_pose"]),
         nees_heading=mean_over_runs(stack["nees_heading"]),
+        nees_pose_xi=mean_over_runs(stack["nees_pose_xi"]),
         nees_landmark=nees_landmark,
         nis=nis,
         band_pose=np.array(chi2_band(3, runs)),

@@ -17,7 +17,8 @@ import numpy as np
 
 from ekfslam.analysis.alignment import align
 from ekfslam.analysis.parallel import run_tasks
-from ekfslam.core.filter.ekf import CHI2_2DOF_99, EKFSLAM, FilterConfig, FilterCounts
+from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig, FilterCounts
+from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.geometry import wrap_angle
 from ekfslam.pipeline import replay
 from ekfslam.sim.scenarios import noise_for_simulation, scenario

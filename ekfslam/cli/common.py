@@ -134,8 +134,8 @@ DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "inproc")
 def add_parallel_arguments(p: argparse.ArgumentParser) -> None:
     """``--jobs N`` and ``--dask ADDRESS``: where the runs go (`ekfslam.analysis.parallel`).
 
-    The same options as ``consistency``'s (`ekfslam.cli.consistency._parallel`, to be replaced by
-    this one once the branches that change that module have landed).
+    Every command that runs a study in parallel (``consistency``, ``tune-mrclam``) takes them
+    from here.
     """
     p.add_argument("--jobs", type=ca.whole(1, 4096), default=None, metavar="N",
                    help="local processes for the runs; 1 runs in this process "

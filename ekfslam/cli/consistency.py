@@ -37,7 +37,7 @@ from ekfslam.analysis.mrclam_consistency import (
     table,
 )
 from ekfslam.cli import args as ca
-from ekfslam.cli.common import mrclam_folder
+from ekfslam.cli.common import add_parallel_arguments, mrclam_folder
 from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig
 from ekfslam.core.filter.config import LINEARIZATIONS as ALL_LINEARIZATIONS
 from ekfslam.files import save_figure
@@ -60,7 +60,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     _gate(p)
     p.add_argument("--wheel-noise", type=ca.non_negative(10.0, why="rad/s"),
                    help="override the scenario's wheel noise, rad/s")  # fmt: skip
-    _parallel(p)
+    add_parallel_arguments(p)
     ca.add_json_argument(p)
     ca.add_plot_argument(p, "draw the averages and their bands to FILE")
     p.set_defaults(func=cmd_nees)
@@ -76,7 +76,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         "--gate-after", type=ca.whole(1, 10**6), default=FilterConfig.gate_after,
         help="gate_after (default: the filter's, %(default)s)",
     )  # fmt: skip
-    _parallel(p)
+    add_parallel_arguments(p)
     ca.add_json_argument(p)
     p.set_defaults(func=cmd_outliers)
 
@@ -103,7 +103,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     )  # fmt: skip
     _linearization(p, "both")
     _gate(p)
-    _parallel(p)
+    add_parallel_arguments(p)
     ca.add_json_argument(
         p,
         "print one JSON object; keys: robots.<N>.<linearization>.{mean, median, "
@@ -121,7 +121,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
                    help="simulated runs, 1 to 1000 (default 1)")  # fmt: skip
     p.add_argument("--seed", type=ca.seed(), default=2,
                    help="seed of the first run (then +1, +2...; default 2)")  # fmt: skip
-    _parallel(p)
+    add_parallel_arguments(p)
     ca.add_json_argument(p)
     ca.add_plot_argument(p, "draw the first run's wrong associations to FILE")
     p.set_defaults(func=cmd_association)
@@ -131,27 +131,6 @@ def _runs_and_trajectory(p: argparse.ArgumentParser) -> None:
     p.add_argument("--runs", type=ca.whole(1, 10_000), default=50,
                    help="Monte Carlo runs, 1 to 10000 (default 50)")  # fmt: skip
     p.add_argument("--trajectory", choices=SCENARIOS, default="octagon", help="the scenario")
-
-
-def _dask_address(text: str) -> str:
-    scheme, sep, rest = text.partition("://")
-    if not sep or not rest or scheme not in DASK_SCHEMES:
-        raise argparse.ArgumentTypeError(
-            f"a Dask scheduler address is {'|'.join(DASK_SCHEMES)}://HOST:PORT, got {text!r}"
-        )
-    return text
-
-
-DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "inproc")
-
-
-def _parallel(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--jobs", type=ca.whole(1, 4096), default=None, metavar="N",
-                   help="local processes for the runs; 1 runs in this process "
-                   "(default: every core)")  # fmt: skip
-    p.add_argument("--dask", type=ca._name(_dask_address, "address"), metavar="ADDRESS",
-                   help="run on the Dask cluster at ADDRESS (tcp://host:8786; needs "
-                   "pip install 'ekfslam[dask]'); --jobs is then ignored")  # fmt: skip
 
 
 def _linearization(p: argparse.ArgumentParser, default: str) -> None:
@@ -287,8 +266,9 @@ def nees_table(r: Consistency) -> str:
         f"averages over the runs and the {CONFIDENCE:.0%} chi-square band",
         f"{'':<16}{'mean':>8}{'max':>8}   {'band (median)':<16}{'steps in band':>14}",
     ]
-    for key, label in (("nees_pose", "pose NEES"), ("nees_heading", "heading NEES"),
-                       ("nees_landmark", "landmark NEES"), ("nis", "NIS")):  # fmt: skip
+    for key, label in (("nees_pose", "pose NEES"), ("nees_pose_xi", "pose NEES in ξ"),
+                       ("nees_heading", "heading NEES"), ("nees_landmark", "landmark NEES"),
+                       ("nis", "NIS")):  # fmt: skip
         q = d[key]
         band = f"[{q['band'][0]:.2f}, {q['band'][1]:.2f}]"
         lines.append(

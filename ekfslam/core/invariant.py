@@ -120,3 +120,24 @@ def retract(mu: ArrayLike, xi: ArrayLike) -> Array:
     out = np.concatenate([moved[0], [mu[2] + w], moved[1:].ravel()])
     out[2] = (out[2] + math.pi) % (2.0 * math.pi) - math.pi
     return out
+
+
+def pose_error(truth: ArrayLike, estimate: ArrayLike) -> Array:
+    """ξ (K, 3) = log(X X̂⁻¹) of the pose part, exactly: the invariant error of `retract`.
+
+    truth, estimate : (K, 3) poses (x, y, θ). ξ_θ = θ - θ̂ (wrapped to [-π, π)) and
+    ξ_p = V(ξ_θ)⁻¹ (p - R(ξ_θ) p̂), so that the truth is exp(ξ) X̂ (`retract`). To first order
+    ξ = T(μ̂)⁻¹ δ with δ the Cartesian error: this is the error that the invariant filter's
+    covariance P describes, and the one Barrau & Bonnabel (2015) score their NEES with.
+    """
+    p = np.asarray(truth, dtype=float).reshape(-1, 3)
+    q = np.asarray(estimate, dtype=float).reshape(-1, 3)
+    w = (p[:, 2] - q[:, 2] + math.pi) % (2.0 * math.pi) - math.pi
+    c, s = np.cos(w), np.sin(w)
+    dx = p[:, 0] - (c * q[:, 0] - s * q[:, 1])
+    dy = p[:, 1] - (s * q[:, 0] + c * q[:, 1])
+    # V(w)⁻¹ = (w / 2) [[cot(w/2), 1], [-1, cot(w/2)]], with w/2 cot(w/2) -> 1 - w²/12 at 0
+    small = np.abs(w) < 1e-6
+    half = 0.5 * w
+    a = np.where(small, 1.0 - w * w / 12.0, half / np.tan(np.where(small, 1.0, half)))
+    return np.column_stack([a * dx + half * dy, -half * dx + a * dy, w])

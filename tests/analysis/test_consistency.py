@@ -20,6 +20,7 @@ from ekfslam.analysis.consistency import (
 )
 from ekfslam.analysis.evaluation import interpolate_poses
 from ekfslam.analysis.robustness import long_run, outlier_study
+from ekfslam.core.invariant import from_cartesian, pose_error
 from ekfslam.core.noise import default_noise
 from ekfslam.geometry import wrap_angle
 from ekfslam.sim.scenarios import noise_for_simulation, ring_arena, scenario
@@ -107,6 +108,11 @@ def test_run_errors_agree_with_a_direct_computation():
         P = h.pose_cov[event]
         assert errors.nees_pose[k] == pytest.approx(e @ np.linalg.inv(P) @ e, rel=1e-9)
         assert errors.nees_heading[k] == pytest.approx(e[2] ** 2 / P[2, 2], rel=1e-9)
+        # in the invariant error's coordinates: ξ against T⁻¹ P T⁻ᵀ (`ekfslam.core.invariant`)
+        est = h.pose[event]
+        xi = pose_error(gt.pose[k], est)[0]
+        P_xi = from_cartesian(P, est)
+        assert errors.nees_pose_xi[k] == pytest.approx(xi @ np.linalg.solve(P_xi, xi), rel=1e-9)
     computed = np.isfinite(h.obs_nis)
     assert errors.nis_count.sum() == computed.sum()
     assert errors.nis_sum.sum() == pytest.approx(h.obs_nis[computed].sum())
@@ -265,7 +271,7 @@ def test_a_short_long_run_keeps_sigma_positive_semidefinite(linearization):
 def test_the_counts_line_puts_each_label_with_its_number():
     """Regression: "updates predictions 25740, initialised 160" ran the labels together."""
     from ekfslam.analysis.consistency import counts_line
-    from ekfslam.core.filter.ekf import FilterCounts
+    from ekfslam.core.filter.config import FilterCounts
 
     counts = FilterCounts(
         predictions=25740, accepted=9000, rejected=12, refused=1, initialised=160, reinitialised=2

@@ -9,7 +9,14 @@ import pytest
 
 from ekfslam import pipeline
 from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
-from ekfslam.core.invariant import error_map, from_cartesian, noise_map, retract, to_cartesian
+from ekfslam.core.invariant import (
+    error_map,
+    from_cartesian,
+    noise_map,
+    pose_error,
+    retract,
+    to_cartesian,
+)
 from ekfslam.core.models import observation_noise
 from ekfslam.core.noise import default_noise
 from ekfslam.core.steps import new_landmark_step, predict_step
@@ -21,6 +28,19 @@ from ekfslam.teaching.reference import LiteralEKFSLAM
 Q = observation_noise(0.05, 0.03)
 R = np.diag([1e-4, 2e-4, 1e-3])
 INVARIANT = FilterConfig(linearization="invariant", gate=None)
+
+
+def test_pose_error_is_the_exact_log_of_retract_and_T_inverse_to_first_order():
+    rng = np.random.default_rng(4)
+    estimate = rng.normal(size=(6, 3)) * [2.0, 2.0, 1.0]
+    xi = rng.normal(size=(6, 3)) * [0.5, 0.5, 0.8]
+    xi[0] = 0.0  # the identity, where V(ξ_θ) is the identity
+    xi[1, 2] = 1e-9  # the series branch near ξ_θ = 0
+    truth = np.array([retract(m, x) for m, x in zip(estimate, xi, strict=True)])
+    assert np.abs(pose_error(truth, estimate) - xi).max() < 1e-12
+    small = 1e-7 * np.array([1.0, -2.0, 3.0])  # to first order ξ = T⁻¹ δ
+    first = np.linalg.solve(error_map(estimate[2]), small)
+    assert np.abs(pose_error(estimate[2] + small, estimate[2])[0] - first).max() < 1e-12
 
 
 def test_the_error_map_and_its_inverse():
@@ -104,6 +124,9 @@ def test_every_report_of_the_invariant_filter_is_cartesian():
     np.testing.assert_allclose(cov, Sigma[3:5, 3:5], rtol=0, atol=1e-15)
     np.testing.assert_allclose(h.obs_landmark_cov[-1], cov, rtol=0, atol=1e-15)
     assert not np.allclose(f.invariant_covariance, Sigma)  # they are different coordinates
+    # and back: the NEES in ξ (`analysis.consistency.pose_nees_xi`) scores against the filter's P
+    P = f.invariant_covariance[:3, :3]
+    np.testing.assert_allclose(from_cartesian(h.pose_cov[-1], h.pose[-1]), P, rtol=0, atol=1e-15)
 
 
 def test_only_the_invariant_filter_has_an_invariant_covariance():

@@ -12,10 +12,11 @@ oracle.
 Cost per step with n landmarks: prediction O(n) (only the pose rows and columns change), update
 O(n^2) (one symmetric rank-2 correction of the used block), landmark initialisation O(n).
 
-Storage is pre-allocated and grows geometrically, so adding a landmark never copies the matrix
-(except on the rare doubling of the capacity). The storage beyond the state is kept at zero.
-Σ is symmetric, so the steps keep only its lower triangle current (half the memory traffic of
-the O(n²) update); `Sigma` fills in the upper one when it is read.
+The storage, the slots and every view of them (μ, Σ, a landmark, the history) are
+`ekfslam.core.filter.state.FilterState`, which this class extends with the steps: storage is
+pre-allocated and grows geometrically, and Σ is symmetric, so the steps keep only its lower
+triangle current (half the memory traffic of the O(n²) update); `Sigma` fills in the upper one
+when it is read.
 
 Speed: the arithmetic of a step lives in `ekfslam.core.filter.kernels`, compiled with numba: as
 numpy calls on the seed's small map, per-call overhead cost ten times the arithmetic. This module
@@ -24,33 +25,25 @@ it.
 
 With `FilterConfig(linearization="invariant")` (Barrau & Bonnabel 2015) the storage holds the
 covariance P of the right-invariant error ξ (`ekfslam.core.invariant`) instead of Σ: the mean is
-the same (x, y, θ, m), every covariance handed out (`Sigma`, `pose_covariance`, `landmark`, the
-history) is the Cartesian T P Tᵀ to first order, and `invariant_covariance` is P itself. Its
-prediction noise reaches the map block (O(n²)); the filter owes it and adds it in the next
-accepted correction's pass, or when Σ is read (`_settle`).
-
-Over 400 lines because it is one class: the decisions share the slot bookkeeping and the
-pre-allocated storage, and split across modules they would each need all of it.
+the same (x, y, θ, m), every covariance handed out is the Cartesian T P Tᵀ to first order
+(`FilterState`), and `invariant_covariance` is P itself. Its prediction noise reaches the map
+block (O(n²)); the filter owes it and adds it in the next accepted correction's pass, or when Σ
+is read (`_settle`).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import fields
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.filter import kernels
 from ekfslam.core.filter.config import CHI2_2DOF_99 as CHI2_2DOF_99
-from ekfslam.core.filter.config import FilterConfig, FilterCounts
-from ekfslam.core.filter.history import OBSERVE, PREDICT, History, Outcome, Recorder
-from ekfslam.core.invariant import (
-    INVARIANT_NEW_LANDMARK_POSE,
-    from_cartesian,
-    landmark_to_cartesian,
-    to_cartesian,
-)
+from ekfslam.core.filter.config import FilterConfig
+from ekfslam.core.filter.history import OBSERVE, PREDICT, Outcome
+from ekfslam.core.filter.state import FilterState
+from ekfslam.core.invariant import INVARIANT_NEW_LANDMARK_POSE
 from ekfslam.core.models import (
     MIN_RANGE_SQUARED,
     inverse_observation,
@@ -85,7 +78,7 @@ _INITIALISED, _ACCEPTED, _REJECTED, _REFUSED, _REINITIALISED = (
 )  # fmt: skip
 
 
-class EKFSLAM:
+class EKFSLAM(FilterState):
     """Landmark EKF SLAM with a growing state.
 
     Parameters
@@ -106,115 +99,17 @@ class EKFSLAM:
         config: FilterConfig | None = None,
         record: bool = True,
     ) -> None:
-        self.config = config or FilterConfig()
-        cap = 3 + 2 * self.config.initial_capacity
-        self._mu = np.zeros(cap)
-        self._Sigma = np.zeros((cap, cap))
-        self._dim = 3
-        self._mu[:3] = np.asarray(pose, dtype=float)
-        self._mu[2] = _wrap(float(self._mu[2]))
-        if pose_covariance is not None:
-            P0 = np.asarray(pose_covariance, dtype=float)
-            if self.config.linearization == "invariant":  # Σ0 is Cartesian; the filter keeps ξ's
-                P0 = from_cartesian(P0, self._mu[:3])
-            self._Sigma[:3, :3] = 0.5 * (P0 + P0.T)
-        self._ids: list[int] = []
-        self.slot: dict[int, int] = {}
+        super().__init__(pose, pose_covariance, config, record)
         self._sightings: list[int] = []
-        self._counts = dict.fromkeys((f.name for f in fields(FilterCounts)), 0)
-        self._recorder = Recorder() if record else None
         self._t = 0.0
         self._fej = self.config.linearization == "fej"
-        # invariant: _Sigma holds the covariance of the right-invariant error (`core.invariant`)
-        self._invariant = self.config.linearization == "invariant"
-        # invariant: the map block still owes rho v vᵀ up to row _owed_to (`kernels.propagate`)
-        self._rho, self._owed_to = 0.0, 3
         # FEJ: the robot's predicted position at the current step, and first landmark estimates
         self._prior_xy = (float(self._mu[0]), float(self._mu[1]))
         self._first: list[tuple[float, float]] = []
         self._rejected: list[list[Array]] = []  # per slot: where the rejected sightings put it
         # scratch for the kernels (filled in place: no per-step allocation)
-        self._work = np.zeros((3, cap))  # H Σ, then W = L⁻¹ H Σ; the invariant filter's v
         self._out = np.full(kernels.OUT_SIZE, math.nan)  # ẑ, ν, S, NIS of the last observation
         self._no_rows = np.zeros((1, kernels.ROW_SIZE))  # where nothing is recorded
-
-    # ------------------------------------------------------------------ views
-    @property
-    def mu(self) -> Array:
-        """The state mean (3 + 2n,), eq. (1). A view: do not resize."""
-        return self._mu[: self._dim]
-
-    @property
-    def Sigma(self) -> Array:
-        """The state covariance (3 + 2n, 3 + 2n), a view into the pre-allocated storage.
-
-        The steps keep only its lower triangle current (`ekfslam.core.filter.kernels`); reading it
-        fills in the upper one, O(n²). Read it again after a step rather than keeping the view.
-        With `linearization="invariant"` it is the Cartesian covariance of (x, y, θ, m), a new
-        array, T P Tᵀ from `invariant_covariance` (`ekfslam.core.invariant.to_cartesian`).
-        """
-        self._settle()
-        kernels.mirror(self._Sigma, self._dim)
-        P = self._Sigma[: self._dim, : self._dim]
-        return to_cartesian(P, self.mu) if self._invariant else P
-
-    @property
-    def invariant_covariance(self) -> Array:
-        """The covariance the invariant filter keeps, of its right-invariant error ξ (a copy)."""
-        if not self._invariant:
-            raise AttributeError("only a filter with linearization='invariant' has one")
-        self._settle()
-        kernels.mirror(self._Sigma, self._dim)
-        return self._Sigma[: self._dim, : self._dim].copy()
-
-    @property
-    def pose(self) -> Array:
-        """(x, y, θ), a copy."""
-        return self._mu[:3].copy()
-
-    @property
-    def pose_covariance(self) -> Array:
-        """The 3x3 pose block of Sigma (Cartesian for the invariant filter too), a copy."""
-        P = self._Sigma[:3, :3].copy()
-        return to_cartesian(P, self._mu[:3]) if self._invariant else P
-
-    @property
-    def n_landmarks(self) -> int:
-        return len(self._ids)
-
-    @property
-    def landmark_ids(self) -> list[int]:
-        """Landmark ids in slot order."""
-        return list(self._ids)
-
-    @property
-    def capacity(self) -> int:
-        """How many landmarks fit before the storage doubles."""
-        return (self._mu.shape[0] - 3) // 2
-
-    @property
-    def counts(self) -> FilterCounts:
-        return FilterCounts(**self._counts)
-
-    def landmark(self, landmark_id: int) -> tuple[Array, Array]:
-        """Mean (2,) and covariance (2, 2) of one landmark, by id (copies)."""
-        l = 3 + 2 * self.slot[landmark_id]
-        self._settle()
-        (a, _), (b, c) = self._Sigma[l : l + 2, l : l + 2].tolist()  # its lower triangle
-        m, P = self._mu[l : l + 2].copy(), np.array([[a, b], [b, c]])
-        if self._invariant:
-            P = landmark_to_cartesian(P, self._Sigma[l : l + 2, 2], self._Sigma[2, 2], m)
-        return m, P
-
-    def landmark_map(self) -> dict[int, Array]:
-        """{landmark id: mean (2,)}, the estimated map."""
-        return {i: self._mu[3 + 2 * j : 5 + 2 * j].copy() for j, i in enumerate(self._ids)}
-
-    def history(self) -> History:
-        """Everything recorded so far (raises if the filter was built with record=False)."""
-        if self._recorder is None:
-            raise RuntimeError("this filter was built with record=False")
-        return self._recorder.finish()
 
     # ------------------------------------------------------------- prediction
     def predict(self, u: ArrayLike, R: ArrayLike, t: float | None = None) -> None:
@@ -436,13 +331,6 @@ class EKFSLAM:
             seen, self._mu[3 : self._dim].reshape(-1, 2), j, self.config.reinit_radius
         )
 
-    def _settle(self) -> None:
-        """Add the heading noise the invariant filter's map block is owed (O(n²), see
-        `kernels.propagate`); a correction adds it in its own pass instead."""
-        if self._rho:
-            kernels.spread(self._mu, self._Sigma, self._owed_to, self._rho, self._work[2])
-            self._rho = 0.0
-
     def _reinitialise(self, landmark_id: int, j: int, z: tuple[float, float], Q: Array) -> Outcome:
         self._settle()
         self._place(j, np.array(z), np.asarray(Q, dtype=float))
@@ -455,16 +343,6 @@ class EKFSLAM:
                 landmark_id, j, z, Q, gated=False, fresh=True, accepted_as=_REINITIALISED
             )
         return self._finish(landmark_id, z, _REINITIALISED, l, computed=False)
-
-    def _grow(self) -> None:
-        d = self._dim
-        cap = 3 + 2 * (2 * self.capacity)
-        mu = np.zeros(cap)
-        S = np.zeros((cap, cap))
-        mu[:d] = self._mu[:d]
-        S[:d, :d] = self._Sigma[:d, :d]
-        self._mu, self._Sigma = mu, S
-        self._work = np.zeros((3, cap))
 
     def _finish(
         self, landmark_id: int, z: tuple[float, float], code: int, l: int, computed=True
