@@ -2,9 +2,10 @@
 
 The realistic scenario (`ekfslam.sim.scenarios.realistic`) drives the seed's experiments with
 every systematic error of `ekfslam.sim.config.REALISTIC` on, and its map, scored by eq. (17),
-is off by 0.10-0.13 m on the square like the seed's real robot (0.153 m), and by 4-7 cm on the
-octagon (the seed's: 0.130 m). `error_budget` takes the sources one at a time, two ways, every
-run replayed with the realistic robot's noise (`ekfslam.sim.scenarios.realistic_noise`):
+is off by 0.115-0.150 m on the square like the seed's real robot (0.153 m), and by 0.08-0.13 m
+on the octagon (the seed's: 0.130 m; seeds 1-8, medians 0.134 and 0.108 m). `error_budget`
+takes the sources one at a time, two ways, every run replayed with the realistic robot's noise
+(`ekfslam.sim.scenarios.realistic_noise`):
 
 - **alone**: the ideal robot with only that source on: what the source does by itself;
 - **all but**: the realistic robot with only that source off: what the map gains by fixing it.

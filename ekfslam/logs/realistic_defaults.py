@@ -18,12 +18,13 @@ from ekfslam.core.noise import NoiseConfig
 NAME = "realistic"
 
 #: The ideal robot's `NoiseConfig()` grown by the errors the filter does not model, at their
-#: typical size (`ekfslam.sim.scenarios.realistic_noise`): σ_r 0.03 -> 0.054 m (a 5 % range
-#: scale at 0.9 m), σ_φ 0.03 -> 0.182 rad (0.3 rad/s of turning times 0.3 s of camera
-#: latency and 0.3 s of motor lag), σ_x, σ_y 0.010 -> 0.0109 m/√s and σ_θ 0.020 -> 0.0203 rad/√s
-#: (the wheels' scale errors and the random part of the slip).
+#: typical size (`ekfslam.sim.scenarios.realistic_noise`): σ_r 0.03 -> 0.086 m (a 9 % range
+#: scale at 0.9 m), σ_φ 0.03 -> 0.189 rad (0.3 rad/s of turning times 0.3 s of camera
+#: latency and 0.3 s of motor lag, and the camera's 0.05 rad yaw error), σ_x, σ_y 0.010 ->
+#: 0.0109 m/√s and σ_θ 0.020 -> 0.0203 rad/√s (the wheels' scale errors and the random part
+#: of the slip).
 REALISTIC_NOISE = NoiseConfig(
-    sigma_x=0.0109, sigma_y=0.0109, sigma_theta=0.0203, sigma_range=0.0541, sigma_bearing=0.182
+    sigma_x=0.0109, sigma_y=0.0109, sigma_theta=0.0203, sigma_range=0.0864, sigma_bearing=0.189
 )
 
 #: The filter's choices stay the generic ones: with `REALISTIC_NOISE` the gate rejects almost

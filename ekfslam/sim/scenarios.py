@@ -44,10 +44,9 @@ def realistic(
     (default all of them) at their values, the others ideal. `overrides` set config fields.
 
     With every source on, replayed with `realistic_noise`, the average aligned error of
-    eq. (17) over seeds 1-8 is 0.102-0.129 m on the square (median 0.115 m; the seed's Table 1:
-    0.153 m) and 0.041-0.072 m on the octagon (median 0.058 m; the seed's: 0.130 m, which these
-    values cannot reach: its 45° turns swing the bearings less, so the timing errors cost it
-    little); `ekfslam.analysis.error_budget` weighs the sources one at a time.
+    eq. (17) over seeds 1-8 is 0.115-0.150 m on the square (median 0.134 m; the seed's Table 1:
+    0.153 m) and 0.078-0.125 m on the octagon (median 0.108 m; the seed's: 0.130 m);
+    `ekfslam.analysis.error_budget` weighs the sources one at a time.
     """
     names = tuple(REALISTIC) if sources is None else tuple(sources)
     unknown = [n for n in names if n not in REALISTIC]
@@ -68,11 +67,12 @@ def realistic_noise(config: SimulationConfig | None = None) -> NoiseConfig:
     config : the simulated robot (default the realistic square, `realistic()`).
 
     - Q's range σ (eq. 11) grows by the range scale's error at a typical range,
-      |range_scale - 1| · 0.9 m (4.5 cm for a 5 % scale);
+      |range_scale - 1| · 0.9 m (8.1 cm for a 9 % scale; the lens distortion left in adds at
+      most 5 % off-axis and is left to it);
     - Q's bearing σ by how far the robot turns between where it was and where the filter puts
       it: a frame stamped `camera_latency` late and wheels that lag their commands by
       `motor_lag` both put the believed robot ahead, ω · (latency + lag) (0.18 rad at 0.3 rad/s
-      and 0.3 + 0.3 s);
+      and 0.3 + 0.3 s), and by the camera's yaw error (0.05 rad);
     - R's heading density (eq. 9) by the turn rate's scale error, |r' (1 - slip) / b' - 1| · ω
       per √s (r', b' the wheel radius and wheelbase scales), and its forward and sideways
       densities by the speed's, |r' (1 - slip) - 1| · v, plus the random part of the slip
@@ -95,7 +95,7 @@ def realistic_noise(config: SimulationConfig | None = None) -> NoiseConfig:
             base.sigma_theta, turn_scale * TYPICAL_TURN_RATE, slip_random * TYPICAL_TURN_RATE
         ),
         sigma_range=math.hypot(base.sigma_range, abs(c.range_scale - 1.0) * TYPICAL_RANGE),
-        sigma_bearing=math.hypot(base.sigma_bearing, TYPICAL_TURN_RATE * lag),
+        sigma_bearing=math.hypot(base.sigma_bearing, TYPICAL_TURN_RATE * lag, c.camera_yaw_error),
     )
 
 

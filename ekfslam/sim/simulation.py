@@ -23,7 +23,9 @@ How a run is made, and why:
    at defensible values; `ekfslam.sim.systematic`). The tags stand off their tag_map places
    (run.json keeps the measured map, the truth goes to ``simulation.true_tags``); the wheels
    have the true radius and wheelbase, slip and lag their commands; the camera reports
-   distances `range_scale` times too long and stamps each frame `camera_latency` after it saw.
+   distances `range_scale` times too long, through a lens distortion the detector leaves in
+   (`lens_distortion_ignored`), turned by `camera_yaw_error`, and stamps each frame
+   `camera_latency` after it saw.
 
 Random numbers come from `numpy.random.default_rng` children of one `SeedSequence(config.seed)`,
 one child per stage (start, motion, camera, tag placement, slip), and every stage draws the
@@ -55,7 +57,7 @@ from ekfslam.sim.config import (  # noqa: F401  (re-exported: callers import the
     SimulationConfig,
     config_from_dict,
 )
-from ekfslam.sim.systematic import first_order, scaled_from_camera, true_arena, true_robot
+from ekfslam.sim.systematic import camera_errors, first_order, true_arena, true_robot
 
 Array = NDArray[np.float64]
 
@@ -280,8 +282,7 @@ def _detect(config: SimulationConfig, arena: Arena, poses: Array, t_cam: Array, 
     d = arena.tag_positions()[None, :, :] - poses[:, None, :2]
     r_true = np.hypot(d[..., 0], d[..., 1])
     b_true = np.arctan2(d[..., 1], d[..., 0]) - poses[:, None, 2]
-    if c.range_scale != 1.0:
-        r_true, b_true = scaled_from_camera(r_true, b_true, c.camera_mounting, c.range_scale)
+    r_true, b_true = camera_errors(r_true, b_true, c)
     r = r_true + np.hypot(c.range_noise_sigma, c.range_noise_fraction * r_true) * n_range
     b = wrap_angle(b_true + c.bearing_noise_sigma * n_bearing)
     gross = u_range < c.outlier_range_rate

@@ -24,10 +24,10 @@ def test_a_two_source_budget_is_made_of_the_runs_it_names():
     assert budget.realistic == map_error(realistic("square", ("tag placement", "range scale")))
     assert budget.seeds == (1,)  # the seed's square experiment
     assert budget.ideal == pytest.approx(0.005, abs=0.002)
-    # each source alone is several centimetres; together they add about in quadrature
+    # each source alone is several centimetres; together they make less than their sum
     assert tags.alone == pytest.approx(0.042, abs=0.003)
-    assert scale.alone == pytest.approx(0.041, abs=0.003)
-    assert budget.realistic == pytest.approx(0.053, abs=0.003)
+    assert scale.alone == pytest.approx(0.070, abs=0.003)
+    assert budget.realistic == pytest.approx(0.073, abs=0.003)
     assert budget.realistic < tags.alone + scale.alone
     assert (tags.field, tags.value) == ("tag_position_sigma", 0.03)
     with pytest.raises(KeyError, match="no error source 'slip'"):
@@ -89,5 +89,5 @@ def test_notebook_07s_answer_is_right_on_the_budget_it_shows(capsys):
     exec(answer, namespace)
     budget = error_budget("square", seeds=(1, 2, 3, 4))
     assert check_sources_above(namespace["over_1cm"], budget) is True
-    assert budget.realistic == pytest.approx(0.122, abs=0.003)
+    assert budget.realistic == pytest.approx(0.132, abs=0.003)
     assert max(r.alone for r in budget.rows if r.source.startswith("wheel")) < 0.01
