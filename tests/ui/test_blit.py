@@ -109,6 +109,38 @@ def test_after_an_idle_spell_a_change_runs_at_once():
     assert done[0][1] - started < COALESCE_DELAY  # no waiting: nothing else was queued
 
 
+def test_after_an_idle_spell_a_change_runs_inside_the_request():
+    """In a kernel: the frame goes out from the comm handler, before ipykernel's own replies."""
+    done = []
+
+    async def main():
+        coalescer = Coalescer(done.append)
+        coalescer.request(1)
+        ran_inside = list(done)
+        await asyncio.sleep(0.2)
+        return ran_inside
+
+    assert asyncio.run(main()) == [1]
+
+
+def test_a_request_made_by_the_work_itself_waits_for_the_loop():
+    done = []
+
+    def work(value):
+        done.append(value)
+        if value == 1:
+            coalescer.request(2)
+            done.append("returned")  # 2 did not run inside 1
+
+    async def main():
+        coalescer.request(1)
+        await asyncio.sleep(COALESCE_DELAY + 0.2)
+
+    coalescer = Coalescer(work)
+    asyncio.run(main())
+    assert done == [1, "returned", 2]
+
+
 def test_the_in_process_benchmark_times_the_blitted_move(runs):
     report = benchmark({"square": runs["square"]}, repeats=2)["square"]
     assert 0 < report["replay_ms"] < report["blit_ms"]
