@@ -1,20 +1,20 @@
 """Latest value wins: the live tuner's guard against replaying stale slider values.
 
 Stale work: each slider value reaches the kernel as a comm message, handled one at a time on its
-main thread, and the replay is synchronous (~0.1-0.2 s). Re-running inside each ``observe``
-callback would replay every value that queued up meanwhile, each after the last, and the figure
-would lag seconds behind the hand. So a change only records the settings as *pending* and, if no
-run is scheduled yet, runs it: at once, inside the change's own callback, when the last run
-ended more than `COALESCE_DELAY` s ago (a single key press waits for nothing), otherwise on the
-kernel's asyncio loop `COALESCE_DELAY` s later. By then the kernel has read the messages that queued up during the
+main thread, and the replay is synchronous (~0.1-0.2 s). Re-running inside each ``observe`` callback
+would replay every value that queued up meanwhile, each after the last, and the figure would lag
+seconds behind the hand. So a change only records the settings as *pending* and, if no run is
+scheduled yet, runs it: at once, inside the change's own callback, when the last run ended more than
+`COALESCE_DELAY` s ago (a single key press waits for nothing), otherwise on the kernel's asyncio
+loop `COALESCE_DELAY` s later. By then the kernel has read the messages that queued up during the
 previous replay (each just overwrites *pending*), and the run uses the latest value: at most one
-replay in flight and one waiting, whatever the rate of changes. Measured in a kernel with 20
-values sent at 50 Hz and a 0.2 s callback: 4 runs, the last with the final value; with a delay
-of 0 the loop runs the flush between two queued messages and 11 runs happen. The browser adds a
-first stage: ipywidgets keeps one message per widget in flight and merges further changes until
-the kernel is idle (in the browser test, 8 key presses arrive as about 4 values, each replayed
-once); the kernel-side stage is what protects against several widgets or several browsers (a
-projector and a laptop) at once. Outside an event loop (tests, scripts) the work runs at once.
+replay in flight and one waiting, whatever the rate of changes. Measured in a kernel with 20 values
+sent at 50 Hz and a 0.2 s callback: 4 runs, the last with the final value; with a delay of 0 the
+loop runs the flush between two queued messages and 11 runs happen. The browser adds a first stage:
+ipywidgets keeps one message per widget in flight and merges further changes until the kernel is
+idle (in the browser test, 8 key presses arrive as about 4 values, each replayed once); the
+kernel-side stage is what protects against several widgets or several browsers (a projector and a
+laptop) at once. Outside an event loop (tests, scripts) the work runs at once.
 """
 
 from __future__ import annotations
