@@ -1,20 +1,20 @@
 """Latest value wins: the live tuner's guard against replaying stale slider values.
 
 Stale work: each slider value reaches the kernel as a comm message, handled one at a time on its
-main thread, and the replay is synchronous (~0.1-0.2 s). Re-running inside each ``observe`` callback
-would replay every value that queued up meanwhile, each after the last, and the figure would lag
-seconds behind the hand. So a change only records the settings as *pending* and, if no run is
-scheduled yet, runs it: at once, inside the change's own callback, when the last run ended more than
-`COALESCE_DELAY` s ago (a single key press waits for nothing), otherwise on the kernel's asyncio
-loop `COALESCE_DELAY` s later. By then the kernel has read the messages that queued up during the
+main thread, and the replay is synchronous (~0.1-0.2 s). Re-running inside each ``observe``
+callback would replay every value that queued up meanwhile, each after the last, and the figure
+would lag seconds behind the hand. So a change only records the settings as *pending* and, if no
+run is scheduled yet, schedules one on the kernel's asyncio loop: at once when the last run
+ended more than `COALESCE_DELAY` s ago (a single key press waits for nothing), otherwise
+`COALESCE_DELAY` s later. By then the kernel has read the messages that queued up during the
 previous replay (each just overwrites *pending*), and the run uses the latest value: at most one
-replay in flight and one waiting, whatever the rate of changes. Measured in a kernel with 20 values
-sent at 50 Hz and a 0.2 s callback: 4 runs, the last with the final value; with a delay of 0 the
-loop runs the flush between two queued messages and 11 runs happen. The browser adds a first stage:
-ipywidgets keeps one message per widget in flight and merges further changes until the kernel is
-idle (in the browser test, 8 key presses arrive as about 4 values, each replayed once); the
-kernel-side stage is what protects against several widgets or several browsers (a projector and a
-laptop) at once. Outside an event loop (tests, scripts) the work runs at once.
+replay in flight and one waiting, whatever the rate of changes. Measured in a kernel with 20
+values sent at 50 Hz and a 0.2 s callback: 4 runs, the last with the final value; with a delay
+of 0 the loop runs the flush between two queued messages and 11 runs happen. The browser adds a
+first stage: ipywidgets keeps one message per widget in flight and merges further changes until
+the kernel is idle (in the browser test, 8 key presses arrive as about 4 values, each replayed
+once); the kernel-side stage is what protects against several widgets or several browsers (a
+projector and a laptop) at once. Outside an event loop (tests, scripts) the work runs at once.
 """
 
 from __future__ import annotations
@@ -32,13 +32,9 @@ COALESCE_DELAY = 0.03
 class Coalescer:
     """Latest value wins: `request` records a value; the work runs on the newest one only.
 
-    schedule(fn) arranges for fn() to be called later; the default calls it at once after an
-    idle spell (or with no running loop), else `COALESCE_DELAY` later on the running asyncio
-    loop. Tests pass their own.
-
-    At once, not ``loop.call_soon``: in a kernel the comm handler that called `request` is then
-    followed by ipykernel's own messages for it (status busy/idle, ipywidgets' echo of the
-    value), which the browser read before the frame that the loop callback sent after them.
+    schedule(fn) arranges for fn() to be called later; the default uses the running asyncio loop
+    (soon after an idle spell, else `COALESCE_DELAY` later) or calls at once when there is none.
+    Tests pass their own.
     """
 
     def __init__(self, work: Callable[[object], None], schedule=None) -> None:
@@ -63,7 +59,6 @@ class Coalescer:
         self._scheduled = False
         value, self._pending = self._pending, _NOTHING
         if value is not _NOTHING:
-            self._finished = math.inf  # busy: a request made by the work itself waits its turn
             try:
                 self._work(value)
             finally:
@@ -74,8 +69,10 @@ class Coalescer:
             loop = asyncio.get_running_loop()
         except RuntimeError:
             loop = None
-        if loop is None or time.monotonic() - self._finished > COALESCE_DELAY:
-            fn()  # idle (or no loop): nothing queued to wait for, so run inside this callback
+        if loop is None:
+            fn()
+        elif time.monotonic() - self._finished > COALESCE_DELAY:  # idle: nothing to wait for
+            loop.call_soon(fn)
         else:  # a run just ended: let the values that queued up during it arrive first
             loop.call_later(COALESCE_DELAY, fn)
 
