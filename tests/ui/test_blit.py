@@ -153,16 +153,9 @@ def test_frames_are_encoded_faster_with_the_same_pixels(runs):
         ours = _frame(canvas, canvas.get_diff_image)
         webagg = _frame(canvas, lambda: FigureCanvasWebAggCore.get_diff_image(canvas))
         assert ours[0] == webagg[0] == mode
-        height, width, _ = ours[1].shape
-        np.testing.assert_array_equal(ours[1], webagg[1][:height, :width])
-        outside = webagg[1].copy()
-        outside[:height, :width] = 0
-        assert not outside.any()  # cropped: only transparent pixels were left out
+        np.testing.assert_array_equal(ours[1], webagg[1])
         if mode == "diff":
             assert 0 < (ours[1][..., 3] > 0).mean() < 0.2  # the changed pixels only
-            assert height * width < 0.95 * webagg[1].shape[0] * webagg[1].shape[1]
-        else:
-            assert ours[1].shape == webagg[1].shape
     assert PNG_COMPRESS_LEVEL == 1
 
 
@@ -177,13 +170,6 @@ def test_png_bytes_decode_to_the_same_pixels(compressor, monkeypatch):
         decoded = Image.open(io.BytesIO(png_bytes(rgba)))
         assert decoded.mode == "RGBA"
         np.testing.assert_array_equal(np.asarray(decoded), rgba)
-
-
-def test_a_diff_frame_is_cropped_to_its_changed_corner():
-    diff, changed = np.zeros((5, 6), np.uint32), np.zeros((5, 6), bool)
-    assert blit.cropped(diff, changed).shape == (1, 1)  # nothing changed: one clear pixel
-    changed[1, 4] = changed[3, 2] = True
-    assert blit.cropped(diff, changed).shape == (4, 5)  # from the top-left corner
 
 
 def test_a_diff_frame_is_smaller_than_pils_at_the_same_level(runs):
