@@ -81,15 +81,9 @@ _INITIALISED, _ACCEPTED, _REJECTED, _REFUSED, _REINITIALISED = (
 class EKFSLAM(FilterState):
     """Landmark EKF SLAM with a growing state.
 
-    Parameters
-    ----------
-    pose : array (3,)
-        Initial pose (x, y, θ) in m, m, rad: μ0 of eq. (1).
-    pose_covariance : array (3, 3), optional
-        Σ0 of eq. (2); zero (a known start, as in the seed) by default.
-    config : FilterConfig
-    record : bool
-        Keep a `History` (default). Turn off for benchmarks of the bare filter.
+    The parameters are `FilterState`'s: the initial pose μ0 of eq. (1), its covariance Σ0 of
+    eq. (2) (zero, a known start, by default), the `FilterConfig`, and whether to record a
+    `History`.
     """
 
     def __init__(
