@@ -19,6 +19,7 @@ where a full draw's 0.8-opaque frame lets a little through.
 from __future__ import annotations
 
 import struct
+import sys
 import types
 import zlib
 from collections.abc import Callable, Hashable, Sequence
@@ -77,7 +78,7 @@ def _get_diff_image(self):  # matplotlib.backends.backend_webagg_core, but for t
         if (
             self._force_full
             or buff.shape != self._last_buff.shape
-            or (pixels[:, :, 3] != 255).any()  # transparency: a diff cannot be overlaid
+            or transparent(pixels, buff)  # a diff cannot be overlaid on transparency
         ):
             self.set_image_mode("full")
             output = buff
@@ -89,6 +90,23 @@ def _get_diff_image(self):  # matplotlib.backends.backend_webagg_core, but for t
         self._png_is_old = False
         return png_bytes(output.view(dtype=np.uint8).reshape((*output.shape, 4)))
     return None
+
+
+#: The smallest uint32 of an opaque RGBA pixel where alpha is the high byte (little-endian).
+_OPAQUE = 0xFF000000
+
+
+def transparent(pixels: np.ndarray, buff: np.ndarray) -> bool:
+    """Whether any pixel of `pixels` (H x W x 4 RGBA, `buff` the same as one uint32 each) has
+    alpha below 255.
+
+    Why not ``(pixels[..., 3] != 255).any()``: that strided look at one byte in four costs
+    0.34 ms a frame here; on a little-endian machine alpha is each uint32's high byte, so the
+    smallest pixel tells (0.08 ms, one contiguous pass). Elsewhere: the byte-wise check.
+    """
+    if sys.byteorder == "little":
+        return bool(buff.size) and int(buff.min()) < _OPAQUE
+    return bool((pixels[..., 3] != 255).any())
 
 
 def png_bytes(rgba: np.ndarray, level: int = PNG_COMPRESS_LEVEL) -> bytes:

@@ -18,7 +18,7 @@ from PIL import Image
 
 from ekfslam.logs.runlog import read_run
 from ekfslam.ui import blit
-from ekfslam.ui.blit import PNG_COMPRESS_LEVEL, png_bytes
+from ekfslam.ui.blit import PNG_COMPRESS_LEVEL, png_bytes, transparent
 from ekfslam.ui.coalescer import COALESCE_DELAY, Coalescer
 from ekfslam.ui.latency import benchmark
 from ekfslam.ui.tuning import DEFAULT_FIGSIZE, RUNS_DIR, Tuner
@@ -216,3 +216,14 @@ def test_moves_across_a_decade_of_nis_keep_the_axis_and_its_background(runs):
         top = math.log10(np.nanmax(nis))
         assert top <= tuner.view.nis_ax.get_ylim()[1]  # every point still on the axis
     assert tuner.view.blitter.backgrounds - before <= 1
+
+
+@pytest.mark.parametrize("alpha", [255, 254, 128, 0])
+def test_the_alpha_check_finds_one_pixel_short_of_opaque(alpha):
+    rgba = np.full((60, 90, 4), 255, np.uint8)
+    rgba[..., :3] = np.random.default_rng(5).integers(0, 256, (60, 90, 3), dtype=np.uint8)
+    rgba[37, 71, 3] = alpha  # one pixel, whatever its colour
+    buff = rgba.view(np.uint32).squeeze(2)
+    assert transparent(rgba, buff) == (alpha != 255) == bool((rgba[..., 3] != 255).any())
+    rgba[37, 71, :3] = 0  # black and opaque, or black and transparent: alpha alone decides
+    assert transparent(rgba, buff) == (alpha != 255)
