@@ -52,9 +52,13 @@ class TuningView:
         fig.subplots_adjust(left=0.09, right=0.985, bottom=0.09, top=0.86, wspace=0.22)
         self.map_ax, self.nis_ax = fig.subplots(1, 2, width_ratios=(1.45, 1))
         ax = self.map_ax
-        (self.true_path,) = ax.plot([], [], "--", color="0.55", lw=1, label="true path")
+        # The truth changes only with the run: drawn with the cached background (see `_truth`),
+        # so under everything a move draws, the ellipses included (zorder 0.9 < a patch's 1):
+        # a full draw stacks them the same way.
+        (self.true_path,) = ax.plot([], [], "--", color="0.55", lw=1, label="true path", zorder=0.9)
         (self.path,) = ax.plot([], [], "-", color="tab:red", lw=1.2, label="estimated path")
-        (self.true_tags,) = ax.plot([], [], "o", color="tab:green", ms=8, label="true tags")
+        (self.true_tags,) = ax.plot([], [], "o", color="tab:green", ms=8, label="true tags",
+                                    zorder=0.9)  # fmt: skip
         self.tags = ax.scatter(
             np.empty(0),
             np.empty(0),
@@ -89,12 +93,15 @@ class TuningView:
                                                    fontsize=TITLE_PT, ha="center", va="top",
                                                    transform=below))  # fmt: skip
         self._decades, self._limits_set = (0, 0), False
-        data = [self.true_path, self.path, self.true_tags, self.tags, self.start, self.accepted]
+        self._truth_of: RunLog | None = None  # the run whose truth the artists show
+        self._truth_xy = (np.empty((0, 2)), np.empty((0, 2)))
+        self._truth_version = 0  # one more each time the true path or tags change
+        data = [self.path, self.tags, self.start, self.accepted]
         data += [self.rejected, self.gate_line, self.text]
         self.blitter = (
             Blitter(fig, lambda: [*data, *self.ellipses], [ax.get_legend(), n.get_legend()],
                     lambda: (ax.get_xlim(), ax.get_ylim(), n.get_xlim(), n.get_ylim(),
-                             self._decades, self.header.get_text()))
+                             self._decades, self.header.get_text(), self._truth_version))
             if (can_blit(fig) if blit is None else blit) else None
         )  # fmt: skip
 
@@ -114,17 +121,12 @@ class TuningView:
         the filter made it (the seed's Figure 2).
         """
         h = result.history
-        gt = run.groundtruth
-        gt_xy = gt.pose[:, :2] if gt is not None and len(gt.t) else np.empty((0, 2))
+        gt_xy, truth = self._truth(run)
         a = summary.alignment if not len(gt_xy) else None
         path = h.pose[:, :2] if a is None else a.apply(h.pose[:, :2])
         self.path.set_data(path[:, 0], path[:, 1])
-        self.true_path.set_data(gt_xy[:, 0], gt_xy[:, 1])
         start = gt_xy[:1] if a is None else a.start_pose(run.meta.nominal_start)[None, :2]
         self.start.set_data(start[:, 0], start[:, 1])
-        tags = run.meta.tag_map or {}
-        truth = np.array([tags[i] for i in sorted(tags)]).reshape(-1, 2)
-        self.true_tags.set_data(truth[:, 0], truth[:, 1])
         ids = sorted(result.landmarks)
         est = np.array([result.landmarks[i] for i in ids]).reshape(-1, 2)
         est = est if a is None or not len(est) else a.apply(est)
@@ -144,6 +146,23 @@ class TuningView:
         if self.header.get_text() != header:  # (a new header redraws the background: `key`)
             self.header.set_text(header)
         self.text.set_text(row)
+
+    def _truth(self, run: RunLog) -> tuple[np.ndarray, np.ndarray]:
+        """The true path and tags of `run` (empty without them), set on their artists only when
+        they differ from those shown: a change redraws the background (`key`)."""
+        if run is self._truth_of:
+            return self._truth_xy
+        gt = run.groundtruth
+        gt_xy = gt.pose[:, :2] if gt is not None and len(gt.t) else np.empty((0, 2))
+        tags = run.meta.tag_map or {}
+        truth = np.array([tags[i] for i in sorted(tags)]).reshape(-1, 2)
+        self._truth_of, self._truth_xy = run, (gt_xy, truth)
+        shown = (np.column_stack(a.get_data()) for a in (self.true_path, self.true_tags))
+        if not all(map(np.array_equal, shown, (gt_xy, truth))):
+            self.true_path.set_data(gt_xy[:, 0], gt_xy[:, 1])
+            self.true_tags.set_data(truth[:, 0], truth[:, 1])
+            self._truth_version += 1
+        return gt_xy, truth
 
     def _map_limits(self, truth: np.ndarray, estimate: np.ndarray) -> None:
         # Follow a diverging estimate only so far (twice the true scene): the map stays readable.

@@ -4,6 +4,7 @@ the axes change, and a full draw request while ipympl's view is not live yet."""
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import io
 import math
 import time
@@ -227,3 +228,30 @@ def test_the_alpha_check_finds_one_pixel_short_of_opaque(alpha):
     assert transparent(rgba, buff) == (alpha != 255) == bool((rgba[..., 3] != 255).any())
     rgba[37, 71, :3] = 0  # black and opaque, or black and transparent: alpha alone decides
     assert transparent(rgba, buff) == (alpha != 255)
+
+
+def test_the_true_path_and_tags_are_drawn_with_the_background_until_the_run_changes(runs):
+    square = runs["square"]()
+    tags = square.meta.tag_map
+    moved = {i: np.add(xy, (0.03, 0.0)) for i, xy in tags.items()}  # 3 cm: same limits
+    shifted = dataclasses.replace(square, meta=dataclasses.replace(square.meta, tag_map=moved))
+    tuner = blitting_tuner({"square": lambda: square, "shifted": lambda: shifted})
+    view = tuner.view
+    tuner.apply()
+    assert view.true_path not in view.blitter.artists()
+    assert view.true_tags not in view.blitter.artists()
+    tuner.apply(sigma_range=0.01)
+    assert view.blitter.backgrounds == 1  # a move leaves the truth (and its pixels) alone
+    limits = (view.map_ax.get_xlim(), view.map_ax.get_ylim())
+    tuner.apply(run="shifted", sigma_range=0.01)
+    assert (view.map_ax.get_xlim(), view.map_ax.get_ylim()) == limits  # only the truth moved
+    assert view.blitter.backgrounds == 2  # ... and the background was drawn again
+    x, _ = view.true_tags.get_data()
+    np.testing.assert_allclose(np.sort(x), np.sort([xy[0] for xy in moved.values()]))
+    blitted = pixels(tuner.figure)
+    tuner.figure.canvas.draw()
+    differ = np.any(np.abs(blitted - pixels(tuner.figure)) > 40, axis=-1)
+    assert differ.mean() < 0.003, differ.mean()  # the shifted tags, as a full draw shows them
+    tuner.apply(run="square", sigma_range=0.01)
+    tuner.apply(run="square", sigma_range=0.02)
+    assert view.blitter.backgrounds == 3  # back to the square's truth once, then moves only
