@@ -81,14 +81,14 @@ def _get_diff_image(self):  # matplotlib.backends.backend_webagg_core, but for t
             or transparent(pixels, buff)  # a diff cannot be overlaid on transparency
         ):
             self.set_image_mode("full")
-            output = buff
+            rows = png_rows(buff)
         else:
             self.set_image_mode("diff")
-            output = np.where(buff != self._last_buff, buff, 0)
+            rows = png_rows(buff, changed=buff != self._last_buff)
         self._last_buff = buff.copy()
         self._force_full = False
         self._png_is_old = False
-        return png_bytes(output.view(dtype=np.uint8).reshape((*output.shape, 4)))
+        return png_from_rows(rows)
     return None
 
 
@@ -121,10 +121,27 @@ def png_bytes(rgba: np.ndarray, level: int = PNG_COMPRESS_LEVEL) -> bytes:
     the same 2.1 MB (zlib-ng 0.8 ms and 67 KiB, libdeflate 17 ms). Same pixels either way
     (tests/ui/test_blit.py).
     """
-    height, width, _ = rgba.shape
-    rows = np.empty((height, 1 + 4 * width), np.uint8)
-    rows[:, 0] = 0  # filter type 0, None: the row's bytes as they are
-    rows[:, 1:] = rgba.reshape(height, 4 * width)
+    return png_from_rows(png_rows(np.ascontiguousarray(rgba).view(np.uint32)[..., 0]), level)
+
+
+def png_rows(buff: np.ndarray, changed: np.ndarray | None = None) -> np.ndarray:
+    """The PNG scanlines of `buff` (height x width, a uint32 RGBA pixel each): per row the
+    filter byte 0 (None: the bytes as they are), then the pixels; with `changed` (a boolean
+    mask of buff's shape) only those pixels, the others transparent zeros: a diff frame.
+
+    Why here and not ``np.where`` then a copy into the rows (webagg's way, then ours): one
+    pass writes the pixels where they go, 1.2 ms against 2.7 for a 900 x 600 diff frame.
+    """
+    height, width = buff.shape
+    rows = (np.empty if changed is None else np.zeros)((height, 1 + 4 * width), np.uint8)
+    rows[:, 0] = 0
+    np.copyto(rows[:, 1:].view(np.uint32), buff, where=True if changed is None else changed)
+    return rows
+
+
+def png_from_rows(rows: np.ndarray, level: int = PNG_COMPRESS_LEVEL) -> bytes:
+    """The PNG of `png_rows`'s scanlines: one zlib stream (`deflate`), 8-bit RGBA."""
+    height, width = rows.shape[0], (rows.shape[1] - 1) // 4
     header = struct.pack(">IIBBBBB", width, height, 8, 6, 0, 0, 0)  # 8-bit RGBA, no interlace
     idat = deflate(rows, level)
     return b"".join((PNG_SIGNATURE, _chunk(b"IHDR", header), _chunk(b"IDAT", idat),

@@ -19,7 +19,7 @@ from PIL import Image
 
 from ekfslam.logs.runlog import read_run
 from ekfslam.ui import blit
-from ekfslam.ui.blit import PNG_COMPRESS_LEVEL, png_bytes, transparent
+from ekfslam.ui.blit import PNG_COMPRESS_LEVEL, png_bytes, png_from_rows, png_rows, transparent
 from ekfslam.ui.coalescer import COALESCE_DELAY, Coalescer
 from ekfslam.ui.latency import benchmark
 from ekfslam.ui.tuning import DEFAULT_FIGSIZE, RUNS_DIR, Tuner
@@ -255,3 +255,15 @@ def test_the_true_path_and_tags_are_drawn_with_the_background_until_the_run_chan
     tuner.apply(run="square", sigma_range=0.01)
     tuner.apply(run="square", sigma_range=0.02)
     assert view.blitter.backgrounds == 3  # back to the square's truth once, then moves only
+
+
+def test_a_diff_frame_holds_the_changed_pixels_over_transparent_zeros():
+    rng = np.random.default_rng(8)
+    last = rng.integers(0, 2**32, (40, 70), dtype=np.uint32)
+    buff = last.copy()
+    buff[5:20, 10:60] = rng.integers(0, 2**32, (15, 50), dtype=np.uint32)
+    buff[39, 69] ^= 1  # the last pixel, one bit
+    decoded = Image.open(io.BytesIO(png_from_rows(png_rows(buff, changed=buff != last))))
+    expected = np.where(buff != last, buff, 0)  # webagg's diff frame
+    np.testing.assert_array_equal(np.asarray(decoded).view(np.uint32)[..., 0], expected)
+    assert (np.asarray(decoded)[39, 69] == buff[39:, 69:].view(np.uint8)).all()
