@@ -18,7 +18,7 @@ from __future__ import annotations
 import copy
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -354,23 +354,17 @@ def _feed_hidden(
     pause: as `_feed`'s, called only between one time's sightings and the next.
     """
     ekf = associating.ekf
-    done, i, n = 0, 0, len(upto)
-    while i < n:
+    done = 0
+    for i, k in _one_time_groups(det_time):
         if pause is not None:
             pause(i, done)
-        k = i + 1
-        while k < n and det_time[k] == det_time[i]:  # one image's (one time's) sightings
-            k += 1
         p = upto[i]
         if p > done:
             ekf.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
             done = p
-        # the turn rate of the piece that ends at the sightings (a time-stamp error moves bearings)
-        omega = us[p - 1, 2] / dts[p - 1] if p > 0 and dts[p - 1] > 0 else 0.0
-        associating.observe(det_z[i:k], Q, det_time[i], omega)
-        i = k
+        associating.observe(det_z[i:k], Q, det_time[i], _turn_rate(us, dts, p))
     if pause is not None:
-        pause(n, done)
+        pause(len(upto), done)
     if done < len(us):
         ekf.predict_many(us[done:], dts[done:], ends[done:], M, R)
 
@@ -395,22 +389,33 @@ def decisions_from_known_state(
     judge = AssociatingFilter(ekf, association)
     upto, us, dts, ends, M, R, det_id, det_time, det_z, Q = _schedule(run, noise)
     chosen: list[int] = []
-    done, i, n = 0, 0, len(upto)
+    done = 0
     with np.errstate(all="ignore"):
-        while i < n:
-            k = i + 1
-            while k < n and det_time[k] == det_time[i]:
-                k += 1
+        for i, k in _one_time_groups(det_time):
             p = upto[i]
             if p > done:
                 ekf.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
                 done = p
-            omega = us[p - 1, 2] / dts[p - 1] if p > 0 and dts[p - 1] > 0 else 0.0
-            chosen += judge.decide(det_z[i:k], Q, omega)
+            chosen += judge.decide(det_z[i:k], Q, _turn_rate(us, dts, p))
             for a in range(i, k):
                 ekf.update(det_id[a], det_z[a], Q, det_time[a])
-            i = k
     return np.array(chosen, dtype=np.int64)
+
+
+def _one_time_groups(det_time) -> Iterator[tuple[int, int]]:
+    """(i, k) for each run of detections i..k-1 taken at one time (one image's sightings)."""
+    i, n = 0, len(det_time)
+    while i < n:
+        k = i + 1
+        while k < n and det_time[k] == det_time[i]:
+            k += 1
+        yield i, k
+        i = k
+
+
+def _turn_rate(us, dts, p: int) -> float:
+    """rad/s of the piece that ends at the sightings (a time-stamp error moves bearings)."""
+    return us[p - 1, 2] / dts[p - 1] if p > 0 and dts[p - 1] > 0 else 0.0
 
 
 def _check_finite(ekf: EKFSLAM, where: str) -> None:
