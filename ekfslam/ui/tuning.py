@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
 
@@ -46,7 +46,7 @@ Compute = Callable[[RunLog, NoiseConfig, FilterConfig], tuple[ReplayResult, RunS
 #: An installed wheel ships no runs; `seed_runs` then says so and asks for the folder.
 RUNS_DIR = Path(__file__).resolve().parents[2] / "data" / "runs"
 SEED_RUNS = ("square-2laps", "octagon-2laps")
-DEFAULT_FIGSIZE = (9.0, 6.0)
+DEFAULT_FIGSIZE = (9.0, 6.6)
 #: NIS gates offered (chi-square, 2 dof); 0 turns gating off, as on the command line.
 GATES = {
     "off": 0.0,
@@ -92,6 +92,9 @@ SLIDERS = (
 
 SPECS = {spec.field: spec for spec in SLIDERS}
 
+#: The names `apply_changes` takes as R and Q: the sliders' `NoiseConfig` fields.
+NOISE_FIELDS = frozenset(SPECS)
+
 
 @dataclass(frozen=True)
 class TunerSettings:
@@ -106,7 +109,7 @@ def apply_changes(settings: TunerSettings, changes: Mapping[str, object]) -> Tun
     """New settings from widget values: ``run``, a `NoiseConfig` field (a slider's value in its
     units, not its exponent), ``init`` ("inverse" or "seed") or ``gate`` (a NIS threshold; 0 or
     None is off). Raises ValueError for an unknown name or a value the configs refuse."""
-    noise = {k: float(v) for k, v in changes.items() if k in {f.name for f in fields(NoiseConfig)}}
+    noise = {k: float(v) for k, v in changes.items() if k in NOISE_FIELDS}
     config: dict[str, object] = {}
     if "init" in changes:
         config["init"] = changes["init"]
@@ -181,7 +184,7 @@ class Tuner:
     Parameters
     ----------
     runs : {name: loader} (see `seed_runs`); each loaded once.
-    figure : the Figure to draw on (an ipympl one in the panel; any in tests), default 9x6 in.
+    figure : the Figure to draw on (an ipympl one in the panel; any in tests), default 9x6.6 in.
     settings : where to start; default the first run with its `default_noise`.
     schedule : how to defer work (see `Coalescer`); default: the kernel's loop, or at once.
     raise_errors : re-raise exceptions from an update (tests); otherwise they go to `on_error`.
@@ -208,6 +211,7 @@ class Tuner:
             raise ValueError("a Tuner needs at least one run")
         self.runs = dict(runs)
         self._loaded: dict[str, RunLog] = {}
+        self._tuned: dict[NoiseConfig, NoiseConfig] = {}  # a run's defaults -> last noise used
         if settings is None:
             first = next(iter(self.runs))
             settings = TunerSettings(first, default_noise(self.load(first)))
@@ -253,15 +257,33 @@ class Tuner:
 
     def apply(self, **changes: object) -> TunerState:
         """Change settings and re-run now, raising any error: for code cells and tests."""
-        self.settings = apply_changes(self.settings, changes)
+        self.settings = apply_changes(self._run_noise(changes), changes)
         self._coalescer.cancel()
         self._render_now(self.settings)
         return self.state
 
     def _set(self, changes: Mapping[str, object]) -> None:
         self._changes += 1
-        self.settings = apply_changes(self.settings, changes)
+        self.settings = apply_changes(self._run_noise(changes), changes)
         self._coalescer.request(self.settings)
+
+    def _run_noise(self, changes: Mapping[str, object]) -> TunerSettings:
+        """The settings `changes` apply to: R and Q follow a change to a run with other noise.
+
+        A seed run's σr of 3 cm on a MRCLAM robot (σr 0.3 m) loses the robot: a new run whose
+        `default_noise` differs from the old one's starts from the noise last used on runs with
+        its defaults (its defaults the first time), and the old run's tuning is kept for the way
+        back. Between runs with the same defaults (the seed's square and octagon) R and Q stay,
+        so the two compare at one setting. Noise named in `changes` is applied on top.
+        """
+        run = str(changes.get("run", self.settings.run))
+        if run == self.settings.run:
+            return self.settings
+        old, new = (default_noise(self.load(name)) for name in (self.settings.run, run))
+        if old == new:
+            return self.settings
+        self._tuned[old] = self.settings.noise
+        return replace(self.settings, noise=self._tuned.get(new, new))
 
     def _render(self, settings: TunerSettings) -> None:
         self._guard(self._render_now, settings)

@@ -49,7 +49,9 @@ class TuningView:
         # A fixed layout: constrained layout would re-measure every tick label on every redraw
         # (about half the drawing time here), and the boxes must not move while a slider does.
         fig.set_layout_engine("none")
-        fig.subplots_adjust(left=0.09, right=0.985, bottom=0.09, top=0.86, wspace=0.22)
+        # The legends sit under their axes, off the data: in the map's top corner the legend hid
+        # two or three tags of a MRCLAM robot, and in the NIS plot the gated points
+        fig.subplots_adjust(left=0.09, right=0.985, bottom=0.2, top=0.875, wspace=0.22)
         self.map_ax, self.nis_ax = fig.subplots(1, 2, width_ratios=(1.45, 1))
         ax = self.map_ax
         # The truth changes only with the run: drawn with the cached background (see `_truth`),
@@ -75,15 +77,35 @@ class TuningView:
         ax.locator_params(nbins=5)  # every tick label is typeset again on every redraw
         ax.set(xlabel="x (m)", ylabel="y (m)", title="map and path (Figure 2)")
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper right", fontsize=11, framealpha=0.8)
+        ax.legend(
+            loc="upper center",
+            bbox_to_anchor=(0.5, -0.1),
+            ncol=3,
+            fontsize=11,
+            frameon=False,
+            handlelength=1.5,
+            columnspacing=1.0,
+        )
         n = self.nis_ax
         (self.accepted,) = n.plot([], [], ".", color="tab:blue", ms=3, label="accepted")
         (self.rejected,) = n.plot([], [], "x", color="tab:red", ms=4, label="rejected by gate")
         self.gate_line = n.axhline(math.log10(CHI2_2DOF_99), color="tab:red", lw=1, label="gate")
         n.axhline(math.log10(2.0), color="k", ls="--", lw=1, label="χ²(2) mean = 2")
-        n.set(xlabel="time (s)", ylabel="NIS (log scale)", title="NIS of each update (eqs. 13-15)")
+        n.set(
+            xlabel="time since the start (s)",
+            ylabel="NIS (log scale)",
+            title="NIS of each update (eqs. 13-15)",
+        )
         n.grid(True, alpha=0.3)
-        n.legend(loc="upper right", fontsize=11, framealpha=0.8)
+        n.legend(
+            loc="upper right",
+            bbox_to_anchor=(1.0, -0.1),
+            ncol=2,
+            fontsize=11,
+            frameon=False,
+            handlelength=1.5,
+            columnspacing=1.0,
+        )
         # The Table 1 header never changes: a suptitle drawn with the background; the row under
         # it is data (typesetting monospace text is a good part of a blitted move).
         self.header = fig.suptitle("", family="monospace", fontsize=TITLE_PT)
@@ -191,9 +213,12 @@ class TuningView:
 
     def _show_nis(self, result: ReplayResult) -> None:
         h = result.history
+        # time since the run's start: a MRCLAM log's clock is Unix time (1.2e9 s), which would
+        # leave the axis an offset label and ticks of +6200 s
+        t0 = float(h.t[0]) if len(h.t) else 0.0
         for line, outcome in ((self.accepted, Outcome.ACCEPTED), (self.rejected, Outcome.REJECTED)):
             mask = h.outcome_mask(outcome)
-            line.set_data(h.obs_t[mask], np.log10(np.maximum(h.obs_nis[mask], NIS_FLOOR)))
+            line.set_data(h.obs_t[mask] - t0, np.log10(np.maximum(h.obs_nis[mask], NIS_FLOOR)))
         gate = result.config.gate
         self.gate_line.set_visible(gate is not None)
         self.gate_line.set_ydata([math.log10(gate or 1.0)] * 2)
@@ -208,8 +233,8 @@ class TuningView:
             step = max(1, math.ceil((top - bottom) / 7))
             ticks = list(range(bottom, top + 1, step))
             self.nis_ax.set_yticks(ticks, [f"{10.0**k:g}" for k in ticks])
-        t = h.t if len(h.t) else np.array([0.0, 1.0])
-        self.nis_ax.set_xlim(float(t[0]), float(t[-1]) + 1e-9)
+        span = float(h.t[-1]) - t0 if len(h.t) else 1.0
+        self.nis_ax.set_xlim(0.0, span + 1e-9)
 
 
 def status_text(summary: RunSummary, seed: Row | None = None) -> str:

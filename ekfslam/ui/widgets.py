@@ -137,6 +137,7 @@ class TuningPanel:
         text under the figure is updated before this returns."""
         self._show_values(changes)
         state = self.tuner.apply(**changes)
+        self._follow_noise()
         self._status.flush()
         return state
 
@@ -170,6 +171,16 @@ class TuningPanel:
             if math.isclose(change["new"], getattr(self.tuner.settings.noise, name), rel_tol=1e-9):
                 return
         self.tuner.set(**{name: change["new"]})
+        if name == "run":  # a run with other documented noise brings its own R and Q
+            self._follow_noise()
+
+    def _follow_noise(self) -> None:
+        """The sliders to the tuner's R and Q (they change with the run: `Tuner.set`)."""
+        noise = self.tuner.settings.noise
+        shown = {n: self.sliders[n].value for n in self.sliders}
+        values = {n: getattr(noise, n) for n in self.sliders}
+        if any(not math.isclose(shown[n], values[n], rel_tol=1e-9) for n in values):
+            self._show_values(values)
 
     def _reset(self, _button: object) -> None:
         try:
@@ -234,7 +245,7 @@ def tuning_panel(
 ) -> TuningPanel:
     """The live tuning panel over `runs` (default: the seed runs), drawn once before returning.
 
-    Use after ``%matplotlib widget``; the figure is then an ipympl canvas (9x6 in), on which a
+    Use after ``%matplotlib widget``; the figure is then an ipympl canvas (9x6.6 in), on which a
     move redraws only the data (`blit`, see `ekfslam.ui.blit`; False: a full draw each time).
     """
     if figure is None:
