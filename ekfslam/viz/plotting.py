@@ -367,6 +367,10 @@ def update_figure(
     state(d, mu0, S0, ":", "prior", alpha=0.6)
     state(d, mu1, S1, "-", "posterior")
     d.set_title("(d) posterior (eq. 16, Joseph form): ellipses shrink")
-    for ax in (a, b, c, d):
-        ax.legend(loc="best", fontsize=11, framealpha=0.85)
+    c.legend(loc="best", fontsize=11, framealpha=0.85)
+    # the maps' legends (up to five entries, two of them long) cover an ellipse wherever they go
+    # inside the axes: under them
+    for ax in (a, b, d):
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=11,
+                  frameon=False)  # fmt: skip
     return fig

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Ellipse
 
@@ -94,6 +95,22 @@ def test_update_figure_has_four_panels_and_the_corrections() -> None:
     count = [sum(isinstance(p, Ellipse) for p in ax.patches) for ax in fig.axes]
     assert count[0] == 3 and count[3] == 6
     fig.canvas.draw()  # renders without error
+
+
+def test_update_figure_keeps_the_map_legends_off_the_maps() -> None:
+    """Regression: panel (b)'s legend, placed "best" inside, covered an ellipse in notebook 05."""
+    mu = np.array([0.0, 0.0, 0.2, 1.0, 0.5, -0.5, 1.0])
+    Sigma = np.diag([1e-3, 1e-3, 1e-3, 4e-3, 4e-3, 9e-3, 9e-3])
+    steps = update_steps(mu, Sigma, 0, [1.15, 0.25], np.diag([1e-3, 1e-3]))
+    fig = update_figure(steps, [2, 5], truth={2: [1.0, 0.55], 5: [-0.5, 1.0]})
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.draw(renderer)
+    for k in (0, 1, 3):  # (a), (b), (d): the maps
+        ax = fig.axes[k]
+        legend = ax.get_legend().get_window_extent(renderer)
+        assert not legend.overlaps(ax.get_window_extent(renderer)), ax.get_title()
+        page = fig.bbox.padded(1.0)  # constrained layout sets the lowest one flush on the edge
+        assert page.contains(legend.x0, legend.y0) and page.contains(legend.x1, legend.y1)
 
 
 def test_figure2_says_before_alignment_and_draws_the_aligned_map_beside_it() -> None:
