@@ -79,11 +79,14 @@ def browser():
 def _jupyter_home(tmp: Path) -> dict[str, str]:
     """Environment for a server whose every Jupyter folder is under `tmp`."""
     env = jupyter_home(tmp)
-    # JupyterLab: no autosave (the copy is throwaway anyway), no news or update checks, and no
-    # debugger (its probe of a starting kernel races with "Run All").
+    # JupyterLab: no autosave (the copy is throwaway anyway), no news or update checks, no
+    # debugger (its probe of a starting kernel races with "Run All"), and every cell kept in the
+    # page: by default cells scrolled far out of view are emptied ("windowing"), and their
+    # execution count with them, so "every cell ran" could not be read off the page.
     settings = {
         "apputils-extension/notification": {"fetchNews": "false", "checkForUpdates": False},
         "docmanager-extension/plugin": {"autosave": False},
+        "notebook-extension/tracker": {"windowingMode": "none"},
     }
     for name, value in settings.items():
         path = tmp / "settings" / "@jupyterlab" / f"{name}.jupyterlab-settings"
