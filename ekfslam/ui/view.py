@@ -29,6 +29,10 @@ TITLE_PT = 9.5  # the Table 1 text above the axes (points)
 NIS_FLOOR = 1e-2
 
 
+#: How both legends sit under their axes, off the data.
+UNDER_AXES = {"fontsize": 11, "frameon": False, "handlelength": 1.5, "columnspacing": 1.0}
+
+
 class TuningView:
     """The panel's figure: built once, then `show` moves its artists (never adds axes).
 
@@ -77,15 +81,7 @@ class TuningView:
         ax.locator_params(nbins=5)  # every tick label is typeset again on every redraw
         ax.set(xlabel="x (m)", ylabel="y (m)", title="map and path (Figure 2)")
         ax.grid(True, alpha=0.3)
-        ax.legend(
-            loc="upper center",
-            bbox_to_anchor=(0.5, -0.1),
-            ncol=3,
-            fontsize=11,
-            frameon=False,
-            handlelength=1.5,
-            columnspacing=1.0,
-        )
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, **UNDER_AXES)
         n = self.nis_ax
         (self.accepted,) = n.plot([], [], ".", color="tab:blue", ms=3, label="accepted")
         (self.rejected,) = n.plot([], [], "x", color="tab:red", ms=4, label="rejected by gate")
@@ -97,15 +93,7 @@ class TuningView:
             title="NIS of each update (eqs. 13-15)",
         )
         n.grid(True, alpha=0.3)
-        n.legend(
-            loc="upper right",
-            bbox_to_anchor=(1.0, -0.1),
-            ncol=2,
-            fontsize=11,
-            frameon=False,
-            handlelength=1.5,
-            columnspacing=1.0,
-        )
+        n.legend(loc="upper right", bbox_to_anchor=(1.0, -0.1), ncol=2, **UNDER_AXES)
         # The Table 1 header never changes: a suptitle drawn with the background; the row under
         # it is data (typesetting monospace text is a good part of a blitted move).
         self.header = fig.suptitle("", family="monospace", fontsize=TITLE_PT)
