@@ -57,7 +57,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     _runs_and_trajectory(p)
     _linearization(p, "standard")
     _seed(p)
-    _gate(p)
+    _gate(p, off=True)
     p.add_argument("--wheel-noise", type=ca.non_negative(10.0, why="rad/s"),
                    help="override the scenario's wheel noise, rad/s")  # fmt: skip
     add_parallel_arguments(p)
@@ -146,7 +146,15 @@ def _seed(p: argparse.ArgumentParser) -> None:
                    help="seed of the first run (then +1, +2...)")  # fmt: skip
 
 
-def _gate(p: argparse.ArgumentParser) -> None:
+def _gate(p: argparse.ArgumentParser, off: bool = False) -> None:
+    """--gate; off: the default is no gate (the outlier-free ``nees`` study, `STUDY_GATE`)."""
+    if off:
+        p.add_argument(
+            "--gate", type=ca.non_negative(1e6), default=0.0,
+            help=f"NIS gate; default off (0): the runs have no outliers, and a gate would drop "
+            f"the largest true innovations (the filter's is {CHI2_2DOF_99:.2f})",
+        )  # fmt: skip
+        return
     p.add_argument(
         "--gate", type=ca.non_negative(1e6), default=CHI2_2DOF_99,
         help="NIS gate; 0 turns it off (%(default).2f)",
