@@ -207,6 +207,7 @@ class Consistency:
     noise: NoiseConfig
     gate: float | None
     seconds: float
+    iterations: int = 1  # `FilterConfig.iterations`: linearisations per update
 
     @property
     def confidence(self) -> float:
@@ -260,6 +261,7 @@ class Consistency:
             },
             "updates": dataclasses.asdict(self.counts),
             "gate": self.gate,
+            "iterations": self.iterations,
             "noise": dataclasses.asdict(self.noise),
             "seconds": self.seconds,
         }
@@ -273,6 +275,7 @@ def monte_carlo(
     gate: float | None = STUDY_GATE,
     first_seed: int = 0,
     wheel_noise_sigma: float | None = None,
+    iterations: int = 1,
     jobs: int | None = 1,
     dask: str | None = None,
 ) -> Consistency:
@@ -283,7 +286,8 @@ def monte_carlo(
     no outliers) unless given. See `Consistency` for what comes back.
     """
     return compare(name, runs, (linearization,), gate=gate, first_seed=first_seed,
-                   wheel_noise_sigma=wheel_noise_sigma, jobs=jobs, dask=dask)[0]  # fmt: skip
+                   wheel_noise_sigma=wheel_noise_sigma, iterations=iterations, jobs=jobs,
+                   dask=dask)[0]  # fmt: skip
 
 
 def compare(
@@ -294,17 +298,24 @@ def compare(
     gate: float | None = STUDY_GATE,
     first_seed: int = 0,
     wheel_noise_sigma: float | None = None,
+    iterations: int = 1,
     jobs: int | None = 1,
     dask: str | None = None,
 ) -> tuple[Consistency, ...]:
     """`monte_carlo` for several linearizations on the very same simulated runs.
+
+    iterations : `FilterConfig.iterations` (the iterated update) for the filters that take it;
+    FEJ always runs with one.
 
     jobs, dask : where the runs go (`ekfslam.analysis.parallel.run_tasks`): one task per seed,
     the same numbers whatever the backend (only `seconds` differs).
     """
     if runs < 1:
         raise ValueError(f"runs must be at least 1, got {runs}")
-    configs = [FilterConfig(linearization=lin, gate=gate) for lin in linearizations]
+    configs = [
+        FilterConfig(linearization=lin, gate=gate, iterations=1 if lin == "fej" else iterations)
+        for lin in linearizations
+    ]
     tasks = [(name, first_seed + i, wheel_noise_sigma, configs) for i in range(runs)]
     done = run_tasks(_one_run, tasks, jobs, dask)
     noise = done[-1][1]
@@ -374,6 +385,7 @@ def _average(name, errors, config, counts, noise, seconds) -> Consistency:
         noise=noise,
         gate=config.gate,
         seconds=seconds,
+        iterations=config.iterations,
     )
 
 
