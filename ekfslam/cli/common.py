@@ -102,7 +102,7 @@ def noise_from_args(
     noise = replace(base, **overrides)  # validated again, as a new NoiseConfig
     config = replace(
         default_config(run), init=args.init, gate=None if args.gate == 0 else args.gate,
-        linearization=args.linearization,
+        linearization=args.linearization, iterations=args.iterations,
     )  # fmt: skip
     if args.reinit_after is not None:
         config = replace(config, reinit_after=args.reinit_after or None)
