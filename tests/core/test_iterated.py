@@ -145,6 +145,8 @@ def test_iterations_are_checked():
         FilterConfig(iterations=0)
     with pytest.raises(ConfigError, match="iterations"):
         FilterConfig(iterations=2.0)
+    with pytest.raises(ConfigError, match="iterations"):
+        FilterConfig(iterations=True)
     with pytest.raises(ConfigError, match="FEJ"):
         FilterConfig(linearization="fej", iterations=2)
     assert FilterConfig().iterations == 1

@@ -105,7 +105,9 @@ class FilterConfig:
             raise ConfigError("reinit_radius must be positive")
         if self.initial_capacity < 1:
             raise ConfigError("initial_capacity must be at least 1")
-        if not (isinstance(self.iterations, int) and 1 <= self.iterations <= 100):
+        if isinstance(self.iterations, bool) or not (
+            isinstance(self.iterations, int) and 1 <= self.iterations <= 100
+        ):
             raise ConfigError(
                 f"iterations must be a whole number 1 to 100, got {self.iterations!r}"
             )
