@@ -378,27 +378,10 @@ def add_noise_arguments(p: argparse.ArgumentParser) -> None:
         help="NIS gate (chi-square, 2 dof); 0 turns gating off (default: %(default).2f)",
     )  # fmt: skip
     g.add_argument(
-        "--iterations", type=whole(1, 100), default=1,
-        help="linearisations per update: 1 is the EKF (default), more the iterated EKF, each "
-        "further step taken only if it fits the sighting and the prior better (standard or "
-        "invariant)",
-    )  # fmt: skip
-    if isinstance(p, Parser):
-        p.add_check(_iterations_need_a_linearisation_that_moves)
-    g.add_argument(
         "--reinit-after", type=whole(2, 10**6, also=(0,)),
         help="re-initialise a landmark after this many agreeing rejected sightings; 0: never "
         "(default: 3, but never for MRCLAM)",
     )  # fmt: skip
-
-
-def _iterations_need_a_linearisation_that_moves(args: argparse.Namespace) -> str | None:
-    if args.iterations > 1 and args.linearization == "fej":
-        return (
-            "argument --iterations: only with --linearization standard or invariant (FEJ keeps "
-            "each Jacobian at its first estimate)"
-        )
-    return None
 
 
 def triple_check(option: str, bounds: tuple[float, float, float], names: tuple[str, ...]) -> Check:
