@@ -10,6 +10,8 @@ literally: `Sigma` is then the covariance of the invariant error ξ, the motion 
 full-size identity, the observation Jacobian is eq. (14)'s lifted H times the full-size error map
 T(μ̂) of `ekfslam.core.invariant` (H_ξ = H T), and the mean moves by the group exponential;
 `cartesian_Sigma` is T Σ Tᵀ, what the fast filter reports.
+With `iterations` > 1 the update is the iterated one of `ekfslam.core.filter.iterated`, each
+linearisation full size (`_iterate`).
 The covariance update is Joseph's form (I - KH) Σ (I - KH)ᵀ + K Q Kᵀ, which for the optimal gain
 equals the seed's eq. (16) (I - KH) Σ but stays symmetric and positive semi-definite.
 """
