@@ -8,8 +8,10 @@ exp(δ) x̂, each iteration i linearises h at x_i = x(δ_i):
 
     r_i = z - h(x_i) + H_i δ_i,   K_i = Σ H_iᵀ (H_i Σ H_iᵀ + Q)⁻¹,   δ_{i+1} = K_i r_i,
 
-and the last one is the ordinary update of eqs. (15)-(16) with H_N and r_N in place of H and ν:
-μ <- x(K_N r_N), Σ <- Σ - K_N S_N K_Nᵀ. Iteration 1 is the plain EKF.
+with H_i eq. (14)'s Jacobian at x_i (for ξ, to first order in the composition: exp(δ) x̂ is
+taken as exp(δ - δ_i) x_i). The last one is the ordinary update of eqs. (15)-(16) with H_N
+and r_N in place of H and ν: μ <- x(K_N r_N), Σ <- Σ - K_N S_N K_Nᵀ. Iteration 1 is the plain
+EKF.
 
 Plain Gauss-Newton can climb: with the heading uncertain and a landmark just placed by eq. (12),
 its steps in the Cartesian coordinates overshoot and oscillate (the tests have such a case). So
@@ -20,7 +22,7 @@ EKF's). The iterations stop once a step moves no entry of δ by `TOLERANCE` or m
 cost difference is lost in rounding.
 
 Only five entries of δ move h and H (the pose and the landmark seen), so the iterations run on
-the 5x5 block of Σ they need, O(1) each; this module returns the last linearisation as an
+the 5x5 block of Σ they need, O(1) each; this module returns the linearisation to take as an
 equivalent observation z' = h(x̂) + r_N and the relative position at which to evaluate H, and
 `ekfslam.core.filter.kernels.correct` then commits it in its usual O(n²) pass. The gate, and the
 innovation, S and NIS recorded in the history, are the first linearisation's: the iterations
