@@ -4,7 +4,8 @@
 
 - full replays of ``data/runs/octagon-2laps`` and ``square-2laps`` (ms, filter events per second),
   the octagon also with ``FilterConfig(linearization="fej")`` and ``"invariant"`` (their cost
-  relative to standard; the invariant EKF's prediction is O(n²), its noise reaching the map);
+  relative to standard; the invariant EKF's prediction is O(n²), its noise reaching the map),
+  and the invariant EKF with the iterated update (`ITERATED`) relative to the plain invariant one;
 - one `EKFSLAM.predict` and one `EKFSLAM.update` against n in `SIZES`, for the efficient filter
   and the literal F_x reference (`ekfslam.teaching.reference`, O(n^3): skipped, reported as null,
   where one step would take more than `LITERAL_MAX_STEP_S`), their ratio, the log-log slope of the
@@ -30,7 +31,7 @@ import platform
 import statistics
 import time
 import tracemalloc
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -57,6 +58,8 @@ MAX_SIZE = 2000
 LITERAL_MAX_STEP_S = 2.0
 RUNS = {"octagon": "octagon-2laps", "square": "square-2laps"}
 MRCLAM_ROBOT = 1
+#: the iterated update measured against the plain invariant EKF (`FilterConfig.iterations`)
+ITERATED = FilterConfig(linearization="invariant", iterations=3)
 
 
 #: The repeat counts of `BenchConfig` (``--repeats`` sets them all).
@@ -124,7 +127,7 @@ def bench_replays(config: BenchConfig) -> dict:
     """Median replay times of the seed's runs (ms), events/s, and FEJ's cost on the octagon."""
     out: dict = {
         "replay_ms": {}, "replay_events_per_s": {}, "fej_vs_standard": {},
-        "invariant_vs_standard": {},
+        "invariant_vs_standard": {}, "iterated_vs_invariant": {},
     }  # fmt: skip
     folder = config.runs_dir
     if folder is None or not all((folder / name).is_dir() for name in RUNS.values()):
@@ -132,11 +135,13 @@ def bench_replays(config: BenchConfig) -> dict:
             out["replay_ms"][key] = out["replay_events_per_s"][key] = None
         out["fej_vs_standard"]["replay_octagon"] = None
         out["invariant_vs_standard"]["replay_octagon"] = None
+        out["iterated_vs_invariant"]["replay_octagon"] = None
         return out
     runs = {key: read_run(folder / name) for key, name in RUNS.items()}
     cases = {key: (run, None) for key, run in runs.items()}
     for lin in ("fej", "invariant"):
         cases[lin] = (runs["octagon"], FilterConfig(linearization=lin))
+    cases["iterated"] = (runs["octagon"], ITERATED)
     events = {key: len(replay(run, config=c).history.t) for key, (run, c) in cases.items()}
     times: dict[str, list[float]] = {key: [] for key in cases}
     for _ in range(config.replay_repeats):  # interleaved: a busy spell hits every case alike
@@ -153,6 +158,9 @@ def bench_replays(config: BenchConfig) -> dict:
         out[f"{lin}_vs_standard"]["replay_octagon"] = statistics.median(
             times[lin]
         ) / statistics.median(times["octagon"])
+    out["iterated_vs_invariant"]["replay_octagon"] = statistics.median(
+        times["iterated"]
+    ) / statistics.median(times["invariant"])
     return out
 
 
@@ -236,7 +244,7 @@ def bench_sizes(config: BenchConfig) -> dict:
     eff: dict = {"predict": {}, "update": {}}
     lit: dict = {"predict": {}, "update": {}}
     last = None  # (d, seconds) of the latest literal step, to predict the next one's cost
-    fej, inv = {}, {}
+    fej, inv, iterated = {}, {}, {}
     # (100, 1000) when measured, else the smallest and largest size (a tiny smoke run)
     lo = 100 if 100 in config.sizes else min(config.sizes)
     hi = 1000 if 1000 in config.sizes else max(config.sizes)
@@ -245,9 +253,13 @@ def bench_sizes(config: BenchConfig) -> dict:
         if n == lo:
             g, _ = map_of(n, FilterConfig(gate=None, linearization="fej"))
             h, _ = map_of(n, FilterConfig(gate=None, linearization="invariant"))
-            (p, u), (pg, ug), (ph, uh) = _step_costs([f, g, h], zs, config.step_repeats)
+            k, _ = map_of(n, replace(ITERATED, gate=None))
+            (p, u), (pg, ug), (ph, uh), (pk, uk) = _step_costs([f, g, h, k], zs,
+                                                               config.step_repeats)  # fmt: skip
             fej = {"update_n": n, "predict": pg / p, "update": ug / u}
             inv = {"update_n": n, "predict": ph / p, "update": uh / u, "step": (ph + uh) / (p + u)}
+            iterated = {"update_n": n, "update": uk / uh, "step": (pk + uk) / (ph + uh),
+                        "step_vs_standard": (pk + uk) / (p + u)}  # fmt: skip
         else:
             [(p, u)] = _step_costs([f], zs, config.step_repeats)
         eff["predict"][n], eff["update"][n] = p, u
@@ -276,6 +288,7 @@ def bench_sizes(config: BenchConfig) -> dict:
         "inplace_pass_s": one_pass,
         "fej_step": fej,
         "invariant_step": inv,
+        "iterated_step": iterated,
     }
 
 

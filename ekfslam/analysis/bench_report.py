@@ -81,6 +81,15 @@ def markdown_table(r: dict) -> str:
             f"{_fmt(inv.get('update'), digits=2)}x and predict + update "
             f"{_fmt(inv.get('step'), digits=2)}x at n = {inv.get('update_n')}"
         )
+    it = r.get("iterated_step")
+    if it:  # results written before the iterated update have none
+        lines.append(
+            f"- iterated (3 linearisations) / invariant: octagon replay "
+            f"{_fmt(r['iterated_vs_invariant']['replay_octagon'], digits=2)}x, update "
+            f"{_fmt(it.get('update'), digits=2)}x and predict + update "
+            f"{_fmt(it.get('step'), digits=2)}x at n = {it.get('update_n')} "
+            f"({_fmt(it.get('step_vs_standard'), digits=2)}x the standard step)"
+        )
     lines += association_lines(r)
     if "startup_s" in r:  # results written before the startup section have none
         lines += startup_lines(r)

@@ -88,6 +88,25 @@ def with_start(run: RunLog, args: argparse.Namespace) -> RunLog:
     return replace(run, meta=replace(run.meta, nominal_start=np.array(start, dtype=np.float64)))
 
 
+def add_iterations_argument(p: ca.Parser) -> None:
+    """``--iterations N``, the iterated update (`FilterConfig.iterations`), for `noise_from_args`;
+    with ``--linearization fej`` one line naming it (FEJ keeps each Jacobian where it was first
+    evaluated)."""
+    p.add_argument(
+        "--iterations", type=ca.whole(1, 100), default=1,
+        help="linearisations per update: 1 is the EKF (default), more the iterated EKF, each "
+        "further step taken only if it fits the sighting and the prior better (standard or "
+        "invariant)",
+    )  # fmt: skip
+
+    def check(args: argparse.Namespace) -> str | None:
+        if args.iterations > 1 and args.linearization == "fej":
+            return "argument --iterations: only with --linearization standard or invariant"
+        return None
+
+    p.add_check(check)
+
+
 def noise_from_args(
     args: argparse.Namespace, run: RunLog, base: NoiseConfig | None = None
 ) -> tuple[NoiseConfig, FilterConfig]:
@@ -102,7 +121,7 @@ def noise_from_args(
     noise = replace(base, **overrides)  # validated again, as a new NoiseConfig
     config = replace(
         default_config(run), init=args.init, gate=None if args.gate == 0 else args.gate,
-        linearization=args.linearization,
+        linearization=args.linearization, iterations=args.iterations,
     )  # fmt: skip
     if args.reinit_after is not None:
         config = replace(config, reinit_after=args.reinit_after or None)

@@ -57,9 +57,10 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     _runs_and_trajectory(p)
     _linearization(p, "standard")
     _seed(p)
-    _gate(p)
+    _gate(p, off=True)
     p.add_argument("--wheel-noise", type=ca.non_negative(10.0, why="rad/s"),
                    help="override the scenario's wheel noise, rad/s")  # fmt: skip
+    _iterations(p)
     add_parallel_arguments(p)
     ca.add_json_argument(p)
     ca.add_plot_argument(p, "draw the averages and their bands to FILE")
@@ -141,12 +142,26 @@ def _linearization(p: argparse.ArgumentParser, default: str) -> None:
                    "(default: %(default)s)")  # fmt: skip
 
 
+def _iterations(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--iterations", type=ca.whole(1, 100), default=1,
+                   help="linearisations per update: 1 is the EKF, more the iterated EKF "
+                   "(standard and invariant; FEJ keeps 1; default: %(default)s)")  # fmt: skip
+
+
 def _seed(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=ca.seed(), default=0,
                    help="seed of the first run (then +1, +2...)")  # fmt: skip
 
 
-def _gate(p: argparse.ArgumentParser) -> None:
+def _gate(p: argparse.ArgumentParser, off: bool = False) -> None:
+    """--gate; off: the default is no gate (the outlier-free ``nees`` study, `STUDY_GATE`)."""
+    if off:
+        p.add_argument(
+            "--gate", type=ca.non_negative(1e6), default=0.0,
+            help=f"NIS gate; default off (0): the runs have no outliers, and a gate would drop "
+            f"the largest true innovations (the filter's is {CHI2_2DOF_99:.2f})",
+        )  # fmt: skip
+        return
     p.add_argument(
         "--gate", type=ca.non_negative(1e6), default=CHI2_2DOF_99,
         help="NIS gate; 0 turns it off (%(default).2f)",
@@ -166,7 +181,8 @@ def cmd_nees(args: argparse.Namespace) -> int:
     lins = _linearizations(args)
     results = compare(
         args.trajectory, args.runs, lins, gate=None if args.gate == 0 else args.gate,
-        first_seed=args.seed, wheel_noise_sigma=args.wheel_noise, jobs=args.jobs, dask=args.dask,
+        first_seed=args.seed, wheel_noise_sigma=args.wheel_noise, iterations=args.iterations,
+        jobs=args.jobs, dask=args.dask,
     )  # fmt: skip
     out = {r.linearization: r.as_dict() for r in results}
     if args.plot is not None:
@@ -262,7 +278,8 @@ def nees_table(r: Consistency) -> str:
     d = r.as_dict()
     lines = [
         f"{r.scenario}, {r.runs} runs, {r.linearization} linearization, "
-        f"gate {'off' if r.gate is None else f'{r.gate:.2f}'}: "
+        f"gate {'off' if r.gate is None else f'{r.gate:.2f}'}"
+        f"{f', {r.iterations} iterations' if r.iterations > 1 else ''}: "
         f"averages over the runs and the {CONFIDENCE:.0%} chi-square band",
         f"{'':<16}{'mean':>8}{'max':>8}   {'band (median)':<16}{'steps in band':>14}",
     ]

@@ -13,7 +13,12 @@ from ekfslam.analysis import association as assoc
 from ekfslam.analysis.evaluation import SEED_TABLE1, RunSummary, seed_experiment, summarize
 from ekfslam.cli import animate as animate_args
 from ekfslam.cli import args as ca
-from ekfslam.cli.common import arena_half_size, load_run, noise_from_args
+from ekfslam.cli.common import (
+    add_iterations_argument,
+    arena_half_size,
+    load_run,
+    noise_from_args,
+)
 from ekfslam.core.association import METHODS
 from ekfslam.files import save_figure
 from ekfslam.logs.mrclam.load import MrclamLoadReport
@@ -55,6 +60,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     )  # fmt: skip
     run.add_check(_match_needs_hidden_ids)
     ca.add_noise_arguments(run)
+    add_iterations_argument(run)
     run.set_defaults(func=cmd_run)
 
 

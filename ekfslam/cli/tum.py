@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from ekfslam.cli import args as ca
-from ekfslam.cli.common import load_run, noise_from_args
+from ekfslam.cli.common import add_iterations_argument, load_run, noise_from_args
 from ekfslam.logs import tum
 from ekfslam.logs.tum import export_tum
 from ekfslam.pipeline import replay
@@ -21,6 +21,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     p.add_argument("--out", type=ca.output_folder, required=True,
                    help="folder for the .tum files (created if missing)")  # fmt: skip
     ca.add_noise_arguments(p)
+    add_iterations_argument(p)
     p.set_defaults(func=cmd_tum)
 
 

@@ -10,6 +10,8 @@ literally: `Sigma` is then the covariance of the invariant error ξ, the motion 
 full-size identity, the observation Jacobian is eq. (14)'s lifted H times the full-size error map
 T(μ̂) of `ekfslam.core.invariant` (H_ξ = H T), and the mean moves by the group exponential;
 `cartesian_Sigma` is T Σ Tᵀ, what the fast filter reports.
+With `iterations` > 1 the update is the iterated one of `ekfslam.core.filter.iterated`, each
+linearisation full size (`_iterate`).
 The covariance update is Joseph's form (I - KH) Σ (I - KH)ᵀ + K Q Kᵀ, which for the optimal gain
 equals the seed's eq. (16) (I - KH) Σ but stays symmetric and positive semi-definite.
 """
@@ -224,6 +226,8 @@ class LiteralEKFSLAM:
                 ):
                     return self._reinitialise(j, z, Q)
             return self._count(Outcome.REJECTED)
+        if self.config.iterations > 1:  # Gauss-Newton: H and ν again at the updated estimate
+            H, S, nu = self._iterate(j, z, Q, H, S, nu)
         K = self.Sigma @ H.T @ np.linalg.inv(S)  # eq. (15)
         if self._invariant:  # eq. (16) through the group: exp(K ν) X̂
             self.mu = retract(self.mu, K @ nu)
@@ -236,6 +240,46 @@ class LiteralEKFSLAM:
             self._sightings[j] += 1
         self._rejected[j] = []
         return self._count(accepted_as)
+
+    def _iterate(self, j, z, Q, H, S, nu):
+        """The iterated update's linearisation to commit (`ekfslam.core.filter.iterated`).
+
+        x_i = x̂ + δ_i (or exp(δ_i) X̂), r_i = z - h(x_i) + H_i δ_i, δ_{i+1} = K_i r_i, full
+        size; linearisation i >= 1 is taken only if its step lowers the MAP cost
+        ½|z - h(x)|²_Q⁻¹ + ½ δᵀ Σ⁻¹ δ. Returns (H, S, r) for eqs. (15)-(16) in place of (H, S, ν).
+        """
+        n, rows, N = self.n_landmarks, [0, 1, 2, 3 + 2 * j, 4 + 2 * j], self.config.iterations
+        taken, candidate, best = (H, S, nu), None, np.inf
+        w = np.linalg.solve(S, nu)
+        delta, prior = self.Sigma @ H.T @ w, 0.5 * w @ (S - Q) @ w  # δᵀΣ⁻¹δ, δ = Σ Hᵀ w
+        for i in range(1, N + 1):
+            x = retract(self.mu, delta) if self._invariant else self.mu + delta
+            x[2] = wrap_angle(float(x[2]))
+            landmark = x[3 + 2 * j : 5 + 2 * j]
+            H_p, H_l = observation_jacobians(x[:3], landmark)
+            H = np.hstack([H_p, H_l]) @ landmark_lift_matrix_numeric(n, j)
+            if self._invariant:
+                H = H @ error_map(x)
+            S = H @ self.Sigma @ H.T + Q
+            residual = z - observation(x[:3], landmark)
+            residual[1] = wrap_angle(float(residual[1]))
+            cost = 0.5 * residual @ np.linalg.solve(Q, residual) + prior
+            if i >= 2:
+                if not cost < best:
+                    break
+                taken = candidate
+            best = cost
+            if i == N:
+                break
+            candidate = (H, S, residual + H @ delta)
+            w = np.linalg.solve(S, candidate[2])
+            new, prior = self.Sigma @ H.T @ w, 0.5 * w @ (S - Q) @ w
+            moved = np.max(np.abs(new - delta)[rows])
+            delta = new
+            if moved < 1e-7:  # `iterated.TOLERANCE`
+                taken = candidate
+                break
+        return taken
 
     def _count(self, outcome: Outcome) -> Outcome:
         self._counts[outcome.label] += 1

@@ -9,7 +9,7 @@ from dataclasses import fields
 
 import numpy as np
 
-from ekfslam.core.filter import ekf, kernels
+from ekfslam.core.filter import ekf, iterated, kernels
 from ekfslam.core.filter.config import FilterCounts
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.filter.history import OBS_COLUMNS, OBS_ROW, ROW, ROW_COLUMNS, Outcome
@@ -105,18 +105,19 @@ def test_the_filter_names_every_kernel_argument_as_the_kernels_parameter() -> No
     # the kernels are called positionally (numba's keyword folding costs 0.4 µs a call), so the
     # call sites spell each argument with the parameter's name: a swapped pair shows up here
     tree = ast.parse(inspect.getsource(ekf))
+    modules = {"kernels": kernels, "iterated": iterated}
     calls = [
         node
         for node in ast.walk(tree)
         if isinstance(node, ast.Call)
         and isinstance(node.func, ast.Attribute)
         and isinstance(node.func.value, ast.Name)
-        and node.func.value.id == "kernels"
-        and node.func.attr in {"propagate", "correct", "record"}
+        and node.func.value.id in modules
+        and node.func.attr in {"propagate", "correct", "record", "linearise"}
     ]
-    assert sorted(c.func.attr for c in calls) == ["correct", "propagate", "record"]
+    assert sorted(c.func.attr for c in calls) == ["correct", "linearise", "propagate", "record"]
     for call in calls:
-        kernel = getattr(kernels, call.func.attr)
+        kernel = getattr(modules[call.func.value.id], call.func.attr)
         parameters = list(inspect.signature(kernel.py_func).parameters)
         assert not call.keywords
         assert [a.id if isinstance(a, ast.Name) else ast.unparse(a) for a in call.args] == (

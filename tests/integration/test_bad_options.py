@@ -45,6 +45,11 @@ CASES: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "run gate negative": (f"{BAD_RUN} --gate -1", "--gate", ()),
     "run gate nan": (f"{BAD_RUN} --gate nan", "--gate", ()),
     "run gate huge": (f"{BAD_RUN} --gate 1e300", "--gate", ()),
+    "run iterations zero": (f"{BAD_RUN} --iterations 0", "--iterations", ()),
+    "run iterations with fej": (
+        f"{BAD_RUN} --linearization fej --iterations 2", "--iterations", ()
+    ),
+    "consistency iterations zero": ("consistency nees --iterations 0", "--iterations", ()),
     "run reinit-after negative": (f"{BAD_RUN} --reinit-after -2", "--reinit-after", ()),
     "run reinit-after one": (f"{BAD_RUN} --reinit-after 1", "--reinit-after", ()),
     "run reinit-after fraction": (f"{BAD_RUN} --reinit-after 2.5", "--reinit-after", ()),

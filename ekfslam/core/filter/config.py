@@ -66,6 +66,13 @@ class FilterConfig:
         estimate along the unobservable directions (a global shift and rotation), and corrects
         through the group's exponential. The mean is the same (x, y, θ, landmarks) and the
         covariance is reported Cartesian (`EKFSLAM.Sigma`, the history), to first order.
+    iterations : linearisations of each update (1, the default: the plain EKF of eqs. 13-16).
+        N > 1 is the iterated EKF, Gauss-Newton on the filter's error coordinates (Bell &
+        Cathey 1993): H of eq. (14) is evaluated again at the updated estimate, up to N times,
+        while each step lowers the observation's MAP cost, until a step moves by less than
+        1e-7 (`ekfslam.core.filter.iterated`). The gate and the recorded NIS stay the first
+        linearisation's. Not with "fej", whose point is to keep each Jacobian where it was
+        first evaluated.
     """
 
     init: Literal["inverse", "seed"] = "inverse"
@@ -76,6 +83,7 @@ class FilterConfig:
     reinit_after: int | None = 3
     reinit_radius: float = 0.1
     initial_capacity: int = 16
+    iterations: int = 1
 
     def __post_init__(self) -> None:
         if self.linearization not in LINEARIZATIONS:
@@ -97,6 +105,17 @@ class FilterConfig:
             raise ConfigError("reinit_radius must be positive")
         if self.initial_capacity < 1:
             raise ConfigError("initial_capacity must be at least 1")
+        if isinstance(self.iterations, bool) or not (
+            isinstance(self.iterations, int) and 1 <= self.iterations <= 100
+        ):
+            raise ConfigError(
+                f"iterations must be a whole number 1 to 100, got {self.iterations!r}"
+            )
+        if self.iterations > 1 and self.linearization == "fej":
+            raise ConfigError(
+                "iterations > 1 needs linearization 'standard' or 'invariant': FEJ keeps each "
+                "Jacobian at its first estimate, which iterating would move"
+            )
 
 
 @dataclass(frozen=True)

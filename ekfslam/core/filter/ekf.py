@@ -38,7 +38,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ekfslam.core.filter import kernels
+from ekfslam.core.filter import iterated, kernels
 from ekfslam.core.filter.config import CHI2_2DOF_99 as CHI2_2DOF_99
 from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.filter.history import OBSERVE, PREDICT, Outcome
@@ -104,6 +104,8 @@ class EKFSLAM(FilterState):
         # scratch for the kernels (filled in place: no per-step allocation)
         self._out = np.full(kernels.OUT_SIZE, math.nan)  # ẑ, ν, S, NIS of the last observation
         self._no_rows = np.zeros((1, kernels.ROW_SIZE))  # where nothing is recorded
+        self._first_out = np.full(kernels.OUT_SIZE, math.nan)  # iterated: the first ẑ, ν, S, NIS
+        self._res = np.zeros(iterated.RES_SIZE)
 
     # ------------------------------------------------------------- prediction
     def predict(self, u: ArrayLike, R: ArrayLike, t: float | None = None) -> None:
@@ -256,9 +258,19 @@ class EKFSLAM(FilterState):
             jx, jy = mu.item(l) - mu.item(0), mu.item(l + 1) - mu.item(1)
         # positional, each argument named as the kernel's parameter (see `_propagate`)
         invariant, rho, dp = self._invariant, self._rho, self._owed_to
+        iterations, iterate = self.config.iterations, False
+        if iterations > 1:  # the Gauss-Newton linearisation point, as an equivalent z and H
+            first, res = self._first_out, self._res
+            iterate = iterated.USE == iterated.linearise(
+                mu, S, l, z0, z1, q00, q01, q11, invariant, rho, dp, iterations, gate, first, res
+            )
+            if iterate:
+                z0, z1, jx, jy, gate = res[0], res[1], res[2], res[3], math.inf
         outcome = kernels.correct(
             mu, S, d, l, z0, z1, q00, q01, q11, jx, jy, invariant, rho, dp, gate, work, out
         )
+        if iterate:  # the history keeps the first linearisation's innovation, S and NIS
+            out[:] = self._first_out
         if outcome == _ACCEPTED:
             self._rho = 0.0  # the correction's pass added it
         if outcome == _REJECTED and self._should_reinitialise(j, z):
