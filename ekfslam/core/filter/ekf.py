@@ -33,6 +33,7 @@ is read (`_settle`).
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -104,6 +105,18 @@ class EKFSLAM(FilterState):
         # scratch for the kernels (filled in place: no per-step allocation)
         self._out = np.full(kernels.OUT_SIZE, math.nan)  # ẑ, ν, S, NIS of the last observation
         self._no_rows = np.zeros((1, kernels.ROW_SIZE))  # where nothing is recorded
+
+    def clone(self) -> EKFSLAM:
+        """An independent copy of the filter's state, without a history: one hypothesis of
+        `ekfslam.core.filter.mht` (O(capacity²), the storage of Σ; nothing else is that big)."""
+        c = copy.copy(self)
+        c._mu, c._Sigma, c._work, c._out = (
+            a.copy() for a in (self._mu, self._Sigma, self._work, self._out)
+        )
+        c._ids, c.slot, c._counts = list(self._ids), dict(self.slot), dict(self._counts)
+        c._sightings, c._first = list(self._sightings), list(self._first)
+        c._rejected, c._recorder = [list(r) for r in self._rejected], None
+        return c
 
     # ------------------------------------------------------------- prediction
     def predict(self, u: ArrayLike, R: ArrayLike, t: float | None = None) -> None:
