@@ -85,6 +85,19 @@ def _free_nis(nis: Array, option: tuple[int, ...]) -> list[float]:
     return out
 
 
+def _same(a: AssociatingFilter, b: AssociatingFilter, radius: float) -> bool:
+    """Do two hypotheses hold one state: the same landmarks and tentatives, every mean within
+    `radius` (m; rad for the heading)? A sighting made a tentative and one dropped leave the
+    same filter state, yet only the first can found a landmark: they are different."""
+    if a.ekf._dim != b.ekf._dim or len(a._tentative) != len(b._tentative):
+        return False
+    if np.abs(a.ekf.mu - b.ekf.mu).max() > radius:
+        return False
+    return all(
+        np.abs(p[1] - q[1]).max() <= radius for p, q in zip(a._tentative, b._tentative, strict=True)
+    )
+
+
 def _carry_out(af: AssociatingFilter, zs: Array, Q: Array, t: float, option, free) -> None:
     af._apply(zs, Q, t, [max(j, UNPAIRED) for j in option], free)
 
@@ -132,8 +145,7 @@ class HypothesisBank:
             _, parent, node = self._bank[h]
             child = parent.clone() if self.config.hypotheses > 1 else parent
             _carry_out(child, zs, Q, t, option, free)
-            mu, d = child.ekf.mu, child.ekf._dim
-            if any(k.ekf._dim == d and np.abs(k.ekf.mu - mu).max() <= radius for _, k, _ in kept):
+            if any(_same(child, k, radius) for _, k, _ in kept):
                 continue
             kept.append((score, child, (node, option)))
         self._bank = kept
