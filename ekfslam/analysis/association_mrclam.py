@@ -44,7 +44,8 @@ class AssociationRow:
     linearization : the filter of the replays with the association noise (`association_robots`).
     wrong_from_known_state : the share of sightings of mapped landmarks the method pairs with
     another landmark when deciding from the state the barcodes give, its errors not fed back
-    (`ekfslam.pipeline.decisions_from_known_state`): what the sensor and the map allow.
+    (`ekfslam.pipeline.decisions_from_known_state`): what the sensor and the map allow. For
+    ``mht`` it is JCBB's: from one given state there is no bank to keep.
     """
 
     robot: int

@@ -97,7 +97,8 @@ class AssociationLog:
 
 
 class AssociatingFilter:
-    """An EKF whose sightings are matched to landmarks by `config.method` ("nn" or "jcbb").
+    """An EKF whose sightings are matched to landmarks by `config.method` ("nn" or "jcbb"; with
+    "mht" each hypothesis of `ekfslam.core.filter.mht.HypothesisBank` is one, deciding as "jcbb").
 
     Parameters
     ----------
