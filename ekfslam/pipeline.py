@@ -29,6 +29,7 @@ from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog
 from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.filter.history import History, KeyframeRecorder, Keyframes
+from ekfslam.core.filter.mht import DecisionReplay, HypothesisBank
 from ekfslam.core.noise import NoiseConfig, default_config, default_noise
 from ekfslam.errors import ConfigError, EkfSlamError
 from ekfslam.logs.edit import truncate
@@ -89,7 +90,9 @@ def replay(
     start_covariance : (3, 3), Σ0 of eq. (2); zero by default (the seed's choice).
     association : how sightings are matched to landmarks (`ekfslam.core.association`); with
         ``known`` (the default) the detections' ids, else the ids are hidden from the filter and
-        the sightings of each time are associated (`ekfslam.core.filter.associating`).
+        the sightings of each time are associated (`ekfslam.core.filter.associating`); with
+        ``mht`` a bank of hypotheses decides (`ekfslam.core.filter.mht`), and the winner's
+        decisions are then replayed through the filter to record its history.
     keyframes : how many copies of the full state (μ, Σ) to keep (`History` keeps only the pose
         block), at least 2: the start, the state after evenly spread numbers of detections, and
         the end; fewer when the run has fewer detections. None (the default) keeps none and
@@ -115,7 +118,15 @@ def replay(
     taker = None if keyframes is None else _KeyframeTaker(ekf, steps, int(keyframes))
     pause = None if taker is None else taker.pause
     with np.errstate(all="ignore"):  # an overflow is caught below, once, and said where
-        if hidden:
+        if hidden and association.method == "mht":  # the bank decides, a replay records
+            bank = HypothesisBank(
+                EKFSLAM(pose0, start_covariance, config, record=False), association
+            )
+            _feed_hidden(bank, *steps)
+            _, winner, options = bank.finish()
+            associating = DecisionReplay(ekf, association, winner, options)
+            _feed_hidden(associating, *steps, pause=pause)
+        elif hidden:
             associating = AssociatingFilter(ekf, association)
             _feed_hidden(associating, *steps, pause=pause)
         else:
@@ -335,7 +346,7 @@ def _feed(
 
 
 def _feed_hidden(
-    associating: AssociatingFilter,
+    associating: AssociatingFilter | HypothesisBank,
     upto,
     us,
     dts,
@@ -351,22 +362,22 @@ def _feed_hidden(
     """`_feed` without the ids: the detections of one time are associated together.
 
     det_id is not looked at (the filter must not know it); the replay's pieces are the same.
+    associating: an `AssociatingFilter`, or a `HypothesisBank` (``mht``), which keeps no history.
     pause: as `_feed`'s, called only between one time's sightings and the next.
     """
-    ekf = associating.ekf
     done = 0
     for i, k in _one_time_groups(det_time):
         if pause is not None:
             pause(i, done)
         p = upto[i]
         if p > done:
-            ekf.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
+            associating.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
             done = p
         associating.observe(det_z[i:k], Q, det_time[i], _turn_rate(us, dts, p))
     if pause is not None:
         pause(len(upto), done)
     if done < len(us):
-        ekf.predict_many(us[done:], dts[done:], ends[done:], M, R)
+        associating.predict_many(us[done:], dts[done:], ends[done:], M, R)
 
 
 def decisions_from_known_state(

@@ -1,4 +1,4 @@
-"""MRCLAM with its barcodes hidden: each robot's map by ``nn`` and ``jcbb`` against ``known``.
+"""MRCLAM with its barcodes hidden: each robot's map by ``nn``, ``jcbb``, ``mht`` against ``known``.
 
 `association_robots` replays every robot of a dataset with the barcodes (``known``) and with them
 hidden from the filter (with the noise `ekfslam.analysis.association.association_noise` gives:
@@ -44,7 +44,8 @@ class AssociationRow:
     linearization : the filter of the replays with the association noise (`association_robots`).
     wrong_from_known_state : the share of sightings of mapped landmarks the method pairs with
     another landmark when deciding from the state the barcodes give, its errors not fed back
-    (`ekfslam.pipeline.decisions_from_known_state`): what the sensor and the map allow.
+    (`ekfslam.pipeline.decisions_from_known_state`): what the sensor and the map allow. For
+    ``mht`` it is JCBB's: from one given state there is no bank to keep.
     """
 
     robot: int
@@ -71,11 +72,13 @@ def association_robots(
     methods: tuple[str, ...] = ("nn", "jcbb"),
     robots=ROBOTS,
     linearization: str = "standard",
+    hypotheses: int | None = None,
 ) -> list[AssociationRow]:
     """Every robot replayed with ``known`` and with each of `methods`, scored (see the module).
 
     linearization : the filter of every replay with the association noise; ``known`` (the
-    shipped default) is always the standard EKF.
+    shipped default) is always the standard EKF. hypotheses : ``mht``'s bank size (None: its
+    default, `ekfslam.core.association.AssociationConfig.hypotheses`).
     """
     filter_config = dataclasses.replace(MRCLAM_CONFIG, linearization=linearization)
     rows = []
@@ -87,7 +90,7 @@ def association_robots(
         same = summarize(run, replay(run, noise, filter_config))
         same_error = same.alignment.mean_error if same.alignment else math.nan
         for method in methods:
-            config = assoc.association_config(run, method)
+            config = assoc.association_config(run, method, hypotheses)
             hidden = replay(run, noise, filter_config, association=config)
             result, found = assoc.score(run, hidden)
             s = summarize(run, result)

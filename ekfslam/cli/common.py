@@ -149,6 +149,10 @@ def _dask_address(text: str) -> str:
 
 DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "inproc")
 
+#: The largest bank ``--hypotheses`` takes (``run``, ``score-mrclam``): every hypothesis is a
+#: filter, so the cost grows with it.
+MAX_HYPOTHESES = 256
+
 
 def add_parallel_arguments(p: argparse.ArgumentParser) -> None:
     """``--jobs N`` and ``--dask ADDRESS``: where the runs go (`ekfslam.analysis.parallel`).

@@ -14,12 +14,13 @@ from ekfslam.analysis.evaluation import SEED_TABLE1, RunSummary, seed_experiment
 from ekfslam.cli import animate as animate_args
 from ekfslam.cli import args as ca
 from ekfslam.cli.common import (
+    MAX_HYPOTHESES,
     add_iterations_argument,
     arena_half_size,
     load_run,
     noise_from_args,
 )
-from ekfslam.core.association import METHODS
+from ekfslam.core.association import METHODS, AssociationConfig
 from ekfslam.files import save_figure
 from ekfslam.logs.mrclam.load import MrclamLoadReport
 from ekfslam.logs.runlog import RunLog
@@ -47,8 +48,9 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     run.add_argument(
         "--association", choices=METHODS, default="known",
         help="which landmark each sighting is: the detections' ids (known, the default), or, "
-        "with the ids hidden from the filter, nearest neighbour (nn) or joint compatibility "
-        "branch and bound (jcbb); eq. (17) then matches landmarks through the estimated-to-true "
+        "with the ids hidden from the filter, nearest neighbour (nn), joint compatibility "
+        "branch and bound (jcbb), or a bank of JCBB hypotheses that delays the decisions (mht); "
+        "eq. (17) then matches landmarks through the estimated-to-true "
         "mapping. A MRCLAM run then replays with its noise tuned for consistency (the "
         "association trusts the filter's covariance), with each sighting's time 0.2 s uncertain",
     )  # fmt: skip
@@ -58,6 +60,11 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         "through the association's mapping (the default), or by position (nearest neighbour "
         "after a robust fit, as for sightings without true ids)",
     )  # fmt: skip
+    run.add_argument(
+        "--hypotheses", type=ca.whole(1, MAX_HYPOTHESES, why="each costs a filter"), default=None,
+        metavar="K", help="with --association mht: how many hypotheses the bank keeps "
+        f"(default {AssociationConfig().hypotheses}; 1 is jcbb)",
+    )  # fmt: skip
     run.add_check(_match_needs_hidden_ids)
     ca.add_noise_arguments(run)
     add_iterations_argument(run)
@@ -66,7 +73,9 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
 
 def _match_needs_hidden_ids(args: argparse.Namespace) -> str | None:
     if args.match != "mapping" and args.association == "known":
-        return "argument --match: needs --association nn or jcbb (known ids match by id)"
+        return "argument --match: needs --association nn, jcbb or mht (known ids match by id)"
+    if args.hypotheses is not None and args.association != "mht":
+        return "argument --hypotheses: only with --association mht"
     return None
 
 
@@ -83,7 +92,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     # looked up here: tests may replace it (and, with known ids, call it as before)
     if hidden:
         result = pipeline.replay(
-            run, noise, config, association=assoc.association_config(run, args.association),
+            run, noise, config,
+            association=assoc.association_config(run, args.association, args.hypotheses),
             **frames,
         )  # fmt: skip
         result, found = assoc.score(run, result, args.match)

@@ -1,4 +1,4 @@
-"""``python -m ekfslam score-mrclam [DATASET] [--association nn jcbb] [--json]``: MRCLAM, scored.
+"""``python -m ekfslam score-mrclam [DATASET] [--association nn jcbb mht] [--json]``: MRCLAM.
 
 Without ``--association``: the README's MRCLAM table. With it: each robot with the barcodes hidden
 from the filter, by the methods named, against the same robot with them known
@@ -15,7 +15,8 @@ import math
 from ekfslam.analysis.association_mrclam import association_robots, association_table
 from ekfslam.analysis.mrclam_tuning import score_robots, scores_table
 from ekfslam.cli import args as ca
-from ekfslam.cli.common import mrclam_folder
+from ekfslam.cli.common import MAX_HYPOTHESES, mrclam_folder
+from ekfslam.core.association import AssociationConfig
 from ekfslam.core.filter.config import LINEARIZATIONS
 
 
@@ -24,9 +25,13 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     p = subparsers.add_parser(name, help=help)
     p.add_argument("dataset", type=ca.mrclam_dataset, nargs="?", default=7, metavar="DATASET",
                    help="a MRCLAM dataset: its folder or its number 1-9 (default: 7)")  # fmt: skip
-    p.add_argument("--association", nargs="+", choices=("nn", "jcbb"), metavar="METHOD",
-                   help="hide the barcodes and associate by METHOD (nn, jcbb; one or both): "
-                   "each robot's map error against known's, and the decisions")  # fmt: skip
+    p.add_argument("--association", nargs="+", choices=("nn", "jcbb", "mht"), metavar="METHOD",
+                   help="hide the barcodes and associate by METHOD (nn, jcbb, mht; one or "
+                   "more): each robot's map error against known's, and the decisions")  # fmt: skip
+    p.add_argument("--hypotheses", type=ca.whole(1, MAX_HYPOTHESES, why="each costs a filter"),
+                   default=None, metavar="K",
+                   help="with --association mht: how many hypotheses the bank keeps "
+                   f"(default {AssociationConfig().hypotheses}; 1 is jcbb)")  # fmt: skip
     p.add_argument("--linearization", choices=LINEARIZATIONS, default=None,
                    help="with --association: the filter of the replays that associate (and of "
                    "'known, same noise'); known's column stays the shipped standard EKF "
@@ -36,6 +41,8 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     def check(args: argparse.Namespace) -> str | None:
         if args.linearization is not None and not args.association:
             return "argument --linearization: only with --association"
+        if args.hypotheses is not None and "mht" not in (args.association or ()):
+            return "argument --hypotheses: only with --association mht"
         return None
 
     p.add_check(check)
@@ -47,7 +54,10 @@ def cmd_score_mrclam(args: argparse.Namespace) -> int:
     folder = mrclam_folder(args.dataset)
     if args.association:
         methods = tuple(dict.fromkeys(args.association))
-        rows = association_robots(folder, methods, linearization=args.linearization or "standard")
+        rows = association_robots(
+            folder, methods, linearization=args.linearization or "standard",
+            hypotheses=args.hypotheses,
+        )  # fmt: skip
         if args.json:
             print(json.dumps({"dataset": str(folder), "rows": [_finite(r) for r in rows]},
                              indent=2, allow_nan=False))  # fmt: skip

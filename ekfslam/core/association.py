@@ -21,6 +21,10 @@ Three methods (`AssociationConfig.method`):
   2k degrees of freedom; ties go to the smaller joint NIS (`jcbb`). The search is exponential in
   the worst case, so it stops after `node_budget` nodes with the best pairing found so far, and
   says so.
+- ``mht``: JCBB with delayed commitment, a bank of hypotheses (Reid 1979; Cox & Leonard 1994
+  for map building): at each time every hypothesis branches on JCBB's pairing and its near
+  alternatives, and the `hypotheses` most likely histories are kept
+  (`ekfslam.core.filter.mht`). With one hypothesis it is ``jcbb``.
 
 What a sighting that pairs with nothing becomes (`AssociationConfig.new_landmark`): with every
 NIS above the new-landmark threshold it is a new landmark's first sighting (the filter keeps it
@@ -45,7 +49,7 @@ from ekfslam.errors import ConfigError
 
 Array = NDArray[np.float64]
 
-METHODS = ("known", "nn", "jcbb")
+METHODS = ("known", "nn", "jcbb", "mht")
 UNPAIRED = -1  # a sighting paired with no landmark
 
 
@@ -98,15 +102,27 @@ class AssociationConfig:
         and in the update it leads to (`ekfslam.core.filter.associating`). 0 (the default): the
         time stamps are exact (our simulator's). A data source knows its value
         (`ekfslam.logs.mrclam.defaults.MRCLAM_TIME_SIGMA`).
+    hypotheses : ``mht`` only: how many hypotheses the bank keeps (1: ``jcbb`` exactly).
+    new_log_density : ``mht`` only: log of the density, per m·rad of (range, bearing), of a
+        sighting that no mapped landmark explains (a new landmark's, or one left out). A
+        pairing scores its Gaussian log-likelihood -½(νᵀS⁻¹ν + log det 2πS), so this is the
+        price of explaining a sighting otherwise. -5: about 5% of the density a sighting spread
+        evenly over the camera's 1-7 m by 1.1 rad would have (log(1/6.6) = -1.9).
+    duplicate_radius : m, ``mht`` only: two hypotheses whose states (pose and every landmark)
+        agree within this are one, and the less likely is dropped, so the bank holds different
+        maps, not K copies of one that differ in decisions long washed out.
     """
 
-    method: Literal["known", "nn", "jcbb"] = "known"
+    method: Literal["known", "nn", "jcbb", "mht"] = "known"
     gate: float = -2.0 * math.log1p(-0.99)
     new_landmark: float = -2.0 * math.log(1e-5)
     joint_probability: float = 0.99
     node_budget: int = 10_000
     tentative_life: float = 10.0
     time_sigma: float = 0.0
+    hypotheses: int = 8
+    new_log_density: float = -5.0
+    duplicate_radius: float = 0.05
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -125,6 +141,15 @@ class AssociationConfig:
             raise ConfigError(f"tentative_life must be positive, got {self.tentative_life}")
         if not 0.0 <= self.time_sigma < math.inf:
             raise ConfigError(f"time_sigma must be finite and >= 0, got {self.time_sigma}")
+        whole = isinstance(self.hypotheses, int) and not isinstance(self.hypotheses, bool)
+        if not (whole and self.hypotheses >= 1):
+            raise ConfigError(f"hypotheses must be a whole number >= 1, got {self.hypotheses!r}")
+        if not math.isfinite(self.new_log_density):
+            raise ConfigError(f"new_log_density must be finite, got {self.new_log_density}")
+        if not 0.0 <= self.duplicate_radius < math.inf:
+            raise ConfigError(
+                f"duplicate_radius must be finite and >= 0, got {self.duplicate_radius}"
+            )
 
 
 def individual_nis(nu: ArrayLike, P: ArrayLike, Q: ArrayLike) -> Array:

@@ -37,6 +37,7 @@ test, not an update; FEJ's Jacobians still apply to the updates themselves).
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
@@ -96,7 +97,8 @@ class AssociationLog:
 
 
 class AssociatingFilter:
-    """An EKF whose sightings are matched to landmarks by `config.method` ("nn" or "jcbb").
+    """An EKF whose sightings are matched to landmarks by `config.method` ("nn" or "jcbb"; with
+    "mht" each hypothesis of `ekfslam.core.filter.mht.HypothesisBank` is one, deciding as "jcbb").
 
     Parameters
     ----------
@@ -118,6 +120,26 @@ class AssociatingFilter:
              "budget_hits", "nodes"), 0,
         )  # fmt: skip
 
+    def clone(self) -> AssociatingFilter:
+        """An independent copy (filter state, tentatives, counts) whose decision log starts
+        empty: one hypothesis of `ekfslam.core.filter.mht`, which keeps the decisions itself."""
+        c = copy.copy(self)
+        c.ekf = self.ekf.clone()
+        c._tentative, c._counts = list(self._tentative), dict(self._counts)
+        c._estimated, c._decision = [], []
+        return c
+
+    def predict_many(self, us, dts, ts, M=None, R=None) -> None:
+        """`EKFSLAM.predict_many` of the filter (the replay's call, as for `HypothesisBank`)."""
+        self.ekf.predict_many(us, dts, ts, M, R)
+
+    def sighting_noise(self, Q: ArrayLike, omega: float) -> Array:
+        """Q (2, 2) of the sightings taken while turning at omega rad/s (see `observe`)."""
+        Q = np.asarray(Q, dtype=float)
+        if self.config.time_sigma and omega:
+            Q = Q + np.diag([0.0, (omega * self.config.time_sigma) ** 2])
+        return Q
+
     def observe(self, zs: ArrayLike, Q: ArrayLike, t: float, omega: float = 0.0) -> list[int]:
         """Use the sightings taken at time t (s): zs (m, 2) range (m), bearing (rad); Q (2, 2).
 
@@ -126,13 +148,9 @@ class AssociatingFilter:
         Returns the estimated landmark id each sighting was used for (-1: none).
         """
         zs = np.asarray(zs, dtype=float).reshape(-1, 2)
-        Q = np.asarray(Q, dtype=float)
-        if self.config.time_sigma and omega:
-            Q = Q + np.diag([0.0, (omega * self.config.time_sigma) ** 2])
+        Q = self.sighting_noise(Q, omega)
         if self._tentative:
             self._expire(t)
-        m = len(zs)
-        ids = self.ekf.landmark_ids
         if self.config.method == "nn":  # compiled, O(m n): no H Σ Hᵀ (see `nearest.nearest`)
             pairing, nearest = self._nearest(zs, Q)
         else:
@@ -140,6 +158,15 @@ class AssociatingFilter:
             pairing, nearest = found.pairing.tolist(), unclaimed.tolist()
             self._counts["nodes"] += found.nodes
             self._counts["budget_hits"] += found.budget_hit
+        return self._apply(zs, Q, t, pairing, nearest)
+
+    def _apply(
+        self, zs: Array, Q: Array, t: float, pairing: list[int], nearest: list[float]
+    ) -> list[int]:
+        """Carry out a pairing (m,) of the sightings zs with landmark slots (-1: none): update,
+        then decide each unpaired one by its smallest NIS over the landmarks left free,
+        `nearest` (m,); record and count. Returns the estimated id each sighting was used for."""
+        m, ids = len(zs), self.ekf.landmark_ids
         used = [UNPAIRED] * m
         decision = [ASSOCIATED] * m
         for i in range(m):  # the paired ones first: each update sharpens the pose
@@ -164,9 +191,7 @@ class AssociatingFilter:
         nothing: to ask how well the association does from a given state (the one the filter
         reaches with the true ids, say)."""
         zs = np.asarray(zs, dtype=float).reshape(-1, 2)
-        Q = np.asarray(Q, dtype=float)
-        if self.config.time_sigma and omega:
-            Q = Q + np.diag([0.0, (omega * self.config.time_sigma) ** 2])
+        Q = self.sighting_noise(Q, omega)
         if self.config.method == "nn":
             pairing = self._nearest(zs, Q)[0]
         else:
@@ -197,6 +222,10 @@ class AssociatingFilter:
         else the second tag of a close pair, seen with the first, would be ambiguous against
         the first for ever, and never mapped.
         """
+        return self._search(*self._predict_all(zs, Q), Q)
+
+    def _predict_all(self, zs: Array, Q: Array) -> tuple[Array, Array, Array]:
+        """ν (m, n, 2), P = H Σ Hᵀ (2n, 2n) and the individual NIS (m, n), compiled."""
         ekf, m, n = self.ekf, len(zs), self.ekf.n_landmarks
         ekf._settle()  # the invariant filter's owed heading noise, before Σ is read
         mu, S, d = ekf._mu, ekf._Sigma, ekf._dim
@@ -204,11 +233,20 @@ class AssociatingFilter:
         (q00, q01), (_, q11) = Q.tolist()
         # positional, each argument named as the kernel's parameter (see `EKFSLAM._propagate`)
         jcbb_kernels.predict_all(mu, S, d, zs, q00, q01, q11, ekf._invariant, nu, P, nis)
+        return nu, P, nis
+
+    def joint_gates(self, m: int) -> Array:
+        """χ²(2k) at the joint probability for k = 0..m pairs (index 0 unused), cached."""
         if m not in self._chi2:
             p = self.config.joint_probability
             gates = [chi2_even_quantile(2 * k, p) for k in range(1, m + 1)]
             self._chi2[m] = np.array([0.0, *gates])
-        chi2, gate, budget = self._chi2[m], self.config.gate, self.config.node_budget
+        return self._chi2[m]
+
+    def _search(self, nu: Array, P: Array, nis: Array, Q: Array) -> tuple[JcbbResult, Array]:
+        """JCBB's branch and bound over `_predict_all`'s arrays (see `_jcbb`)."""
+        m = len(nis)
+        chi2, gate, budget = self.joint_gates(m), self.config.gate, self.config.node_budget
         Qs = np.empty((m, 2, 2))  # each sighting's noise: the kernel takes a stack
         Qs[:] = Q
         pairing, unclaimed = np.empty(m, dtype=np.int64), np.empty(m)

@@ -107,6 +107,13 @@ class EKFSLAM(FilterState):
         self._first_out = np.full(kernels.OUT_SIZE, math.nan)  # iterated: the first ẑ, ν, S, NIS
         self._res = np.zeros(iterated.RES_SIZE)
 
+    def clone(self) -> EKFSLAM:
+        """`FilterState.clone`, with the filter's own lists (sightings, FEJ's first estimates)."""
+        c = super().clone()
+        c._out, c._sightings, c._first = self._out.copy(), list(self._sightings), list(self._first)
+        c._rejected = [list(r) for r in self._rejected]
+        return c
+
     # ------------------------------------------------------------- prediction
     def predict(self, u: ArrayLike, R: ArrayLike, t: float | None = None) -> None:
         """Move the pose by the body-frame increment u, eqs. (6), (7) and (9).

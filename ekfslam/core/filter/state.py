@@ -17,7 +17,9 @@ heading noise, which `_settle` adds before Σ is read.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import fields
+from typing import Self
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -73,6 +75,15 @@ class FilterState:
         self._rho, self._owed_to = 0.0, 3
         # scratch for the kernels (filled in place): H Σ, then W = L⁻¹ H Σ; the invariant v
         self._work = np.zeros((3, cap))
+
+    def clone(self) -> Self:
+        """An independent copy of the state, without a history: one hypothesis of
+        `ekfslam.core.filter.mht` (O(capacity²), the storage of Σ; nothing else is that big)."""
+        c = copy.copy(self)
+        c._mu, c._Sigma, c._work = self._mu.copy(), self._Sigma.copy(), self._work.copy()
+        c._ids, c.slot, c._counts = list(self._ids), dict(self.slot), dict(self._counts)
+        c._recorder = None
+        return c
 
     # ------------------------------------------------------------------ views
     @property

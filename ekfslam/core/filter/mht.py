@@ -1,0 +1,225 @@
+"""Association with delayed commitment: a bank of JCBB hypotheses (issue 16).
+
+JCBB (`ekfslam.core.filter.associating`) decides each time's pairing for good. When a
+sighting of a new landmark falls inside the gate of a poorly known one, or two landmarks stand
+close together, that decision is a guess that later sightings would overturn, and a wrong
+guess early moves the pose and every decision after it. The classic answer is to keep several
+histories and let the evidence choose (Reid, IEEE T-AC 1979; Cox & Leonard, "Modeling a dynamic
+environment using a Bayesian multiple hypothesis approach", AI 1994).
+
+`HypothesisBank` keeps at most K = `AssociationConfig.hypotheses` hypotheses, each an
+`AssociatingFilter` (EKF mean, Σ and tentatives) with a cumulative log-likelihood score. At each
+time with sightings, every hypothesis offers JCBB's pairing and its near alternatives: each
+sighting paired with the next compatible landmarks instead (up to `ALTERNATIVES`), or made a
+new landmark whatever its NIS (`NEW`). An option scores the Gaussian log-likelihood of its
+paired innovations taken jointly, -½(νᵀS⁻¹ν + log det 2πS) with S = H Σ Hᵀ + Q over the pairs
+(eq. 13's ν stacked, the cross blocks included), plus `AssociationConfig.new_log_density` for
+each sighting no landmark explains. Non-JCBB options must pass JCBB's joint χ² gate. The K best
+children over the whole bank are kept, most likely first, each dropped when its state matches a
+kept one's within `AssociationConfig.duplicate_radius` (a bank of near-copies remembers
+nothing). With K = 1 no alternative is offered, and the bank is ``jcbb`` exactly.
+
+The hypotheses keep no decision lists: each child points to its parent and its option (a
+tree), and `finish` walks the winner's chain back. The replay then feeds those options to an
+ordinary `AssociatingFilter` with a history (`DecisionReplay`), which reproduces the winner's
+state to the last bit, so the history, the scores and the confusion counts are those of every
+other method.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ekfslam.core.association import UNPAIRED, AssociationConfig, JcbbResult
+from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog
+from ekfslam.core.filter.ekf import EKFSLAM
+
+Array = NDArray[np.float64]
+
+#: An option's entry for a sighting made a new landmark (or left out) whatever its NIS.
+NEW = -2
+#: How many other compatible landmarks each sighting is offered besides JCBB's choice.
+ALTERNATIVES = 2
+_LOG_2PI = math.log(2.0 * math.pi)
+
+
+def log_likelihood(
+    pairs: list[tuple[int, int]], nu: Array, P: Array, Q: Array
+) -> tuple[float, float]:
+    """The joint Gaussian log-likelihood of `pairs` (sighting i, landmark j) and its joint NIS.
+
+    nu (m, n, 2), P (2n, 2n) as `AssociatingFilter._predict_all` gives them, Q (2, 2) each
+    sighting's noise. -½(νᵀS⁻¹ν + log det 2πS) over the stacked pairs; (0, 0) for none, and
+    (-inf, inf) when S is not positive definite.
+    """
+    k = len(pairs)
+    if k == 0:
+        return 0.0, 0.0
+    v = np.empty(2 * k)
+    S = np.empty((2 * k, 2 * k))
+    for a, (i, j) in enumerate(pairs):
+        v[2 * a : 2 * a + 2] = nu[i, j]
+        for b, (_, jb) in enumerate(pairs):
+            S[2 * a : 2 * a + 2, 2 * b : 2 * b + 2] = P[2 * j : 2 * j + 2, 2 * jb : 2 * jb + 2]
+        S[2 * a : 2 * a + 2, 2 * a : 2 * a + 2] += Q
+    try:
+        L = np.linalg.cholesky(S)
+    except np.linalg.LinAlgError:
+        return -math.inf, math.inf
+    w = np.linalg.solve(L, v)
+    d2 = float(w @ w)
+    return -0.5 * d2 - float(np.log(np.diag(L)).sum()) - k * _LOG_2PI, d2
+
+
+def _free_nis(nis: Array, option: tuple[int, ...]) -> list[float]:
+    """Each sighting's smallest NIS over the landmarks `option` leaves free (inf: none, or the
+    sighting is `NEW`): what decides between ambiguous and new (`AssociatingFilter._apply`)."""
+    taken = [j for j in option if j >= 0]
+    free = np.delete(nis, taken, axis=1)
+    out = []
+    for i, j in enumerate(option):
+        out.append(math.inf if j == NEW or free.shape[1] == 0 else float(free[i].min()))
+    return out
+
+
+def _same(a: AssociatingFilter, b: AssociatingFilter, radius: float) -> bool:
+    """Do two hypotheses hold one state: the same landmarks and tentatives, every mean within
+    `radius` (m; rad for the heading)? A sighting made a tentative and one dropped leave the
+    same filter state, yet only the first can found a landmark: they are different."""
+    if a.ekf._dim != b.ekf._dim or len(a._tentative) != len(b._tentative):
+        return False
+    if np.abs(a.ekf.mu - b.ekf.mu).max() > radius:
+        return False
+    return all(
+        np.abs(p[1] - q[1]).max() <= radius for p, q in zip(a._tentative, b._tentative, strict=True)
+    )
+
+
+def _carry_out(af: AssociatingFilter, zs: Array, Q: Array, t: float, option, free) -> None:
+    af._apply(zs, Q, t, [max(j, UNPAIRED) for j in option], free)
+
+
+class HypothesisBank:
+    """At most `config.hypotheses` `AssociatingFilter`s over one run (see the module).
+
+    Parameters
+    ----------
+    ekf : the filter every hypothesis starts from (built with record=False: the bank copies it).
+    config : AssociationConfig with method "mht".
+    """
+
+    def __init__(self, ekf: EKFSLAM, config: AssociationConfig) -> None:
+        self.config = config
+        # (score, filter, node); node = (parent node, option) or None at the root
+        self._bank: list[tuple[float, AssociatingFilter, tuple | None]] = [
+            (0.0, AssociatingFilter(ekf, config), None)
+        ]
+
+    @property
+    def hypotheses(self) -> list[tuple[float, AssociatingFilter]]:
+        """(log-likelihood score, filter) of each hypothesis, most likely first."""
+        return [(s, af) for s, af, _ in self._bank]
+
+    def predict_many(self, us, dts, ts, M=None, R=None) -> None:
+        """Predict every hypothesis (`EKFSLAM.predict_many`)."""
+        for _, af, _ in self._bank:
+            af.predict_many(us, dts, ts, M, R)
+
+    def observe(self, zs: ArrayLike, Q: ArrayLike, t: float, omega: float = 0.0) -> None:
+        """Branch on the sightings taken at time t (s), as `AssociatingFilter.observe`."""
+        zs = np.asarray(zs, dtype=float).reshape(-1, 2)
+        Q = self._bank[0][1].sighting_noise(Q, omega)
+        children = []
+        for h, (score, af, _) in enumerate(self._bank):
+            for gain, option, free in self._options(af, zs, Q, t):
+                children.append((score + gain, h, option, free))
+        children.sort(key=lambda c: -c[0])  # stable: ties keep the bank's and options' order
+        kept: list[tuple[float, AssociatingFilter, tuple | None]] = []
+        radius = self.config.duplicate_radius
+        for score, h, option, free in children:
+            if len(kept) == self.config.hypotheses:
+                break
+            _, parent, node = self._bank[h]
+            child = parent.clone() if self.config.hypotheses > 1 else parent
+            _carry_out(child, zs, Q, t, option, free)
+            if any(_same(child, k, radius) for _, k, _ in kept):
+                continue
+            kept.append((score, child, (node, option)))
+        self._bank = kept
+
+    def _options(self, af: AssociatingFilter, zs: Array, Q: Array, t: float):
+        """(log-likelihood gain, option, free NIS) of each way this hypothesis can go."""
+        if af._tentative:
+            af._expire(t)
+        m, cfg = len(zs), self.config
+        nu, P, nis = af._predict_all(zs, Q)
+        found, unclaimed = af._search(nu, P, nis, Q)
+        af._counts["nodes"] += found.nodes
+        af._counts["budget_hits"] += found.budget_hit
+        best = tuple(found.pairing.tolist())
+        options = {best: unclaimed.tolist()}
+        if cfg.hypotheses > 1:
+            for i in range(m):
+                others = set(best[:i] + best[i + 1 :])
+                same = best[i] == UNPAIRED and unclaimed[i] > cfg.new_landmark  # new already
+                alternatives = [] if same else [NEW]
+                alternatives += [
+                    int(j)
+                    for j in np.argsort(nis[i], kind="stable")
+                    if nis[i, j] <= cfg.gate and j != best[i] and j not in others
+                ][:ALTERNATIVES]
+                for j in alternatives:
+                    option = (*best[:i], j, *best[i + 1 :])
+                    options.setdefault(option, [])
+        chi2 = af.joint_gates(m)
+        out = []
+        for option, free in options.items():
+            pairs = [(i, j) for i, j in enumerate(option) if j >= 0]
+            ll, d2 = log_likelihood(pairs, nu, P, Q)
+            if option != best and pairs and d2 > chi2[len(pairs)]:
+                continue
+            gain = ll + cfg.new_log_density * (m - len(pairs))
+            out.append((gain, option, free if option == best else _free_nis(nis, option)))
+        return out
+
+    def finish(self) -> tuple[float, AssociatingFilter, list[tuple[int, ...]]]:
+        """The most likely hypothesis: its score, its filter, and its option for each time."""
+        score, af, node = self._bank[0]
+        options = []
+        while node is not None:
+            node, option = node
+            options.append(option)
+        options.reverse()
+        return score, af, options
+
+
+class DecisionReplay(AssociatingFilter):
+    """An `AssociatingFilter` that carries out given options, one per time, instead of choosing.
+
+    Fed the winner's options from `HypothesisBank.finish` over the same schedule, its filter's
+    state is the winner's, with a history and a decision log. `nodes` and `budget_hits` are the
+    winner's own (this filter searches nothing).
+    """
+
+    def __init__(self, ekf: EKFSLAM, config: AssociationConfig, winner: AssociatingFilter,
+                 options: list[tuple[int, ...]]) -> None:  # fmt: skip
+        super().__init__(ekf, config)
+        self._options = iter(options)
+        self._counts["nodes"] = winner._counts["nodes"]
+        self._counts["budget_hits"] = winner._counts["budget_hits"]
+
+    def _jcbb(self, zs: Array, Q: Array) -> tuple[JcbbResult, Array]:
+        option = next(self._options)
+        if len(option) != len(zs):
+            raise ValueError(f"an option for {len(option)} sightings given {len(zs)}")
+        free = _free_nis(self._predict_all(zs, Q)[2], option)
+        pairing = np.array([max(j, UNPAIRED) for j in option], dtype=np.int64)
+        return JcbbResult(pairing, 0.0, 0, False), np.array(free)
+
+    def finish(self) -> AssociationLog:
+        if next(self._options, None) is not None:
+            raise ValueError("options left over: the replay is not the bank's schedule")
+        return super().finish()
