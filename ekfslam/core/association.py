@@ -193,15 +193,13 @@ def nearest_neighbour(nis: ArrayLike, gate: float) -> Array:
     return np.where(nis[np.arange(len(nis)), best] <= gate, best, UNPAIRED)
 
 
-def joint_nis(pairs: list[tuple[int, int]], nu: Array, P: Array, Q: Array) -> float:
-    """NIS of a hypothesis: the stacked innovations of `pairs` (sighting i, landmark j).
-
-    The covariance is P's blocks of the chosen landmarks (cross blocks included: one pose error
-    moves every prediction) plus each sighting's Q on the diagonal, (2k, 2k).
-    """
+def joint_innovation(
+    pairs: list[tuple[int, int]], nu: Array, P: Array, Q: Array
+) -> tuple[Array, Array]:
+    """The stacked innovations of `pairs` (sighting i, landmark j), (2k,), and their covariance
+    (2k, 2k): P's blocks of the chosen landmarks (cross blocks included: one pose error moves
+    every prediction) plus each sighting's Q[i] on the diagonal."""
     k = len(pairs)
-    if k == 0:
-        return 0.0
     v = np.empty(2 * k)
     S = np.empty((2 * k, 2 * k))
     for a, (i, j) in enumerate(pairs):
@@ -209,6 +207,14 @@ def joint_nis(pairs: list[tuple[int, int]], nu: Array, P: Array, Q: Array) -> fl
         for b, (_, jb) in enumerate(pairs):
             S[2 * a : 2 * a + 2, 2 * b : 2 * b + 2] = P[2 * j : 2 * j + 2, 2 * jb : 2 * jb + 2]
         S[2 * a : 2 * a + 2, 2 * a : 2 * a + 2] += Q[i]
+    return v, S
+
+
+def joint_nis(pairs: list[tuple[int, int]], nu: Array, P: Array, Q: Array) -> float:
+    """NIS of a hypothesis: νᵀS⁻¹ν over `joint_innovation`; inf when S is not positive definite."""
+    if not pairs:
+        return 0.0
+    v, S = joint_innovation(pairs, nu, P, Q)
     try:
         L = np.linalg.cholesky(S)
     except np.linalg.LinAlgError:

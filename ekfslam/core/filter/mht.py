@@ -33,7 +33,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ekfslam.core.association import UNPAIRED, AssociationConfig, JcbbResult
+from ekfslam.core.association import UNPAIRED, AssociationConfig, JcbbResult, joint_innovation
 from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog
 from ekfslam.core.filter.ekf import EKFSLAM
 
@@ -58,13 +58,7 @@ def log_likelihood(
     k = len(pairs)
     if k == 0:
         return 0.0, 0.0
-    v = np.empty(2 * k)
-    S = np.empty((2 * k, 2 * k))
-    for a, (i, j) in enumerate(pairs):
-        v[2 * a : 2 * a + 2] = nu[i, j]
-        for b, (_, jb) in enumerate(pairs):
-            S[2 * a : 2 * a + 2, 2 * b : 2 * b + 2] = P[2 * j : 2 * j + 2, 2 * jb : 2 * jb + 2]
-        S[2 * a : 2 * a + 2, 2 * a : 2 * a + 2] += Q
+    v, S = joint_innovation(pairs, nu, P, np.broadcast_to(Q, (nu.shape[0], 2, 2)))
     try:
         L = np.linalg.cholesky(S)
     except np.linalg.LinAlgError:
