@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
@@ -20,6 +18,7 @@ from ekfslam.core.invariant import (
 from ekfslam.core.models import (
     inverse_observation,
     inverse_observation_jacobians,
+    motion_noise,
     observation_noise,
 )
 from ekfslam.core.noise import default_noise
@@ -174,17 +173,12 @@ def test_the_invariant_filter_replays_a_seed_run_as_the_literal_reference():
     start = run.meta.nominal_start
     fast, slow = EKFSLAM(start, None, config), LiteralEKFSLAM(start, None, config)
 
-    def R_of(theta: float, dt: float) -> np.ndarray:
-        c, s = math.cos(theta), math.sin(theta)
-        V = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        return V @ (M * dt) @ V.T if M is not None else R_fixed
-
     done = 0
     for i, p in enumerate(upto):
         if p > done:
             fast.predict_many(us[done:p], dts[done:p], ends[done:p], M, R_fixed)
             for k in range(done, p):
-                slow.predict(us[k], R_of(slow.mu[2], dts[k]))
+                slow.predict(us[k], R_fixed if M is None else motion_noise(slow.mu, M * dts[k]))
             done = p
         assert fast.update(ids[i], zs[i], Q_run, times[i]) == slow.update(ids[i], zs[i], Q_run)
     assert fast.counts.accepted > 500 and fast.n_landmarks == 8

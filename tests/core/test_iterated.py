@@ -7,15 +7,13 @@ cost of one observation, checked by finite differences of that cost.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
 from ekfslam import pipeline
 from ekfslam.core.filter import iterated
 from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
-from ekfslam.core.models import observation, observation_noise
+from ekfslam.core.models import motion_noise, observation, observation_noise
 from ekfslam.core.noise import default_noise
 from ekfslam.errors import ConfigError
 from ekfslam.geometry import wrap_angle
@@ -118,18 +116,13 @@ def test_the_iterated_filter_replays_a_seed_run_as_the_literal_reference(lineari
     fast, slow = EKFSLAM(start, None, config), LiteralEKFSLAM(start, None, config)
     plain = EKFSLAM(start, None, FilterConfig(linearization=linearization))
 
-    def R_of(theta: float, dt: float) -> np.ndarray:
-        c, s = math.cos(theta), math.sin(theta)
-        V = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        return V @ (M * dt) @ V.T if M is not None else R_fixed
-
     done = 0
     for i, p in enumerate(upto):
         if p > done:
             fast.predict_many(us[done:p], dts[done:p], ends[done:p], M, R_fixed)
             plain.predict_many(us[done:p], dts[done:p], ends[done:p], M, R_fixed)
             for k in range(done, p):
-                slow.predict(us[k], R_of(slow.mu[2], dts[k]))
+                slow.predict(us[k], R_fixed if M is None else motion_noise(slow.mu, M * dts[k]))
             done = p
         assert fast.update(ids[i], zs[i], Q_run, times[i]) == slow.update(ids[i], zs[i], Q_run)
         plain.update(ids[i], zs[i], Q_run, times[i])
