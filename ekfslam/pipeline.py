@@ -29,6 +29,7 @@ from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog
 from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.filter.history import History, KeyframeRecorder, Keyframes
+from ekfslam.core.filter.mapping import MappingFilter
 from ekfslam.core.filter.mht import DecisionReplay, HypothesisBank
 from ekfslam.core.noise import NoiseConfig, default_config, default_noise
 from ekfslam.errors import ConfigError, EkfSlamError
@@ -52,6 +53,9 @@ class ReplayResult:
     association : with ids hidden (``nn``, ``jcbb``), every sighting's decision, in the order of
         ``run.detections``; the landmarks are then keyed by estimated id. None for ``known``.
     keyframes : the full state at evenly spread moments, when `replay` was asked for them.
+    map_noise : the mapping filter's noise when the decisions were replayed through one
+        (`replay`'s ``map_noise``); the state, history and counts are then its. `noise` is the
+        deciding filter's.
     """
 
     name: str
@@ -66,6 +70,7 @@ class ReplayResult:
     config: FilterConfig = field(default_factory=FilterConfig)
     association: AssociationLog | None = None
     keyframes: Keyframes | None = None
+    map_noise: NoiseConfig | None = None
 
 
 def replay(
@@ -77,6 +82,7 @@ def replay(
     start_covariance: ArrayLike | None = None,
     association: AssociationConfig | None = None,
     keyframes: int | None = None,
+    map_noise: NoiseConfig | None = None,
 ) -> ReplayResult:
     """Run the EKF over a log and return the estimate with its full history.
 
@@ -97,6 +103,10 @@ def replay(
         block), at least 2: the start, the state after evenly spread numbers of detections, and
         the end; fewer when the run has fewer detections. None (the default) keeps none and
         costs nothing. An animation's frames (`ekfslam.viz.animation`).
+    map_noise : with hidden ids, decide with `noise` and map with this: the decisions are fed
+        as ids to a fresh filter with this noise (`ekfslam.core.filter.mapping.MappingFilter`),
+        whose state, history and counts the result holds; the association log is the deciding
+        run's. None (the default): one filter decides and maps.
     """
     whole = isinstance(keyframes, int | np.integer) and not isinstance(keyframes, bool)
     if keyframes is not None and not (whole and keyframes >= 2):
@@ -113,6 +123,10 @@ def replay(
         )
     ekf = EKFSLAM(pose0, start_covariance, config)
     hidden = association is not None and association.method != "known"
+    if map_noise is not None and not hidden:
+        raise ConfigError("map_noise needs hidden ids (an association other than 'known')")
+    mapped = map_noise is not None  # the deciding filter keeps no history, the mapping one does
+    decider = EKFSLAM(pose0, start_covariance, config, record=False) if mapped else ekf
     started = time.perf_counter()  # the schedule counts: it is part of the replay's work
     steps = _schedule(run, noise)
     taker = None if keyframes is None else _KeyframeTaker(ekf, steps, int(keyframes))
@@ -124,12 +138,15 @@ def replay(
             )
             _feed_hidden(bank, *steps)
             _, winner, options = bank.finish()
-            associating = DecisionReplay(ekf, association, winner, options)
-            _feed_hidden(associating, *steps, pause=pause)
+            associating = DecisionReplay(decider, association, winner, options)
+            _feed_hidden(associating, *steps, pause=None if mapped else pause)
         elif hidden:
-            associating = AssociatingFilter(ekf, association)
-            _feed_hidden(associating, *steps, pause=pause)
-        else:
+            associating = AssociatingFilter(decider, association)
+            _feed_hidden(associating, *steps, pause=None if mapped else pause)
+        if mapped:
+            associating = MappingFilter(ekf, associating.finish(), association.time_sigma)
+            _feed_hidden(associating, *_schedule(run, map_noise), pause=pause)
+        elif not hidden:
             _feed(ekf, *steps, pause=pause)
     seconds = time.perf_counter() - started
     frames = None if taker is None else taker.finish()
@@ -149,7 +166,7 @@ def replay(
         )
     if hidden and not (np.isfinite(ekf.mu).all() and np.isfinite(ekf.Sigma).all()):
         raise NonFiniteStateError(f"run {run.meta.name!r}: the filter state became non-finite")
-    return _result(run, ekf, seconds, noise, config, log, frames)
+    return _result(run, ekf, seconds, noise, config, log, frames, map_noise)
 
 
 class _KeyframeTaker:
@@ -222,6 +239,7 @@ def _result(
     config: FilterConfig,
     association: AssociationLog | None = None,
     keyframes: Keyframes | None = None,
+    map_noise: NoiseConfig | None = None,
 ) -> ReplayResult:
     ids = ekf.landmark_ids
     return ReplayResult(
@@ -237,6 +255,7 @@ def _result(
         config=config,
         association=association,
         keyframes=keyframes,
+        map_noise=map_noise,
     )
 
 
@@ -346,7 +365,7 @@ def _feed(
 
 
 def _feed_hidden(
-    associating: AssociatingFilter | HypothesisBank,
+    associating: AssociatingFilter | HypothesisBank | MappingFilter,
     upto,
     us,
     dts,

@@ -1,0 +1,79 @@
+"""Decide with one filter, map with another: a deciding run's decisions fed to a second EKF as ids.
+
+Association is a χ² test on Σ, so the filter that decides needs a noise whose Σ is as large as
+the errors really are (on MRCLAM, `ekfslam.logs.mrclam.defaults.MRCLAM_CONSISTENT_NOISE`); but
+its wide motion noise lets the pose wander between corrections and costs the map. `MappingFilter`
+takes the decisions of a finished run (`ekfslam.core.filter.associating.AssociationLog`: each
+sighting's estimated landmark id) and feeds them, as ids, to a fresh `EKFSLAM` built with a
+*mapping* noise: the same updates of eqs. (13)-(16) in the same order (within one time the
+sightings paired with a mapped landmark first, then those that confirmed a new one, as
+`AssociatingFilter._apply` does), each with the per-sighting Q the deciding filter used, the
+time-stamp term (ω · time_sigma)² on the bearing included (`AssociatingFilter.sighting_noise`).
+Tentative and ambiguous sightings are not used, as they were not by the deciding filter.
+
+It is driven like an `AssociatingFilter` (``predict_many``, ``observe``, ``finish``), so the replay
+walks it over the same schedule (`ekfslam.pipeline.replay`'s ``map_noise``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ekfslam.core.filter.associating import ASSOCIATED, CONFIRMED, AssociationLog
+from ekfslam.core.filter.ekf import EKFSLAM
+
+Array = NDArray[np.float64]
+
+
+class MappingFilter:
+    """An `EKFSLAM` fed another run's decisions as ids (see the module).
+
+    Parameters
+    ----------
+    ekf : the mapping filter (built with the mapping noise's run; its ids become the estimated).
+    log : the deciding run's decisions, one per sighting in the order they will be fed.
+    time_sigma : s, `AssociationConfig.time_sigma` of the deciding run (0: no time-stamp term).
+    """
+
+    def __init__(self, ekf: EKFSLAM, log: AssociationLog, time_sigma: float = 0.0) -> None:
+        self.ekf = ekf
+        self.log = log
+        self.time_sigma = float(time_sigma)
+        self._next = 0  # the first sighting not yet fed
+
+    def predict_many(self, us, dts, ts, M=None, R=None) -> None:
+        """`EKFSLAM.predict_many` of the mapping filter."""
+        self.ekf.predict_many(us, dts, ts, M, R)
+
+    def sighting_noise(self, Q: ArrayLike, omega: float) -> Array:
+        """Q (2, 2) plus the time-stamp term, as `AssociatingFilter.sighting_noise`."""
+        Q = np.asarray(Q, dtype=float)
+        if self.time_sigma and omega:
+            Q = Q + np.diag([0.0, (omega * self.time_sigma) ** 2])
+        return Q
+
+    def observe(self, zs: ArrayLike, Q: ArrayLike, t: float, omega: float = 0.0) -> list[int]:
+        """Feed the sightings of time t (s) under the ids the deciding run gave them."""
+        zs = np.asarray(zs, dtype=float).reshape(-1, 2)
+        k, m = self._next, len(zs)
+        if k + m > len(self.log.estimated):
+            raise ValueError(f"{len(self.log.estimated)} decisions for more sightings ({k + m})")
+        Q = self.sighting_noise(Q, omega)
+        used = self.log.estimated[k : k + m].tolist()
+        what = self.log.decision[k : k + m]
+        for kind in (ASSOCIATED, CONFIRMED):  # the deciding filter's order (`_apply`)
+            for i in range(m):
+                if what[i] == kind and used[i] >= 0:
+                    self.ekf.update(used[i], zs[i], Q, t)
+        self._next = k + m
+        return used
+
+    def finish(self) -> AssociationLog:
+        """The deciding run's log (every decision must have been fed)."""
+        if self._next != len(self.log.estimated):
+            raise ValueError(
+                f"{len(self.log.estimated)} decisions, {self._next} sightings fed: the mapping "
+                "replay is not the deciding run's schedule"
+            )
+        return self.log
