@@ -61,6 +61,16 @@ def association_noise(run: RunLog) -> NoiseConfig:
     return default_noise(run)
 
 
+def association_map_noise(run: RunLog) -> NoiseConfig | None:
+    """The mapping filter's noise for a replay with hidden ids (`ekfslam.pipeline.replay`'s
+    ``map_noise``): on MRCLAM `ekfslam.logs.mrclam.defaults.MRCLAM_MAP_NOISE` (the consistency
+    noise decides, a second filter with sigma_x = sigma_y = 0.005 maps); elsewhere None, one
+    filter decides and maps (the seed's runs replay with their ideal noise)."""
+    if run.meta.defaults == mrclam_defaults.NAME:
+        return mrclam_defaults.MRCLAM_MAP_NOISE
+    return None
+
+
 def score(
     run: RunLog, result: ReplayResult, match: str = "mapping"
 ) -> tuple[ReplayResult, Confusion]:

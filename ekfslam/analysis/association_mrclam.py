@@ -8,7 +8,10 @@ eq. (17), the landmarks matched through the association's mapping. `association_
 per-robot table of ``python -m ekfslam score-mrclam DATASET --association nn jcbb``; with
 ``--linearization`` the replays that associate (and the barcodes' replay under their noise) run
 that filter (`ekfslam.core.filter.config.FilterConfig.linearization`), while ``known`` stays the
-shipped default, the standard EKF, so every ratio is against the same figure.
+shipped default, the standard EKF, so every ratio is against the same figure. On MRCLAM the
+decisions are then fed as ids to a second filter with the mapping noise
+(`ekfslam.analysis.association.association_map_noise`), whose map is scored; ``mapped=False``
+(``--map-noise none``) scores the deciding filter's own map.
 """
 
 from __future__ import annotations
@@ -36,12 +39,15 @@ class AssociationRow:
     known_error, aligned_error : m, mean landmark error after eq. (17), with the barcodes (the
     shipped default noise, `MRCLAM_NOISE`) and without (the noise of
     `ekfslam.analysis.association.association_noise`). ratio : aligned_error / known_error.
-    known_same_noise, ratio_same_noise : the barcodes' error with that same noise, and the
-    ratio to it. landmarks : mapped landmarks that stand for a
-    true one (duplicates left out). correct_fraction, correct, wrong, missed : the decisions
+    known_same_noise, ratio_same_noise : the barcodes' error with the noise the map was made
+    with (the mapping noise when `mapped`, else the association noise), and the ratio to it.
+    landmarks : mapped landmarks that stand for a true one (duplicates left out).
+    correct_fraction, correct, wrong, missed : the decisions
     (`ekfslam.core.association.Confusion`). new, ambiguous, duplicates : landmarks made,
     sightings dropped, estimated landmarks whose true id a more-seen one already had.
     linearization : the filter of the replays with the association noise (`association_robots`).
+    mapped : whether the decisions were fed to a second filter with the mapping noise
+    (`ekfslam.analysis.association.association_map_noise`), whose map is the one scored.
     wrong_from_known_state : the share of sightings of mapped landmarks the method pairs with
     another landmark when deciding from the state the barcodes give, its errors not fed back
     (`ekfslam.pipeline.decisions_from_known_state`): what the sensor and the map allow. For
@@ -65,6 +71,7 @@ class AssociationRow:
     duplicates: int
     wrong_from_known_state: float
     linearization: str = "standard"
+    mapped: bool = False
 
 
 def association_robots(
@@ -73,12 +80,15 @@ def association_robots(
     robots=ROBOTS,
     linearization: str = "standard",
     hypotheses: int | None = None,
+    mapped: bool = True,
 ) -> list[AssociationRow]:
     """Every robot replayed with ``known`` and with each of `methods`, scored (see the module).
 
     linearization : the filter of every replay with the association noise; ``known`` (the
     shipped default) is always the standard EKF. hypotheses : ``mht``'s bank size (None: its
-    default, `ekfslam.core.association.AssociationConfig.hypotheses`).
+    default, `ekfslam.core.association.AssociationConfig.hypotheses`). mapped : map with a
+    second filter fed the decisions, with `ekfslam.analysis.association.association_map_noise`
+    (the default); False: the deciding filter's own map.
     """
     filter_config = dataclasses.replace(MRCLAM_CONFIG, linearization=linearization)
     rows = []
@@ -87,11 +97,12 @@ def association_robots(
         known = summarize(run, replay(run, MRCLAM_NOISE, MRCLAM_CONFIG))
         base = known.alignment.mean_error if known.alignment else math.nan
         noise = assoc.association_noise(run)
-        same = summarize(run, replay(run, noise, filter_config))
+        map_noise = assoc.association_map_noise(run) if mapped else None
+        same = summarize(run, replay(run, map_noise or noise, filter_config))  # the map's noise
         same_error = same.alignment.mean_error if same.alignment else math.nan
         for method in methods:
             config = assoc.association_config(run, method, hypotheses)
-            hidden = replay(run, noise, filter_config, association=config)
+            hidden = replay(run, noise, filter_config, association=config, map_noise=map_noise)
             result, found = assoc.score(run, hidden)
             s = summarize(run, result)
             error = s.alignment.mean_error if s.alignment else math.nan
@@ -106,6 +117,7 @@ def association_robots(
                     wrong=found.wrong, missed=found.missed, new=counts.confirmed,
                     ambiguous=counts.ambiguous, duplicates=len(found.duplicates),
                     wrong_from_known_state=wrong_from_known, linearization=linearization,
+                    mapped=map_noise is not None,
                 )
             )  # fmt: skip
     return rows
@@ -145,4 +157,11 @@ def association_table(rows: list[AssociationRow]) -> str:
             lines.append(f"{method} / {what}: worst {max(ratios):.2f}, mean {mean:.2f}")
     for lin in dict.fromkeys(r.linearization for r in rows):
         lines.append(f"filter with the association noise: {lin} EKF (known: standard)")
+    for mapped in dict.fromkeys(r.mapped for r in rows):
+        lines.append(
+            "map: a second filter fed the decisions as ids, with the mapping noise "
+            "(sigma_x = sigma_y = 0.005)"
+            if mapped
+            else "map: the deciding filter's own (no mapping filter)"
+        )
     return "\n".join(lines)

@@ -2,7 +2,8 @@
 
 Without ``--association``: the README's MRCLAM table. With it: each robot with the barcodes hidden
 from the filter, by the methods named, against the same robot with them known
-(`ekfslam.analysis.association_mrclam`); ``--linearization L`` runs those replays with filter L.
+(`ekfslam.analysis.association_mrclam`); ``--linearization L`` runs those replays with filter L;
+``--map-noise none`` scores the deciding filter's own map instead of the mapping filter's.
 """
 
 from __future__ import annotations
@@ -36,11 +37,17 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
                    help="with --association: the filter of the replays that associate (and of "
                    "'known, same noise'); known's column stays the shipped standard EKF "
                    "(default: standard)")  # fmt: skip
+    p.add_argument("--map-noise", choices=("mrclam", "none"), default=None,
+                   help="with --association: the noise of a second filter that maps with the "
+                   "decisions (mrclam: the consistency noise with sigma_x = sigma_y = 0.005, "
+                   "the default; none: the deciding filter's own map)")  # fmt: skip
     ca.add_json_argument(p, "print one JSON object: {robots: [{robot, landmarks, ...}, ...]}")
 
     def check(args: argparse.Namespace) -> str | None:
         if args.linearization is not None and not args.association:
             return "argument --linearization: only with --association"
+        if args.map_noise is not None and not args.association:
+            return "argument --map-noise: only with --association"
         if args.hypotheses is not None and "mht" not in (args.association or ()):
             return "argument --hypotheses: only with --association mht"
         return None
@@ -56,7 +63,7 @@ def cmd_score_mrclam(args: argparse.Namespace) -> int:
         methods = tuple(dict.fromkeys(args.association))
         rows = association_robots(
             folder, methods, linearization=args.linearization or "standard",
-            hypotheses=args.hypotheses,
+            hypotheses=args.hypotheses, mapped=args.map_noise != "none",
         )  # fmt: skip
         if args.json:
             print(json.dumps({"dataset": str(folder), "rows": [_finite(r) for r in rows]},

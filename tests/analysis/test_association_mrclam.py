@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import pytest
@@ -13,7 +14,7 @@ def test_the_invariant_filter_associates_but_known_stays_the_shipped_standard(mr
     """2026-12-01, Dataset 7 robot 2, jcbb: 0.040 m standard, 0.054 m invariant, against 0.027 m
     known; the invariant EKF is consistent here, yet it does not associate better."""
     standard, invariant = (
-        association_robots(mrclam7, ("jcbb",), robots=(2,), linearization=lin)[0]
+        association_robots(mrclam7, ("jcbb",), robots=(2,), linearization=lin, mapped=False)[0]
         for lin in ("standard", "invariant")
     )
     assert (standard.linearization, invariant.linearization) == ("standard", "invariant")
@@ -44,7 +45,9 @@ def _dataset(number: int, data_missing) -> Path:
 def test_the_bank_keeps_the_robots_jcbb_loses(dataset, robot, jcbb, mht, data_missing):
     """2026-12-01, `score-mrclam 4|1 --association jcbb mht`: an early wrong pairing sends JCBB
     to 35-42x known's map error; the bank of 8 hypotheses maps these robots as well as known."""
-    rows = association_robots(_dataset(dataset, data_missing), ("jcbb", "mht"), robots=(robot,))
+    rows = association_robots(
+        _dataset(dataset, data_missing), ("jcbb", "mht"), robots=(robot,), mapped=False
+    )
     assert [r.method for r in rows] == ["jcbb", "mht"]
     assert rows[0].ratio == pytest.approx(jcbb, rel=0.1)
     assert rows[1].ratio == pytest.approx(mht, abs=0.15)
@@ -56,6 +59,24 @@ def test_dataset_7_with_the_bank(mrclam7: Path):
     """2026-12-01: mht 0.163 / 0.104 m on robots 1 and 5 (2.70x, 2.49x), against jcbb's 1.66x,
     2.40x: on Dataset 7's clusters the bank decides more sightings right (80.7%, 79.0%) and
     still does not reach 1.5x known."""
-    rows = association_robots(mrclam7, ("mht",), robots=(1, 5))
+    rows = association_robots(mrclam7, ("mht",), robots=(1, 5), mapped=False)
     assert [round(r.ratio, 1) for r in rows] == pytest.approx([2.7, 2.5], abs=0.25)
     assert [r.correct_fraction for r in rows] == pytest.approx([0.807, 0.790], abs=0.02)
+
+
+def test_the_mapping_noise_is_the_consistency_noise_with_the_maps_translation():
+    """MRCLAM maps with sigma_x = sigma_y = 0.005 (MRCLAM_NOISE's) and the rest of the noise
+    that decides; the seed's runs have no mapping filter (their ideal noise decides and maps)."""
+    from ekfslam.analysis.association import association_map_noise
+    from ekfslam.logs.mrclam import defaults
+    from ekfslam.logs.runlog import read_run
+
+    noise = defaults.MRCLAM_MAP_NOISE
+    assert noise == dataclasses.replace(
+        defaults.MRCLAM_CONSISTENT_NOISE, sigma_x=0.005, sigma_y=0.005
+    )
+    assert (noise.sigma_x, noise.sigma_y) == (defaults.MRCLAM_NOISE.sigma_x, 0.005)
+    seed = read_run(Path(__file__).resolve().parents[2] / "data" / "runs" / "square-2laps")
+    assert association_map_noise(seed) is None
+    mrclam = dataclasses.replace(seed, meta=dataclasses.replace(seed.meta, defaults="mrclam"))
+    assert association_map_noise(mrclam) is noise

@@ -418,3 +418,26 @@ def test_tune_browser_against_a_folder_that_is_no_checkout_names_it(tmp_path: Pa
         f"error: {tmp_path}: not a checkout of ekfslam (no ekfslam/__init__.py)"
     ]
     assert "Traceback" not in out.stderr
+
+
+@pytest.mark.parametrize(("flag", "mapped"), [((), True), (("--map-noise", "mrclam"), True),
+                                              (("--map-noise", "none"), False)])  # fmt: skip
+def test_score_mrclam_maps_with_a_second_filter_unless_told_not_to(
+    flag, mapped, monkeypatch, tmp_path: Path, capsys
+):
+    """--map-noise reaches `association_robots` (the work itself is stubbed: no data needed)."""
+    from ekfslam.cli import score_mrclam
+    from ekfslam.cli.main import main
+
+    seen = {}
+
+    def robots(folder, methods, **kw):
+        seen.update(kw)
+        return []
+
+    monkeypatch.setattr(score_mrclam, "mrclam_folder", lambda dataset: tmp_path)
+    monkeypatch.setattr(score_mrclam, "association_robots", robots)
+    monkeypatch.setattr(score_mrclam, "association_table", lambda rows: "table")
+    assert main(["score-mrclam", "7", "--association", "jcbb", *flag]) == 0
+    assert seen["mapped"] is mapped
+    assert capsys.readouterr().out == "table\n"
