@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from ekfslam.analysis.association_mrclam import association_robots, association_table
@@ -80,3 +81,32 @@ def test_the_mapping_noise_is_the_consistency_noise_with_the_maps_translation():
     assert association_map_noise(seed) is None
     mrclam = dataclasses.replace(seed, meta=dataclasses.replace(seed.meta, defaults="mrclam"))
     assert association_map_noise(mrclam) is noise
+
+
+@pytest.mark.slow
+def test_dataset_7_mapped_by_a_second_filter(mrclam7: Path):
+    """2026-12-01, `score-mrclam 7 --association jcbb mht`: deciding under the consistency noise
+    and mapping with sigma_x = sigma_y = 0.005 takes mht from 2.70/2.20/2.03/1.34/2.49x known to
+    1.84/1.51/0.99/1.32/1.34x (mean 2.15x -> 1.40x) and jcbb from a mean of 1.80x to 1.45x; the
+    decisions are the same ones (the correct shares do not move)."""
+    rows = association_robots(mrclam7, ("jcbb", "mht"))
+    assert all(r.mapped for r in rows)
+    jcbb = [r.ratio for r in rows if r.method == "jcbb"]
+    mht = [r for r in rows if r.method == "mht"]
+    assert [r.ratio for r in mht] == pytest.approx([1.84, 1.51, 0.99, 1.32, 1.34], abs=0.1)
+    assert np.mean([r.ratio for r in mht]) == pytest.approx(1.40, abs=0.05)
+    assert jcbb == pytest.approx([1.17, 1.64, 1.47, 1.30, 1.65], abs=0.1)
+    assert np.mean(jcbb) == pytest.approx(1.45, abs=0.05)
+    assert [r.correct_fraction for r in mht] == pytest.approx(
+        [0.807, 0.846, 0.826, 0.824, 0.790], abs=0.01
+    )
+
+
+@pytest.mark.slow
+def test_dataset_4_mapped_by_a_second_filter(data_missing):
+    """2026-12-01, `score-mrclam 4 --association jcbb mht`: the bank's decisions mapped with
+    sigma_x = sigma_y = 0.005, robots 1 and 2 at 1.22x and 2.06x known (its own map: robot 1
+    1.05x; the five robots' worst / mean 2.18 / 1.58x -> 2.06 / 1.20x)."""
+    rows = association_robots(_dataset(4, data_missing), ("mht",), robots=(1, 2))
+    assert [r.ratio for r in rows] == pytest.approx([1.22, 2.06], abs=0.15)
+    assert [r.correct_fraction for r in rows] == pytest.approx([0.999, 0.982], abs=0.01)
