@@ -104,6 +104,9 @@ def score(
     return relabelled, found
 
 
+_SIGMAS = ("sigma_x", "sigma_y", "sigma_theta", "sigma_range", "sigma_bearing")
+
+
 def as_dict(result: ReplayResult, found: Confusion, match: str = "mapping") -> dict:
     """The ``association`` block of ``run --json``: the method, the confusion, the counts."""
     log = result.association
@@ -125,7 +128,9 @@ def as_dict(result: ReplayResult, found: Confusion, match: str = "mapping") -> d
         "mapping": {str(e): t for e, t in sorted(found.mapping.items())},
         "alignment_matching": MATCHINGS[match],
         "noise": {  # `association_noise`'s choice, with any overrides: what the χ² tests used
-            k: getattr(result.noise, k)
-            for k in ("sigma_x", "sigma_y", "sigma_theta", "sigma_range", "sigma_bearing")
+            k: getattr(result.noise, k) for k in _SIGMAS
         },
+        "map_noise": None  # the mapping filter's, when a second filter mapped the decisions
+        if result.map_noise is None
+        else {k: getattr(result.map_noise, k) for k in _SIGMAS},
     }

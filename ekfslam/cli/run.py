@@ -22,6 +22,7 @@ from ekfslam.cli.common import (
 )
 from ekfslam.core.association import METHODS, AssociationConfig
 from ekfslam.files import save_figure
+from ekfslam.logs.mrclam.defaults import MRCLAM_MAP_NOISE
 from ekfslam.logs.mrclam.load import MrclamLoadReport
 from ekfslam.logs.runlog import RunLog
 from ekfslam.viz.tables import association_line, table1_lines
@@ -65,10 +66,20 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         metavar="K", help="with --association mht: how many hypotheses the bank keeps "
         f"(default {AssociationConfig().hypotheses}; 1 is jcbb)",
     )  # fmt: skip
+    run.add_argument(
+        "--map-noise", choices=("none", "mrclam"), default="none",
+        help="with --association nn|jcbb|mht: feed the decisions as ids to a second filter that "
+        "maps with this noise (mrclam: MRCLAM's consistency noise with sigma_x = sigma_y = "
+        "0.005, score-mrclam's default); none (the default): the deciding filter maps",
+    )  # fmt: skip
     run.add_check(_match_needs_hidden_ids)
     ca.add_noise_arguments(run)
     add_iterations_argument(run)
     run.set_defaults(func=cmd_run)
+
+
+#: ``--map-noise``: the mapping filter's noise (`ekfslam.pipeline.replay`'s ``map_noise``).
+MAP_NOISES = {"none": None, "mrclam": MRCLAM_MAP_NOISE}
 
 
 def _match_needs_hidden_ids(args: argparse.Namespace) -> str | None:
@@ -76,6 +87,8 @@ def _match_needs_hidden_ids(args: argparse.Namespace) -> str | None:
         return "argument --match: needs --association nn, jcbb or mht (known ids match by id)"
     if args.hypotheses is not None and args.association != "mht":
         return "argument --hypotheses: only with --association mht"
+    if args.map_noise != "none" and args.association == "known":
+        return "argument --map-noise: needs --association nn, jcbb or mht"
     return None
 
 
@@ -94,7 +107,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         result = pipeline.replay(
             run, noise, config,
             association=assoc.association_config(run, args.association, args.hypotheses),
-            **frames,
+            map_noise=MAP_NOISES[getattr(args, "map_noise", "none")], **frames,
         )  # fmt: skip
         result, found = assoc.score(run, result, args.match)
         labels = None if animate is None else animate_args.true_labels(result, found.mapping)

@@ -48,3 +48,26 @@ def test_match_by_position_says_so_and_finds_the_mappings_map():
     bad = cli("run", str(OCTAGON), "--match", "position")  # known ids: nothing to match
     assert bad.returncode == 2
     assert bad.stderr.count("\n") == 1 and "--match" in bad.stderr
+
+
+def test_map_noise_feeds_the_decisions_to_a_second_filter_and_says_so():
+    """The seed's runs map with the deciding filter unless asked; asked, the JSON says with what."""
+    plain = json.loads(cli("run", str(OCTAGON), "--association", "jcbb", "--json").stdout)
+    assert plain["association"]["map_noise"] is None
+    out = cli("run", str(OCTAGON), "--association", "jcbb", "--map-noise", "mrclam", "--json")
+    assert out.returncode == 0, out.stderr
+    mapped = json.loads(out.stdout)
+    assert mapped["association"]["map_noise"] == {
+        "sigma_x": 0.005, "sigma_y": 0.005, "sigma_theta": 0.05, "sigma_range": 0.5,
+        "sigma_bearing": 0.03,
+    }  # fmt: skip
+    assert mapped["association"]["correct"] == plain["association"]["correct"] == 614
+    assert mapped["association"]["noise"] == plain["association"]["noise"]  # the deciding one
+    assert mapped["alignment"] != plain["alignment"]
+    cases = [(("--map-noise", "mrclam"), "--association"),
+             (("--association", "jcbb", "--map-noise", "x005"), "--map-noise")]  # fmt: skip
+    for bad_args, word in cases:
+        bad = cli("run", str(OCTAGON), *bad_args)
+        assert bad.returncode == 2
+        assert bad.stderr.count("\n") == 1 and "--map-noise" in bad.stderr and word in bad.stderr
+        assert "Traceback" not in bad.stderr
