@@ -89,3 +89,13 @@ def test_decisions_of_another_schedule_are_refused():
         mapper.finish()
     with pytest.raises(ValueError, match="3 decisions for more sightings"):
         mapper.observe([[1.0, 0.0], [2.0, 0.5]], np.eye(2) * 0.01, 1.0)
+
+
+def test_keyframes_are_the_mapping_filters():
+    run = read_run(RUNS / "square-2laps")
+    config = AssociationConfig(method="jcbb")
+    noise = default_noise(run)
+    wide = dataclasses.replace(noise, sigma_x=4 * noise.sigma_x, sigma_y=4 * noise.sigma_x)
+    mapped = replay(run, noise, association=config, map_noise=wide, keyframes=3)
+    last = mapped.keyframes.mu[-1][: len(mapped.mu)]
+    np.testing.assert_array_equal(last, mapped.mu)
