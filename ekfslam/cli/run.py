@@ -28,6 +28,7 @@ from ekfslam.logs.runlog import RunLog
 from ekfslam.viz.tables import association_line, table1_lines
 
 if TYPE_CHECKING:
+    from ekfslam.core.noise import NoiseConfig
     from ekfslam.vision.frames_run import FramesReport
 
 
@@ -67,10 +68,11 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         f"(default {AssociationConfig().hypotheses}; 1 is jcbb)",
     )  # fmt: skip
     run.add_argument(
-        "--map-noise", choices=("none", "mrclam"), default="none",
+        "--map-noise", choices=("auto", "none", "mrclam"), default="auto",
         help="with --association nn|jcbb|mht: feed the decisions as ids to a second filter that "
         "maps with this noise (mrclam: MRCLAM's consistency noise with sigma_x = sigma_y = "
-        "0.005, score-mrclam's default); none (the default): the deciding filter maps",
+        "0.005); none: the deciding filter maps; auto (the default): the data source's choice, "
+        "as score-mrclam makes it (mrclam for MRCLAM runs, none for the others)",
     )  # fmt: skip
     run.add_check(_match_needs_hidden_ids)
     ca.add_noise_arguments(run)
@@ -82,12 +84,17 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
 MAP_NOISES = {"none": None, "mrclam": MRCLAM_MAP_NOISE}
 
 
+def _map_noise(run: RunLog, choice: str) -> NoiseConfig | None:
+    """``--map-noise``: auto is the data source's (`association_map_noise`), else the named one."""
+    return assoc.association_map_noise(run) if choice == "auto" else MAP_NOISES[choice]
+
+
 def _match_needs_hidden_ids(args: argparse.Namespace) -> str | None:
     if args.match != "mapping" and args.association == "known":
         return "argument --match: needs --association nn, jcbb or mht (known ids match by id)"
     if args.hypotheses is not None and args.association != "mht":
         return "argument --hypotheses: only with --association mht"
-    if args.map_noise != "none" and args.association == "known":
+    if args.map_noise != "auto" and args.association == "known":
         return "argument --map-noise: needs --association nn, jcbb or mht"
     return None
 
@@ -107,7 +114,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         result = pipeline.replay(
             run, noise, config,
             association=assoc.association_config(run, args.association, args.hypotheses),
-            map_noise=MAP_NOISES[getattr(args, "map_noise", "none")], **frames,
+            map_noise=_map_noise(run, getattr(args, "map_noise", "auto")), **frames,
         )  # fmt: skip
         result, found = assoc.score(run, result, args.match)
         labels = None if animate is None else animate_args.true_labels(result, found.mapping)

@@ -3,9 +3,14 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 from ekfslam_cli import run_ekfslam
+
+from ekfslam.cli.run import _map_noise
+from ekfslam.logs.mrclam.defaults import MRCLAM_MAP_NOISE, NAME
+from ekfslam.logs.runlog import read_run
 
 REPO = Path(__file__).resolve().parents[2]
 OCTAGON = REPO / "data" / "runs" / "octagon-2laps"
@@ -71,3 +76,13 @@ def test_map_noise_feeds_the_decisions_to_a_second_filter_and_says_so():
         assert bad.returncode == 2
         assert bad.stderr.count("\n") == 1 and "--map-noise" in bad.stderr and word in bad.stderr
         assert "Traceback" not in bad.stderr
+
+
+def test_run_maps_as_score_mrclam_does_by_default():
+    """`run DATASET --robot N --association X` gives score-mrclam's row: on a MRCLAM run the
+    default (auto) is the mapping filter with `MRCLAM_MAP_NOISE`; on the seed's runs none."""
+    seed = read_run(OCTAGON)
+    robot = replace(seed, meta=replace(seed.meta, defaults=NAME))  # what load_mrclam names
+    assert _map_noise(seed, "auto") is None
+    assert _map_noise(robot, "auto") == MRCLAM_MAP_NOISE
+    assert _map_noise(robot, "none") is None and _map_noise(seed, "mrclam") == MRCLAM_MAP_NOISE
