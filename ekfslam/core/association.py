@@ -7,7 +7,7 @@ per landmark, and the cross blocks that a shared pose error puts between them), 
 sighting's noise Q_i. Sighting i and landmark j then have the innovation covariance
 S_ij = P_jj + Q_i and the normalised innovation squared NIS_ij = ν_ijᵀ S_ij⁻¹ ν_ij.
 
-Three methods (`AssociationConfig.method`):
+Four methods (`AssociationConfig.method`):
 
 - ``known``: the sightings say which landmark they are (AprilTag ids, MRCLAM barcodes); nothing
   here is used, and the filter runs exactly as without this module.

@@ -135,7 +135,7 @@ class TuningView:
         a = summary.alignment if not len(gt_xy) else None
         path = h.pose[:, :2] if a is None else a.apply(h.pose[:, :2])
         self.path.set_data(path[:, 0], path[:, 1])
-        start = gt_xy[:1] if a is None else a.start_pose(run.meta.nominal_start)[None, :2]
+        start = gt_xy[:1] if a is None else np.asarray(summary.start_pose)[None, :2]
         self.start.set_data(start[:, 0], start[:, 1])
         ids = sorted(result.landmarks)
         est = np.array([result.landmarks[i] for i in ids]).reshape(-1, 2)

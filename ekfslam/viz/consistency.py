@@ -20,6 +20,10 @@ if TYPE_CHECKING:
     from ekfslam.analysis.mrclam_consistency import MrclamConsistency
 
 
+#: One colour per linearisation, in every consistency figure.
+COLORS = {"standard": "tab:red", "fej": "tab:blue", "invariant": "tab:green"}
+
+
 def plot_consistency(
     results: Consistency | Iterable[Consistency], title: str | None = None, figsize=(9.0, 9.0)
 ) -> Figure:
@@ -35,7 +39,6 @@ def plot_consistency(
         ("nees_heading", "heading NEES (1 dof)"),
         ("nis", "NIS (2 dof)"),
     )
-    colors = {"standard": "tab:red", "fej": "tab:blue", "invariant": "tab:green"}
     for ax, (name, label) in zip(axes, panels, strict=True):
         r0 = results[0]
         band = getattr(r0, "band_" + name.removeprefix("nees_"))
@@ -47,7 +50,7 @@ def plot_consistency(
         )  # fmt: skip
         for r in results:
             ax.plot(
-                r.t[ok], getattr(r, name)[ok], lw=1.0, color=colors.get(r.linearization),
+                r.t[ok], getattr(r, name)[ok], lw=1.0, color=COLORS.get(r.linearization),
                 label=f"{r.linearization}: {r.fraction_in_band(name):.0%} of steps in band",
             )  # fmt: skip
         ax.set_ylabel(f"average {label}")
@@ -86,7 +89,6 @@ def plot_mrclam_nees(study: MrclamConsistency, figsize=None, floor: float = 0.01
     robots = study.robots
     fig = Figure(figsize=figsize or (9.0, 1.5 + 1.7 * len(robots)), layout="constrained")
     axes = np.atleast_1d(fig.subplots(len(robots), 1, sharex=True, sharey=True))
-    colors = {"standard": "tab:red", "fej": "tab:blue", "invariant": "tab:green"}
     for ax, robot in zip(axes, robots, strict=True):
         ax.axhspan(
             *study.interval, color="0.88", label=f"{study.confidence:.0%} interval for one run"
@@ -96,7 +98,13 @@ def plot_mrclam_nees(study: MrclamConsistency, figsize=None, floor: float = 0.01
         for lin in study.linearizations:
             r = study.get(robot, lin)
             minutes = (r.t - r.t[0]) / 60.0
-            ax.plot(minutes, np.maximum(r.nees, floor), lw=0.6, color=colors.get(lin), label=lin)
+            ax.plot(
+                minutes,
+                np.maximum(r.nees, floor),
+                lw=0.6,
+                color=COLORS.get(lin),
+                label=lin,
+            )
             stats.append(f"{lin} mean {r.mean:.1f}, {r.fraction_in_interval:.0%} in interval")
         ax.set_yscale("log")
         ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))

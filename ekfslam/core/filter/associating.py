@@ -2,15 +2,16 @@
 
 `AssociatingFilter` wraps an `ekfslam.core.filter.ekf.EKFSLAM`. For the sightings taken at one
 time it predicts every mapped landmark's observation and the joint covariance of those
-predictions from the filter's state, lets `ekfslam.core.association` choose the pairing
-(``nn`` or ``jcbb``), and feeds each paired sighting to `EKFSLAM.update` under the landmark's
-estimated id (0, 1, 2 ... in the order they become permanent), one after the other as the
-replay does with known ids. ``nn`` needs only each landmark's own 2x2 block of that covariance,
-so it runs compiled (`ekfslam.core.filter.nearest.nearest`, O(m n)) and costs about what the
-updates do; ``jcbb`` needs the cross blocks too: H Σ Hᵀ and the search run compiled
+predictions from the filter's state, lets compiled kernels choose the pairing (``nn`` or
+``jcbb``, deciding as `ekfslam.core.association`'s readable forms), and feeds each paired
+sighting to `EKFSLAM.update` under the landmark's estimated id (0, 1, 2 ... in the order they
+become permanent), one after the other as the replay does with known ids. ``nn`` needs only each
+landmark's own 2x2 block of that covariance, so it runs compiled
+(`ekfslam.core.filter.nearest.nearest`, O(m n)) and costs about what the updates do; ``jcbb``
+needs the cross blocks too: H Σ Hᵀ and the search run compiled
 (`ekfslam.core.filter.jcbb_kernels`), deciding as `ekfslam.core.association.jcbb` over
-`predicted`, the readable forms. The EKF
-itself is unchanged: its gate and re-initialisation still apply to each update.
+`predicted`, the readable forms. The EKF itself is unchanged: its gate and re-initialisation
+still apply to each update.
 
 Two sightings of one time never come from one landmark (the assumption JCBB's pairing makes):
 a sighting JCBB left unpaired is judged ambiguous only against the landmarks no other sighting
@@ -96,6 +97,15 @@ class AssociationLog:
     counts: AssociationCounts
 
 
+def sighting_noise(Q: ArrayLike, omega: float, time_sigma: float) -> Array:
+    """Q (2, 2) of a sighting taken while turning at omega rad/s whose time stamp may be off by
+    time_sigma s: (omega time_sigma)² more bearing variance (`AssociationConfig.time_sigma`)."""
+    Q = np.asarray(Q, dtype=float)
+    if time_sigma and omega:
+        Q = Q + np.diag([0.0, (omega * time_sigma) ** 2])
+    return Q
+
+
 class AssociatingFilter:
     """An EKF whose sightings are matched to landmarks by `config.method` ("nn" or "jcbb"; with
     "mht" each hypothesis of `ekfslam.core.filter.mht.HypothesisBank` is one, deciding as "jcbb").
@@ -135,10 +145,7 @@ class AssociatingFilter:
 
     def sighting_noise(self, Q: ArrayLike, omega: float) -> Array:
         """Q (2, 2) of the sightings taken while turning at omega rad/s (see `observe`)."""
-        Q = np.asarray(Q, dtype=float)
-        if self.config.time_sigma and omega:
-            Q = Q + np.diag([0.0, (omega * self.config.time_sigma) ** 2])
-        return Q
+        return sighting_noise(Q, omega, self.config.time_sigma)
 
     def observe(self, zs: ArrayLike, Q: ArrayLike, t: float, omega: float = 0.0) -> list[int]:
         """Use the sightings taken at time t (s): zs (m, 2) range (m), bearing (rad); Q (2, 2).

@@ -278,11 +278,10 @@ class EKFSLAM(FilterState):
         )
         if iterate:  # the history keeps the first linearisation's innovation, S and NIS
             out[:] = self._first_out
-        if outcome == _ACCEPTED:
-            self._rho = 0.0  # the correction's pass added it
         if outcome == _REJECTED and self._should_reinitialise(j, z):
             return self._reinitialise(landmark_id, j, z, Q)
         if outcome == _ACCEPTED:
+            self._rho = 0.0  # the correction's pass added it
             outcome = accepted_as
             if not fresh:
                 self._sightings[j] += 1

@@ -6,7 +6,7 @@ nearly all of its time is Python's and numpy's per-call overhead, so the filter 
 instead, which decide the same (tested against the reference on random cases):
 
 - `predict_all`: ν, P = H Σ Hᵀ and the individual NIS of every sighting against every landmark,
-  from Σ's lower triangle (as `ekfslam.core.filter.kernels.nearest`), using that each H_j is
+  from Σ's lower triangle (as `ekfslam.core.filter.nearest.nearest`), using that each H_j is
   nonzero on the pose and landmark j only (eq. 14): P_jk needs Σ's 5x5 blocks, not H's zeros.
 - `search`: the same depth-first branch and bound, with an explicit stack instead of recursion,
   and an incremental Cholesky factor: adding pair (i, j) to a hypothesis of k pairs appends two

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ekfslam.core.filter.associating import ASSOCIATED, CONFIRMED, AssociationLog
+from ekfslam.core.filter.associating import ASSOCIATED, CONFIRMED, AssociationLog, sighting_noise
 from ekfslam.core.filter.ekf import EKFSLAM
 
 Array = NDArray[np.float64]
@@ -46,20 +46,13 @@ class MappingFilter:
         """`EKFSLAM.predict_many` of the mapping filter."""
         self.ekf.predict_many(us, dts, ts, M, R)
 
-    def sighting_noise(self, Q: ArrayLike, omega: float) -> Array:
-        """Q (2, 2) plus the time-stamp term, as `AssociatingFilter.sighting_noise`."""
-        Q = np.asarray(Q, dtype=float)
-        if self.time_sigma and omega:
-            Q = Q + np.diag([0.0, (omega * self.time_sigma) ** 2])
-        return Q
-
     def observe(self, zs: ArrayLike, Q: ArrayLike, t: float, omega: float = 0.0) -> list[int]:
         """Feed the sightings of time t (s) under the ids the deciding run gave them."""
         zs = np.asarray(zs, dtype=float).reshape(-1, 2)
         k, m = self._next, len(zs)
         if k + m > len(self.log.estimated):
             raise ValueError(f"{len(self.log.estimated)} decisions for more sightings ({k + m})")
-        Q = self.sighting_noise(Q, omega)
+        Q = sighting_noise(Q, omega, self.time_sigma)
         used = self.log.estimated[k : k + m].tolist()
         what = self.log.decision[k : k + m]
         for kind in (ASSOCIATED, CONFIRMED):  # the deciding filter's order (`_apply`)

@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.association import UNPAIRED, AssociationConfig, JcbbResult, joint_innovation
-from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog
+from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog, sighting_noise
 from ekfslam.core.filter.ekf import EKFSLAM
 
 Array = NDArray[np.float64]
@@ -92,8 +92,9 @@ def _same(a: AssociatingFilter, b: AssociatingFilter, radius: float) -> bool:
     )
 
 
-def _carry_out(af: AssociatingFilter, zs: Array, Q: Array, t: float, option, free) -> None:
-    af._apply(zs, Q, t, [max(j, UNPAIRED) for j in option], free)
+def _pairing(option: tuple[int, ...]) -> list[int]:
+    """An option as `AssociatingFilter._apply`'s pairing: `NEW` is unpaired there."""
+    return [max(j, UNPAIRED) for j in option]
 
 
 class HypothesisBank:
@@ -125,7 +126,7 @@ class HypothesisBank:
     def observe(self, zs: ArrayLike, Q: ArrayLike, t: float, omega: float = 0.0) -> None:
         """Branch on the sightings taken at time t (s), as `AssociatingFilter.observe`."""
         zs = np.asarray(zs, dtype=float).reshape(-1, 2)
-        Q = self._bank[0][1].sighting_noise(Q, omega)
+        Q = sighting_noise(Q, omega, self.config.time_sigma)
         children = []
         for h, (score, af, _) in enumerate(self._bank):
             for gain, option, free in self._options(af, zs, Q, t):
@@ -138,7 +139,7 @@ class HypothesisBank:
                 break
             _, parent, node = self._bank[h]
             child = parent.clone() if self.config.hypotheses > 1 else parent
-            _carry_out(child, zs, Q, t, option, free)
+            child._apply(zs, Q, t, _pairing(option), free)
             if any(_same(child, k, radius) for _, k, _ in kept):
                 continue
             kept.append((score, child, (node, option)))
@@ -210,7 +211,7 @@ class DecisionReplay(AssociatingFilter):
         if len(option) != len(zs):
             raise ValueError(f"an option for {len(option)} sightings given {len(zs)}")
         free = _free_nis(self._predict_all(zs, Q)[2], option)
-        pairing = np.array([max(j, UNPAIRED) for j in option], dtype=np.int64)
+        pairing = np.array(_pairing(option), dtype=np.int64)
         return JcbbResult(pairing, 0.0, 0, False), np.array(free)
 
     def finish(self) -> AssociationLog:
