@@ -50,8 +50,9 @@ class ReplayResult:
     history : every event (see `ekfslam.core.filter.history.History`).
     counts : predictions, initialised, accepted, rejected, refused.
     seconds : wall time of the replay loop.
-    association : with ids hidden (``nn``, ``jcbb``), every sighting's decision, in the order of
-        ``run.detections``; the landmarks are then keyed by estimated id. None for ``known``.
+    association : with ids hidden (``nn``, ``jcbb``, ``mht``), every sighting's decision, in the
+        order of ``run.detections``; the landmarks are then keyed by estimated id. None for
+        ``known``.
     keyframes : the full state at evenly spread moments, when `replay` was asked for them.
     map_noise : the mapping filter's noise when the decisions were replayed through one
         (`replay`'s ``map_noise``); the state, history and counts are then its. `noise` is the
@@ -132,22 +133,22 @@ def replay(
     taker = None if keyframes is None else _KeyframeTaker(ekf, steps, int(keyframes))
     pause = None if taker is None else taker.pause
     with np.errstate(all="ignore"):  # an overflow is caught below, once, and said where
-        if hidden and association.method == "mht":  # the bank decides, a replay records
+        if not hidden:
+            _feed(ekf, *steps, pause=pause)
+        elif association.method == "mht":  # the bank decides, a replay records
             bank = HypothesisBank(
                 EKFSLAM(pose0, start_covariance, config, record=False), association
             )
             _feed_hidden(bank, *steps)
             _, winner, options = bank.finish()
             associating = DecisionReplay(decider, association, winner, options)
-            _feed_hidden(associating, *steps, pause=None if mapped else pause)
-        elif hidden:
+        else:
             associating = AssociatingFilter(decider, association)
+        if hidden:
             _feed_hidden(associating, *steps, pause=None if mapped else pause)
         if mapped:
             associating = MappingFilter(ekf, associating.finish(), association.time_sigma)
-            _feed_hidden(associating, *_schedule(run, map_noise), pause=pause)
-        elif not hidden:
-            _feed(ekf, *steps, pause=pause)
+            _feed_hidden(associating, *_with_noise(steps, map_noise), pause=pause)
     seconds = time.perf_counter() - started
     frames = None if taker is None else taker.finish()
     log = associating.finish() if hidden else None
@@ -208,9 +209,6 @@ def _schedule(run: RunLog, noise: NoiseConfig) -> tuple:
         raise ValueError(f"run {run.meta.name!r} has no controls")
     t_ctrl = np.asarray(run.controls.t, dtype=float)
     det = run.detections
-    Q = noise.Q
-    fixed_R = None if noise.R_per_step is None else np.asarray(noise.R_per_step, dtype=float)
-    density = noise.motion_density()
     # The prediction pieces: every control interval, split at the detection times inside it.
     det_t = np.asarray(det.t, dtype=float)
     t_first = min(t_ctrl[0], det_t[0]) if len(det_t) else t_ctrl[0]
@@ -224,11 +222,19 @@ def _schedule(run: RunLog, noise: NoiseConfig) -> tuple:
     us = twist[row] * dts[:, None]
     # before detection i, predict through every piece that ends at or before its time
     upto = np.searchsorted(ends, det_t, side="right")
-    M, R = (None, fixed_R) if fixed_R is not None else (density, None)
     us, dts, ends = (np.ascontiguousarray(a, dtype=float) for a in (us, dts, ends))
     det_id, det_time = det.tag_id.tolist(), det_t.tolist()
     det_z = np.column_stack([det.range, det.bearing]).tolist()
-    return (upto.tolist(), us, dts, ends, M, R, det_id, det_time, det_z, Q)
+    return _with_noise((upto.tolist(), us, dts, ends, None, None, det_id, det_time, det_z, None),
+                       noise)  # fmt: skip
+
+
+def _with_noise(steps: tuple, noise: NoiseConfig) -> tuple:
+    """`_schedule`'s arguments with another noise's M, R (eq. 9) and Q (eq. 11): all they hold
+    that depends on the noise (the mapping filter's replay of the same run)."""
+    fixed_R = None if noise.R_per_step is None else np.asarray(noise.R_per_step, dtype=float)
+    M, R = (None, fixed_R) if fixed_R is not None else (noise.motion_density(), None)
+    return (*steps[:4], M, R, *steps[6:9], noise.Q)
 
 
 def _result(
@@ -365,7 +371,7 @@ def _feed(
 
 
 def _feed_hidden(
-    associating: AssociatingFilter | HypothesisBank | MappingFilter,
+    associating: AssociatingFilter | HypothesisBank | MappingFilter,  # (DecisionReplay is one)
     upto,
     us,
     dts,
@@ -381,7 +387,8 @@ def _feed_hidden(
     """`_feed` without the ids: the detections of one time are associated together.
 
     det_id is not looked at (the filter must not know it); the replay's pieces are the same.
-    associating: an `AssociatingFilter`, or a `HypothesisBank` (``mht``), which keeps no history.
+    associating: an `AssociatingFilter`; a `HypothesisBank` (``mht``), which keeps no history;
+    or what replays decisions already made (`DecisionReplay`, `MappingFilter`).
     pause: as `_feed`'s, called only between one time's sightings and the next.
     """
     done = 0

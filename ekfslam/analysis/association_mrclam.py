@@ -100,6 +100,7 @@ def association_robots(
         map_noise = assoc.association_map_noise(run) if mapped else None
         same = summarize(run, replay(run, map_noise or noise, filter_config))  # the map's noise
         same_error = same.alignment.mean_error if same.alignment else math.nan
+        known_state: dict[str, float] = {}  # mht decides from one state as jcbb does
         for method in methods:
             config = assoc.association_config(run, method, hypotheses)
             hidden = replay(run, noise, filter_config, association=config, map_noise=map_noise)
@@ -107,7 +108,10 @@ def association_robots(
             s = summarize(run, result)
             error = s.alignment.mean_error if s.alignment else math.nan
             counts = result.association.counts
-            wrong_from_known = _wrong_from_known_state(run, noise, filter_config, config)
+            rule = "nn" if method == "nn" else "jcbb"
+            if rule not in known_state:
+                known_state[rule] = _wrong_from_known_state(run, noise, filter_config, config)
+            wrong_from_known = known_state[rule]
             rows.append(
                 AssociationRow(
                     robot=robot, method=method, known_error=base, aligned_error=error,

@@ -143,7 +143,10 @@ def check_sources_above(guess: object, budget: ErrorBudget, threshold: float = 0
     `threshold` (m) of map error in `budget`. Told after the budget is shown, so the verdict
     names each source put on the wrong side with what it costs alone."""
     if guess is None:
-        print("Not answered yet: put the names you expect above 1 cm in a set and run again.")
+        print(
+            f"Not answered yet: put the names you expect above {100 * threshold:g} cm in a set "
+            "and run again."
+        )
         return False
     names = {r.source for r in budget.rows}
     picked = {guess} if isinstance(guess, str) else set(guess)

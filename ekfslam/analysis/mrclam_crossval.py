@@ -73,10 +73,6 @@ class GridTable:
         """The NoiseConfig of grid point `point`."""
         return dataclasses.replace(self.base, **self.points[point])
 
-    def dataset_means(self) -> Array:
-        """(P, D) m: each dataset's average over its robots."""
-        return np.asarray(self.errors).mean(axis=2)
-
     def as_dict(self) -> dict:
         """The JSON form: the grid, the labels and the errors rounded to 1 µm."""
         return {

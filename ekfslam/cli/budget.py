@@ -17,7 +17,7 @@ from ekfslam.analysis.error_budget import error_budget
 from ekfslam.analysis.evaluation import SEED_TABLE1
 from ekfslam.cli import args as ca
 from ekfslam.files import save_figure
-from ekfslam.sim.config import TRAJECTORIES
+from ekfslam.sim.config import REALISTIC, TRAJECTORIES
 from ekfslam.sim.scenarios import realistic_noise
 from ekfslam.viz.budget import budget_figure, budget_text
 
@@ -31,7 +31,8 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     p.add_argument("trajectory", choices=TRAJECTORIES, help="the seed's experiment: two laps")
     p.add_argument("--seeds", type=ca.seed(), nargs="+", default=list(DEFAULT_SEEDS),
                    metavar="N", help="simulation seeds to average over (default: 1 to 8; each "
-                   "costs 16 simulations and replays, about a second)")  # fmt: skip
+                   f"costs {2 + 2 * len(REALISTIC)} simulations and replays, about a "
+                   "second)")  # fmt: skip
     ca.add_json_argument(p, "print one JSON object: {trajectory, seeds, ideal, realistic, rows}")
     ca.add_plot_argument(p, "draw each source alone and what fixing it saves to FILE")
     p.add_check(_distinct_seeds)

@@ -16,6 +16,7 @@ import numpy as np
 
 from ekfslam.cli import args as ca
 from ekfslam.core.arena import SEED_ARENA
+from ekfslam.core.association import AssociationConfig
 from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.noise import NoiseConfig, default_config, default_noise
 from ekfslam.errors import InputError
@@ -152,6 +153,16 @@ DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "inproc")
 #: The largest bank ``--hypotheses`` takes (``run``, ``score-mrclam``): every hypothesis is a
 #: filter, so the cost grows with it.
 MAX_HYPOTHESES = 256
+
+
+def add_hypotheses_argument(p: argparse.ArgumentParser) -> None:
+    """``--hypotheses K``: the size of mht's bank (`AssociationConfig.hypotheses`); None when
+    not given, so a command can tell it was asked for without ``--association mht``."""
+    p.add_argument(
+        "--hypotheses", type=ca.whole(1, MAX_HYPOTHESES, why="each costs a filter"), default=None,
+        metavar="K", help="with --association mht: how many hypotheses the bank keeps "
+        f"(default {AssociationConfig().hypotheses}; 1 is jcbb)",
+    )  # fmt: skip
 
 
 def add_parallel_arguments(p: argparse.ArgumentParser) -> None:

@@ -14,13 +14,13 @@ from ekfslam.analysis.evaluation import SEED_TABLE1, RunSummary, seed_experiment
 from ekfslam.cli import animate as animate_args
 from ekfslam.cli import args as ca
 from ekfslam.cli.common import (
-    MAX_HYPOTHESES,
+    add_hypotheses_argument,
     add_iterations_argument,
     arena_half_size,
     load_run,
     noise_from_args,
 )
-from ekfslam.core.association import METHODS, AssociationConfig
+from ekfslam.core.association import METHODS
 from ekfslam.files import save_figure
 from ekfslam.logs.mrclam.defaults import MRCLAM_MAP_NOISE
 from ekfslam.logs.mrclam.load import MrclamLoadReport
@@ -58,15 +58,11 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     )  # fmt: skip
     run.add_argument(
         "--match", choices=tuple(assoc.MATCHINGS), default="mapping",
-        help="with --association nn|jcbb, how eq. (17) pairs estimated with true landmarks: "
+        help="with --association nn|jcbb|mht, how eq. (17) pairs estimated with true landmarks: "
         "through the association's mapping (the default), or by position (nearest neighbour "
         "after a robust fit, as for sightings without true ids)",
     )  # fmt: skip
-    run.add_argument(
-        "--hypotheses", type=ca.whole(1, MAX_HYPOTHESES, why="each costs a filter"), default=None,
-        metavar="K", help="with --association mht: how many hypotheses the bank keeps "
-        f"(default {AssociationConfig().hypotheses}; 1 is jcbb)",
-    )  # fmt: skip
+    add_hypotheses_argument(run)
     run.add_argument(
         "--map-noise", choices=("auto", "none", "mrclam"), default="auto",
         help="with --association nn|jcbb|mht: feed the decisions as ids to a second filter that "

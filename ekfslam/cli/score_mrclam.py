@@ -16,8 +16,7 @@ import math
 from ekfslam.analysis.association_mrclam import association_robots, association_table
 from ekfslam.analysis.mrclam_tuning import score_robots, scores_table
 from ekfslam.cli import args as ca
-from ekfslam.cli.common import MAX_HYPOTHESES, mrclam_folder
-from ekfslam.core.association import AssociationConfig
+from ekfslam.cli.common import add_hypotheses_argument, mrclam_folder
 from ekfslam.core.filter.config import LINEARIZATIONS
 
 
@@ -29,10 +28,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     p.add_argument("--association", nargs="+", choices=("nn", "jcbb", "mht"), metavar="METHOD",
                    help="hide the barcodes and associate by METHOD (nn, jcbb, mht; one or "
                    "more): each robot's map error against known's, and the decisions")  # fmt: skip
-    p.add_argument("--hypotheses", type=ca.whole(1, MAX_HYPOTHESES, why="each costs a filter"),
-                   default=None, metavar="K",
-                   help="with --association mht: how many hypotheses the bank keeps "
-                   f"(default {AssociationConfig().hypotheses}; 1 is jcbb)")  # fmt: skip
+    add_hypotheses_argument(p)
     p.add_argument("--linearization", choices=LINEARIZATIONS, default=None,
                    help="with --association: the filter of the replays that associate (and of "
                    "'known, same noise'); known's column stays the shipped standard EKF "
