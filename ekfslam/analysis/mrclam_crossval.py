@@ -209,9 +209,14 @@ def held_out_mean(fold_list: list[Fold]) -> float:
     return float(np.mean([f.held_out_mean for f in fold_list]))
 
 
-def choose_objective(table: GridTable) -> str:
-    """The objective whose folds score best held out (ties: the first of `OBJECTIVES`)."""
-    return min(OBJECTIVES, key=lambda o: held_out_mean(cross_validate(table, o)))
+def choose_objective(table: GridTable, by_objective: Mapping[str, list[Fold]] | None = None) -> str:
+    """The objective whose folds score best held out (ties: the first of `OBJECTIVES`).
+
+    by_objective : each objective's `cross_validate` folds, when the caller has them already.
+    """
+    if by_objective is None:
+        by_objective = {o: cross_validate(table, o) for o in OBJECTIVES}
+    return min(OBJECTIVES, key=lambda o: held_out_mean(by_objective[o]))
 
 
 def choose_default(table: GridTable, fold_list: list[Fold] | None = None) -> int:
@@ -233,7 +238,7 @@ def choose_default(table: GridTable, fold_list: list[Fold] | None = None) -> int
 def report(table: GridTable) -> dict:
     """Folds, the chosen default and its per-robot errors on every dataset, as one JSON object."""
     by_objective = {o: cross_validate(table, o) for o in OBJECTIVES}
-    objective = choose_objective(table)
+    objective = choose_objective(table, by_objective)
     chosen = choose_default(table, by_objective[objective])
     errors = np.asarray(table.errors)
     return {
