@@ -116,10 +116,11 @@ def match_by_position(
 
 
 def _as_points(points: Mapping[Any, ArrayLike], which: str) -> tuple[list[int], Array]:
-    ids = sorted(int(key) for key in points)
-    if len(ids) < 2:
+    keys = sorted(points, key=int)  # ids and rows in one order: "10" sorts before "9" as text
+    if len(keys) < 2:
         raise AlignmentError(f"matching by position needs at least 2 {which} landmarks")
-    P = np.array([np.asarray(points[key], dtype=float).reshape(2) for key in sorted(points)])
+    ids = [int(key) for key in keys]
+    P = np.array([np.asarray(points[key], dtype=float).reshape(2) for key in keys])
     if not np.isfinite(P).all():
         raise AlignmentError(f"{which} landmark positions must be finite")
     return ids, P

@@ -61,3 +61,14 @@ def test_a_symmetric_map_is_matched_with_the_least_turn():
     found = match_by_position(dict(enumerate(X)), truth)
     assert found.mapping == {0: 10, 1: 11, 2: 12, 3: 13}
     assert found.transform[2] == pytest.approx(-0.1)
+
+
+def test_ids_given_as_strings_match_as_the_same_ints():
+    """Keys read back from JSON are strings: "10" sorts before "9" as text, and the positions
+    were once taken in that order while the ids were sorted as numbers, so each id got another
+    landmark's position."""
+    est, expected, _ = estimated_map()
+    as_text = match_by_position({str(e): p for e, p in est.items()}, TRUTH)
+    truth_text = match_by_position(est, {str(t): p for t, p in TRUTH.items()})
+    assert as_text.mapping == expected
+    assert truth_text.mapping == expected
