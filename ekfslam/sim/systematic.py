@@ -67,16 +67,20 @@ def through_lens(
     is moved by the distortion, x' -> x' (1 + k1 ρ² + k2 ρ⁴), and the tag looks smaller by the
     lens's local magnification there (tangential 1 + k1 ρ² + k2 ρ⁴, radial 1 + 3 k1 ρ² + 5 k2
     ρ⁴; their geometric mean), so its range comes out long by that much. ρ is the tag's
-    off-axis offset x' = tan(its bearing from a level, forward camera)."""
+    off-axis offset x' = tan(its bearing from the camera's optical axis), the camera at the
+    mounting's (x, y, yaw) in the robot frame."""
     k1, k2 = float(distortion[0]), float(distortion[1])
     mx, my = mounting[0], mounting[1]
+    yaw = float(mounting[2])
+    c, s = math.cos(yaw), math.sin(yaw)
     x, y = r * np.cos(b) - mx, r * np.sin(b) - my  # the tag from the camera, robot axes
+    x, y = c * x + s * y, -s * x + c * y  # camera axes: x along the optical axis
     slope = y / np.maximum(x, 1e-3)
     rho2 = slope * slope
     tangential = 1.0 + rho2 * (k1 + k2 * rho2)
     radial = 1.0 + rho2 * (3.0 * k1 + 5.0 * k2 * rho2)
     d = np.hypot(x, y) / np.sqrt(np.maximum(tangential * radial, 0.25))
-    angle = np.arctan(slope * tangential)
+    angle = np.arctan(slope * tangential) + yaw  # back to robot axes
     x, y = mx + d * np.cos(angle), my + d * np.sin(angle)
     return np.hypot(x, y), np.arctan2(y, x)
 

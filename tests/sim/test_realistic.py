@@ -27,6 +27,7 @@ from ekfslam.sim.config import (
 )
 from ekfslam.sim.scenarios import realistic, realistic_noise
 from ekfslam.sim.simulation import SimulationConfig, integrate_twist, simulate, true_robot
+from ekfslam.sim.systematic import through_lens
 
 RUNS = Path(__file__).resolve().parents[2] / "data" / "runs"
 NOISELESS = dict(
@@ -226,3 +227,20 @@ def test_the_realistic_noise_is_the_ideal_one_grown_by_each_unmodelled_error():
         assert getattr(REALISTIC_NOISE, name) == pytest.approx(getattr(noise, name), rel=5e-3)
     assert realistic_noise(SimulationConfig()) == NoiseConfig()  # no error: the ideal robot's
     assert simulate(realistic("square", ("range scale",), laps=1)).meta.defaults is None
+
+
+def test_the_lens_distorts_about_a_turned_cameras_own_axis():
+    """A camera mounted turned by yaw sees a tag on its optical axis undistorted, and its view is
+    the straight camera's view turned by yaw (the offset ρ was once taken from the robot's
+    axis, so a turned camera distorted a tag straight ahead of it)."""
+    k = (-0.3, 0.1)
+    for yaw in (0.4, -0.7):
+        ahead = np.array([0.06, 0.0]) + 2.0 * np.array([np.cos(yaw), np.sin(yaw)])
+        r, b = np.array([np.hypot(*ahead)]), np.array([np.arctan2(ahead[1], ahead[0])])
+        r2, b2 = through_lens(r, b, (0.06, 0.0, yaw), k)
+        np.testing.assert_allclose([r2[0], b2[0]], [r[0], b[0]], atol=1e-12)
+        rs, bs = np.array([1.0, 2.0, 3.0]), np.array([-0.3, 0.1, 0.25])
+        r0, b0 = through_lens(rs, bs, (0.0, 0.0, 0.0), k)
+        r1, b1 = through_lens(rs, bs + yaw, (0.0, 0.0, yaw), k)
+        np.testing.assert_allclose(r1, r0, atol=1e-12)
+        np.testing.assert_allclose(b1, b0 + yaw, atol=1e-12)
