@@ -21,6 +21,7 @@ from ekfslam.pipeline import ReplayResult
 from ekfslam.ui.blit import Blitter, can_blit
 from ekfslam.ui.glyphs import CachedGlyphText
 from ekfslam.viz.plotting import ellipse_parameters
+from ekfslam.viz.style import FONT
 from ekfslam.viz.tables import PANEL, Row, table1_lines
 
 TITLE_PT = 9.5  # the Table 1 text above the axes (points)
@@ -30,7 +31,7 @@ NIS_FLOOR = 1e-2
 
 
 #: How both legends sit under their axes, off the data.
-UNDER_AXES = {"fontsize": 11, "frameon": False, "handlelength": 1.5, "columnspacing": 1.0}
+UNDER_AXES = {"fontsize": FONT, "frameon": False, "handlelength": 1.5, "columnspacing": 1.0}
 
 
 class TuningView:

@@ -38,14 +38,13 @@ from ekfslam.errors import EkfSlamError
 from ekfslam.files import atomic_write
 from ekfslam.logs.runlog import RunLog
 from ekfslam.viz.plotting import draw_arena, draw_true_landmarks, ellipse_parameters
+from ekfslam.viz.style import FONT
 
 if TYPE_CHECKING:
     from ekfslam.pipeline import ReplayResult
 
 #: What `save_animation` writes: GIF through Pillow (always there), MP4 through ffmpeg.
 ANIMATION_FORMATS: tuple[str, ...] = (".gif", ".mp4")
-#: Text size on the animation (pt): readable on a projector.
-FONT = 11
 
 
 class ReplayFrames:

@@ -13,6 +13,8 @@ import numpy as np
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
+from ekfslam.viz.style import FONT
+
 if TYPE_CHECKING:
     from ekfslam.analysis.association_stress import StressStudy
 
@@ -37,11 +39,11 @@ def plot_wrong_associations(study: StressStudy, methods=("nn", "jcbb")) -> Figur
         ax.set_title(
             f"{m}: {fraction} correct, {case.wrong} wrong\naligned map error {error}"
             f" (known: {study.cases['known'][0].aligned_error:.3f} m)",
-            fontsize=11,
+            fontsize=FONT,
         )
         ax.set_aspect("equal")
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
-        ax.legend(loc="center", fontsize=11)
+        ax.legend(loc="center", fontsize=FONT)
     fig.suptitle(f"stress scenario, seed {study.seeds[0]}: close pairs of tags, a drifting loop")
     return fig

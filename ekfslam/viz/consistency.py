@@ -15,6 +15,8 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, ScalarFormatter
 
+from ekfslam.viz.style import FONT
+
 if TYPE_CHECKING:
     from ekfslam.analysis.consistency import Consistency
     from ekfslam.analysis.mrclam_consistency import MrclamConsistency
@@ -57,7 +59,7 @@ def plot_consistency(
         ax.set_yscale("log")
         ax.yaxis.set_major_formatter(ScalarFormatter())  # 3, not 3 x 10^0
         ax.grid(True, alpha=0.3, which="both")
-        ax.legend(loc="upper left", fontsize=11)
+        ax.legend(loc="upper left", fontsize=FONT)
     axes[-1].set_xlabel("time (s)")
     for ax in axes:  # once the limits are final: how many minor labels fit depends on them
         ax.yaxis.set_minor_formatter(_minor_labels(ax))
@@ -109,7 +111,7 @@ def plot_mrclam_nees(study: MrclamConsistency, figsize=None, floor: float = 0.01
         ax.set_yscale("log")
         ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
         ax.set_ylabel("pose NEES")
-        ax.set_title(f"robot {robot}: " + "; ".join(stats), loc="left", fontsize=11)
+        ax.set_title(f"robot {robot}: " + "; ".join(stats), loc="left", fontsize=FONT)
         ax.grid(True, alpha=0.3, which="major")
     axes[0].set_ylim(bottom=floor)
     axes[-1].set_xlabel("time since the first command (min)")

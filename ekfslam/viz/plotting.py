@@ -20,6 +20,7 @@ from ekfslam.core.arena import Arena
 from ekfslam.core.filter.config import chi2_2dof_quantile
 from ekfslam.geometry import rotation, wrap_angle
 from ekfslam.logs.runlog import RunLog
+from ekfslam.viz.style import FONT
 
 if TYPE_CHECKING:
     from ekfslam.analysis.alignment import Alignment
@@ -86,7 +87,7 @@ def draw_true_landmarks(ax: Axes, tag_map: Mapping[int, ArrayLike]) -> None:
         offset = 13.0 * away / norm if norm > 0 else np.array([0.0, 13.0])
         ax.annotate(
             str(i), tuple(p), xytext=tuple(offset), textcoords="offset points",
-            ha="center", va="center", color="darkgreen", fontweight="bold", fontsize=11,
+            ha="center", va="center", color="darkgreen", fontweight="bold", fontsize=FONT,
         )  # fmt: skip
 
 
@@ -138,7 +139,7 @@ def plot_map(
             if alignment is None:  # aligned, they sit on the true ids' dots
                 ax.annotate(
                     str(i), tuple(mean), xytext=(6, 6), textcoords="offset points",
-                    color="tab:red", fontsize=11,
+                    color="tab:red", fontsize=FONT,
                 )  # fmt: skip
         ax.plot([], [], "-", color="tab:blue", label=f"{confidence:.0%} covariance ellipses")
     if true_start is not None:
@@ -203,7 +204,7 @@ def figure2(
     fig.suptitle(title or f"EKF SLAM: {run.meta.name}", fontsize=14)
     # below the maps: inside an axes, the legend hid a landmark of the seed's runs
     handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncol=3, fontsize=11)
+    fig.legend(handles, labels, loc="outside lower center", ncol=3, fontsize=FONT)
     return fig
 
 
@@ -287,8 +288,8 @@ def plot_covariance_matrix(
         limit = float(np.abs(S).max()) or 1.0
         image = ax.imshow(S, cmap="RdBu_r", vmin=-limit, vmax=limit)
     names = state_labels(landmark_ids)[: len(S)]
-    ax.set_xticks(range(len(S)), names, rotation=90, fontsize=11)
-    ax.set_yticks(range(len(S)), names, fontsize=11)
+    ax.set_xticks(range(len(S)), names, rotation=90, fontsize=FONT)
+    ax.set_yticks(range(len(S)), names, fontsize=FONT)
     ax.set_xlabel("state entry (eq. 1)")
     ax.set_ylabel("state entry (eq. 1)")
     if title is not None:
@@ -328,7 +329,7 @@ def update_figure(
         if alpha == 1.0 and style == "-":
             for k, i in enumerate(landmark_ids):
                 ax.annotate(str(i), mu[3 + 2 * k : 5 + 2 * k], xytext=(8, 8),
-                            textcoords="offset points", fontsize=11)  # fmt: skip
+                            textcoords="offset points", fontsize=FONT)  # fmt: skip
         ax.plot([], [], ls=style, color="tab:red", label=f"robot, {tag} (95%)")
         ax.plot([], [], ls=style, color="tab:blue", label=f"landmark {landmark_ids[j]}, {tag}")
 
@@ -367,10 +368,10 @@ def update_figure(
     state(d, mu0, S0, ":", "prior", alpha=0.6)
     state(d, mu1, S1, "-", "posterior")
     d.set_title("(d) posterior (eq. 16, Joseph form): ellipses shrink")
-    c.legend(loc="best", fontsize=11, framealpha=0.85)
+    c.legend(loc="best", fontsize=FONT, framealpha=0.85)
     # the maps' legends (up to five entries, two of them long) cover an ellipse wherever they go
     # inside the axes: under them
     for ax in (a, b, d):
-        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=11,
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=FONT,
                   frameon=False)  # fmt: skip
     return fig
