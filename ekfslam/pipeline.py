@@ -147,9 +147,8 @@ def replay(
         if hidden:
             _feed_hidden(associating, *steps, pause=None if mapped else pause)
         if mapped:
-            associating = MappingFilter(
-                ekf, associating.finish(), association.time_sigma, association.time_shared
-            )
+            shared = association.time_shared and association.method != "nn"  # as it decided
+            associating = MappingFilter(ekf, associating.finish(), association.time_sigma, shared)
             _feed_hidden(associating, *_with_noise(steps, map_noise), pause=pause)
     seconds = time.perf_counter() - started
     frames = None if taker is None else taker.finish()

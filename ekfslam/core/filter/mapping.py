@@ -8,7 +8,8 @@ sighting's estimated landmark id) and feeds them, as ids, to a fresh `EKFSLAM` b
 *mapping* noise: the same updates of eqs. (13)-(16) in the same order (within one time the
 sightings paired with a mapped landmark first, then those that confirmed a new one, as
 `AssociatingFilter._apply` does), each with the per-sighting Q the deciding filter used, the
-time-stamp term (ω · time_sigma)² on the bearing included (`AssociatingFilter.sighting_noise`).
+time-stamp term included (`AssociatingFilter.noises`: (ω · time_sigma)² on the bearing, or with
+``time_shared`` each sighting's share of the image's one error, `shared_sighting_noise`).
 Tentative and ambiguous sightings are not used, as they were not by the deciding filter.
 
 It is driven like an `AssociatingFilter` (``predict_many``, ``observe``, ``finish``), so the replay
