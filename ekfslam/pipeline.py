@@ -147,7 +147,8 @@ def replay(
         if hidden:
             _feed_hidden(associating, *steps, pause=None if mapped else pause)
         if mapped:
-            associating = MappingFilter(ekf, associating.finish(), association.time_sigma)
+            shared = association.time_shared and association.method != "nn"  # as it decided
+            associating = MappingFilter(ekf, associating.finish(), association.time_sigma, shared)
             _feed_hidden(associating, *_with_noise(steps, map_noise), pause=pause)
     seconds = time.perf_counter() - started
     frames = None if taker is None else taker.finish()
@@ -399,7 +400,7 @@ def _feed_hidden(
         if p > done:
             associating.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
             done = p
-        associating.observe(det_z[i:k], Q, det_time[i], _turn_rate(us, dts, p))
+        associating.observe(det_z[i:k], Q, det_time[i], *_body_rate(us, dts, p))
     if pause is not None:
         pause(len(upto), done)
     if done < len(us):
@@ -433,7 +434,7 @@ def decisions_from_known_state(
             if p > done:
                 ekf.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
                 done = p
-            chosen += judge.decide(det_z[i:k], Q, _turn_rate(us, dts, p))
+            chosen += judge.decide(det_z[i:k], Q, *_body_rate(us, dts, p))
             for a in range(i, k):
                 ekf.update(det_id[a], det_z[a], Q, det_time[a])
     return np.array(chosen, dtype=np.int64)
@@ -450,9 +451,13 @@ def _one_time_groups(det_time) -> Iterator[tuple[int, int]]:
         i = k
 
 
-def _turn_rate(us, dts, p: int) -> float:
-    """rad/s of the piece that ends at the sightings (a time-stamp error moves bearings)."""
-    return us[p - 1, 2] / dts[p - 1] if p > 0 and dts[p - 1] > 0 else 0.0
+def _body_rate(us, dts, p: int) -> tuple[float, tuple[float, float]]:
+    """rad/s and the body velocity (m/s) of the piece that ends at the sightings (a time-stamp
+    error moves the pose they were taken from)."""
+    if p > 0 and dts[p - 1] > 0:
+        vx, vy, w = (us[p - 1] / dts[p - 1]).tolist()
+        return w, (vx, vy)
+    return 0.0, (0.0, 0.0)
 
 
 def _check_finite(ekf: EKFSLAM, where: str) -> None:

@@ -30,20 +30,25 @@ MATCHINGS = {"mapping": MATCHED_THROUGH_MAPPING, "position": MATCHED_BY_NEAREST}
 
 
 def association_config(
-    run: RunLog, method: str, hypotheses: int | None = None
+    run: RunLog, method: str, hypotheses: int | None = None, time_shared: bool | None = None
 ) -> AssociationConfig:
     """The association a run is replayed with: `method`, and its source's time-stamp uncertainty.
 
     hypotheses : ``mht``'s bank size (`AssociationConfig.hypotheses`; None: its default).
+    time_shared : one time-stamp error per image (True) or per sighting (False); None: the
+    source's (`ekfslam.logs.mrclam.defaults.MRCLAM_TIME_SHARED`).
 
     MRCLAM's camera time stamps are off the odometry's by tenths of a second
     (`ekfslam.logs.mrclam.defaults.MRCLAM_TIME_SIGMA`); every other run's are exact.
     """
     exact = run.meta.defaults != mrclam_defaults.NAME
     bank = {} if hypotheses is None else {"hypotheses": hypotheses}
+    if time_shared is None:
+        time_shared = not exact and mrclam_defaults.MRCLAM_TIME_SHARED
     return AssociationConfig(
-        method=method, time_sigma=0.0 if exact else mrclam_defaults.MRCLAM_TIME_SIGMA, **bank
-    )
+        method=method, time_sigma=0.0 if exact else mrclam_defaults.MRCLAM_TIME_SIGMA,
+        time_shared=time_shared, **bank,
+    )  # fmt: skip
 
 
 def association_noise(run: RunLog) -> NoiseConfig:

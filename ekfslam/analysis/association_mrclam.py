@@ -81,6 +81,7 @@ def association_robots(
     linearization: str = "standard",
     hypotheses: int | None = None,
     mapped: bool = True,
+    time_shared: bool | None = None,
 ) -> list[AssociationRow]:
     """Every robot replayed with ``known`` and with each of `methods`, scored (see the module).
 
@@ -88,7 +89,9 @@ def association_robots(
     shipped default) is always the standard EKF. hypotheses : ``mht``'s bank size (None: its
     default, `ekfslam.core.association.AssociationConfig.hypotheses`). mapped : map with a
     second filter fed the decisions, with `ekfslam.analysis.association.association_map_noise`
-    (the default); False: the deciding filter's own map.
+    (the default); False: the deciding filter's own map. time_shared : one time-stamp error
+    per image or per sighting (`ekfslam.analysis.association.association_config`; None: the
+    source's, one per image).
     """
     filter_config = dataclasses.replace(MRCLAM_CONFIG, linearization=linearization)
     rows = []
@@ -102,7 +105,7 @@ def association_robots(
         same_error = same.alignment.mean_error if same.alignment else math.nan
         known_state: dict[str, float] = {}  # mht decides from one state as jcbb does
         for method in methods:
-            config = assoc.association_config(run, method, hypotheses)
+            config = assoc.association_config(run, method, hypotheses, time_shared)
             hidden = replay(run, noise, filter_config, association=config, map_noise=map_noise)
             result, found = assoc.score(run, hidden)
             s = summarize(run, result)

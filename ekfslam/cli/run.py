@@ -54,7 +54,8 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         "branch and bound (jcbb), or a bank of JCBB hypotheses that delays the decisions (mht); "
         "eq. (17) then matches landmarks through the estimated-to-true "
         "mapping. A MRCLAM run then replays with its noise tuned for consistency (the "
-        "association trusts the filter's covariance), with each sighting's time 0.2 s uncertain",
+        "association trusts the filter's covariance), with each image's time stamp 0.2 s uncertain "
+        "(one error shared by its sightings)",
     )  # fmt: skip
     run.add_argument(
         "--match", choices=tuple(assoc.MATCHINGS), default="mapping",

@@ -3,7 +3,9 @@
 Without ``--association``: the README's MRCLAM table. With it: each robot with the barcodes hidden
 from the filter, by the methods named, against the same robot with them known
 (`ekfslam.analysis.association_mrclam`); ``--linearization L`` runs those replays with filter L;
-``--map-noise none`` scores the deciding filter's own map instead of the mapping filter's.
+``--map-noise none`` scores the deciding filter's own map instead of the mapping filter's;
+``--time-error independent`` gives each sighting its own time-stamp error instead of one per
+image.
 """
 
 from __future__ import annotations
@@ -37,6 +39,10 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
                    help="with --association: the noise of a second filter that maps with the "
                    "decisions (mrclam: the consistency noise with sigma_x = sigma_y = 0.005, "
                    "the default; none: the deciding filter's own map)")  # fmt: skip
+    p.add_argument("--time-error", choices=("shared", "independent"), default=None,
+                   help="with --association: a camera time stamp's error is one per image, "
+                   "shared by its sightings (the default), or independent per sighting",
+                   )  # fmt: skip
     ca.add_json_argument(p, "print one JSON object: {robots: [{robot, landmarks, ...}, ...]}")
 
     def check(args: argparse.Namespace) -> str | None:
@@ -44,6 +50,8 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
             return "argument --linearization: only with --association"
         if args.map_noise is not None and not args.association:
             return "argument --map-noise: only with --association"
+        if args.time_error is not None and not args.association:
+            return "argument --time-error: only with --association"
         if args.hypotheses is not None and "mht" not in (args.association or ()):
             return "argument --hypotheses: only with --association mht"
         return None
@@ -60,6 +68,7 @@ def cmd_score_mrclam(args: argparse.Namespace) -> int:
         rows = association_robots(
             folder, methods, linearization=args.linearization or "standard",
             hypotheses=args.hypotheses, mapped=args.map_noise != "none",
+            time_shared=None if args.time_error is None else args.time_error == "shared",
         )  # fmt: skip
         if args.json:
             print(json.dumps({"dataset": str(folder), "rows": [_finite(r) for r in rows]},

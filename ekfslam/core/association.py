@@ -102,6 +102,11 @@ class AssociationConfig:
         and in the update it leads to (`ekfslam.core.filter.associating`). 0 (the default): the
         time stamps are exact (our simulator's). A data source knows its value
         (`ekfslam.logs.mrclam.defaults.MRCLAM_TIME_SIGMA`).
+    time_shared : the time-stamp error is one per image (True) rather than one per sighting
+        (False, the default): the sightings of one time were all taken from the pose at t + δt,
+        off by u δt (u the pose's rate), so ``jcbb`` and ``mht`` test them with a shared,
+        cross-correlated term (`ekfslam.core.filter.jcbb_kernels.predict_all`) that allows a
+        common shift of the image's bearings but not a relative one.
     hypotheses : ``mht`` only: how many hypotheses the bank keeps (1: ``jcbb`` exactly).
     new_log_density : ``mht`` only: log of the density, per m·rad of (range, bearing), of a
         sighting that no mapped landmark explains (a new landmark's, or one left out). A
@@ -120,6 +125,7 @@ class AssociationConfig:
     node_budget: int = 10_000
     tentative_life: float = 10.0
     time_sigma: float = 0.0
+    time_shared: bool = False
     hypotheses: int = 8
     new_log_density: float = -5.0
     duplicate_radius: float = 0.05

@@ -27,6 +27,15 @@ def test_mrclam_hides_its_barcodes_with_the_consistent_noise_and_uncertain_time_
     assert assoc.association_config(seed, "nn").time_sigma == 0.0
 
 
+def test_mrclam_time_stamp_errors_are_one_per_image_unless_told_otherwise():
+    seed = read_run(seed_runs_dir() / "octagon-2laps")
+    mrclam = dataclasses.replace(seed, meta=dataclasses.replace(seed.meta, defaults="mrclam"))
+    assert mrclam_defaults.MRCLAM_TIME_SHARED is True
+    assert assoc.association_config(mrclam, "jcbb").time_shared is True
+    assert assoc.association_config(mrclam, "mht", time_shared=False).time_shared is False
+    assert assoc.association_config(seed, "jcbb").time_shared is False  # exact: nothing to share
+
+
 def test_deciding_from_the_known_state_errs_nowhere_on_the_octagon():
     from ekfslam.core.association import AssociationConfig
     from ekfslam.pipeline import decisions_from_known_state

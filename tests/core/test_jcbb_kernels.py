@@ -64,6 +64,8 @@ def test_compiled_predictions_are_h_sigma_ht():
     got_nu, got_P, nis = np.empty((m, n, 2)), np.empty((2 * n, 2 * n)), np.empty((m, n))
     e = f.ekf
     q00, q01, q11 = Q[0, 0], Q[0, 1], Q[1, 1]
-    jcbb_kernels.predict_all(e._mu, e._Sigma, e._dim, zs, q00, q01, q11, False, got_nu, got_P, nis)
+    jcbb_kernels.predict_all(
+        e._mu, e._Sigma, e._dim, zs, q00, q01, q11, False, 0.0, 0.0, 0.0, 0.0, got_nu, got_P, nis
+    )
     np.testing.assert_allclose(got_nu, nu, rtol=0, atol=1e-12)
     np.testing.assert_allclose(got_P, P, rtol=1e-9, atol=1e-15)

@@ -440,4 +440,20 @@ def test_score_mrclam_maps_with_a_second_filter_unless_told_not_to(
     monkeypatch.setattr(score_mrclam, "association_table", lambda rows: "table")
     assert main(["score-mrclam", "7", "--association", "jcbb", *flag]) == 0
     assert seen["mapped"] is mapped
+    assert seen["time_shared"] is None  # the source's: one error per image on MRCLAM
     assert capsys.readouterr().out == "table\n"
+
+
+@pytest.mark.parametrize(("flag", "shared"), [("shared", True), ("independent", False)])
+def test_score_mrclam_time_error_reaches_the_replays(
+    flag, shared, monkeypatch, tmp_path: Path, capsys
+):
+    from ekfslam.cli import score_mrclam
+    from ekfslam.cli.main import main
+
+    seen = {}
+    monkeypatch.setattr(score_mrclam, "mrclam_folder", lambda dataset: tmp_path)
+    monkeypatch.setattr(score_mrclam, "association_robots", lambda f, m, **kw: seen.update(kw))
+    monkeypatch.setattr(score_mrclam, "association_table", lambda rows: "table")
+    assert main(["score-mrclam", "7", "--association", "jcbb", "--time-error", flag]) == 0
+    assert seen["time_shared"] is shared

@@ -29,7 +29,7 @@ MIN_RANGE_SQUARED = 1e-12  # m², as `ekfslam.core.models.MIN_RANGE_SQUARED` (ch
 
 
 @njit(cache=True)
-def predict_all(mu, S, d, zs, q00, q01, q11, invariant, nu, P, nis):
+def predict_all(mu, S, d, zs, q00, q01, q11, invariant, vx, vy, w, s2, nu, P, nis):
     """Fill nu (m, n, 2), P (2n, 2n) and nis (m, n) for the n = (d - 3) / 2 landmarks.
 
     Σ is read from S's lower triangle (S[i, k], k <= i). The result is
@@ -37,11 +37,18 @@ def predict_all(mu, S, d, zs, q00, q01, q11, invariant, nu, P, nis):
     sighting's noise Q = [[q00, q01], [q01, q11]].
     invariant: S is the invariant filter's ξ covariance, where H's heading column is zero
     (`ekfslam.core.filter.kernels.correct`); H Σ Hᵀ is then the same as the Cartesian one's.
+    vx, vy (m/s, body frame), w (rad/s), s2 (s²): the image's time-stamp error δt ~ N(0, s2),
+    one per image, moves the pose the sightings were taken from by u δt, u = (R(θ) (vx, vy), w)
+    (eq. 6's rate). Every prediction then shares it: P gains s2 g gᵀ, g_j = H_pose,j u (eq. 14's
+    pose columns, the Cartesian ones also for the invariant filter: δt moves the true pose), so
+    a joint test allows a common shift of all the image's bearings, not relative ones. s2 = 0:
+    no term.
     """
     hth = 0.0 if invariant else -1.0
     n = (d - 3) // 2
     m = zs.shape[0]
     H = np.zeros((n, 2, 5))  # each landmark's rows of H on (x, y, θ, m_jx, m_jy)
+    g = np.zeros(2 * n)  # H_pose,j u, in the landmark's own range and bearing (body frame)
     for j in range(n):
         l = 3 + 2 * j
         dx, dy = mu[l] - mu[0], mu[l + 1] - mu[1]
@@ -51,6 +58,10 @@ def predict_all(mu, S, d, zs, q00, q01, q11, invariant, nu, P, nis):
         a, b, c, e = dx / r, dy / r, dy / q, dx / q
         H[j, 0, 0], H[j, 0, 1], H[j, 0, 3], H[j, 0, 4] = -a, -b, a, b
         H[j, 1, 0], H[j, 1, 1], H[j, 1, 2], H[j, 1, 3], H[j, 1, 4] = c, -e, hth, -c, e
+        if s2 > 0.0:  # (dx, dy)·R(θ)(vx, vy) = r (vx cos b + vy sin b), b the body bearing
+            cb, sb = math.cos(zb), math.sin(zb)
+            g[2 * j] = -(vx * cb + vy * sb)
+            g[2 * j + 1] = (vx * sb - vy * cb) / r - w
         for i in range(m):
             nu[i, j, 0] = zs[i, 0] - r
             nu[i, j, 1] = (zs[i, 1] - zb + math.pi) % (2.0 * math.pi) - math.pi
@@ -74,6 +85,7 @@ def predict_all(mu, S, d, zs, q00, q01, q11, invariant, nu, P, nis):
                             w = S[iu, iv] if iv <= iu else S[iv, iu]
                             s += w * H[k, b, v]
                         total += hu * s
+                    total += s2 * g[2 * j + a] * g[2 * k + b]
                     P[2 * j + a, 2 * k + b] = total
                     P[2 * k + b, 2 * j + a] = total
     for j in range(n):

@@ -8,7 +8,8 @@ sighting's estimated landmark id) and feeds them, as ids, to a fresh `EKFSLAM` b
 *mapping* noise: the same updates of eqs. (13)-(16) in the same order (within one time the
 sightings paired with a mapped landmark first, then those that confirmed a new one, as
 `AssociatingFilter._apply` does), each with the per-sighting Q the deciding filter used, the
-time-stamp term (ω · time_sigma)² on the bearing included (`AssociatingFilter.sighting_noise`).
+time-stamp term included (`AssociatingFilter.noises`: (ω · time_sigma)² on the bearing, or with
+``time_shared`` each sighting's share of the image's one error, `shared_sighting_noise`).
 Tentative and ambiguous sightings are not used, as they were not by the deciding filter.
 
 It is driven like an `AssociatingFilter` (``predict_many``, ``observe``, ``finish``), so the replay
@@ -20,7 +21,13 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ekfslam.core.filter.associating import ASSOCIATED, CONFIRMED, AssociationLog, sighting_noise
+from ekfslam.core.filter.associating import (
+    ASSOCIATED,
+    CONFIRMED,
+    AssociationLog,
+    shared_sighting_noise,
+    sighting_noise,
+)
 from ekfslam.core.filter.ekf import EKFSLAM
 
 Array = NDArray[np.float64]
@@ -34,31 +41,43 @@ class MappingFilter:
     ekf : the mapping filter (built with the mapping noise's run; its ids become the estimated).
     log : the deciding run's decisions, one per sighting in the order they will be fed.
     time_sigma : s, `AssociationConfig.time_sigma` of the deciding run (0: no time-stamp term).
+    time_shared : `AssociationConfig.time_shared` of the deciding run (each sighting's share of
+        the image's one time-stamp error, `shared_sighting_noise`).
     """
 
-    def __init__(self, ekf: EKFSLAM, log: AssociationLog, time_sigma: float = 0.0) -> None:
+    def __init__(
+        self, ekf: EKFSLAM, log: AssociationLog, time_sigma: float = 0.0, time_shared: bool = False
+    ) -> None:
         self.ekf = ekf
         self.log = log
         self.time_sigma = float(time_sigma)
+        self.time_shared = bool(time_shared)
         self._next = 0  # the first sighting not yet fed
 
     def predict_many(self, us, dts, ts, M=None, R=None) -> None:
         """`EKFSLAM.predict_many` of the mapping filter."""
         self.ekf.predict_many(us, dts, ts, M, R)
 
-    def observe(self, zs: ArrayLike, Q: ArrayLike, t: float, omega: float = 0.0) -> list[int]:
+    def observe(
+        self, zs: ArrayLike, Q: ArrayLike, t: float, omega: float = 0.0,
+        velocity: tuple[float, float] = (0.0, 0.0),
+    ) -> list[int]:  # fmt: skip
         """Feed the sightings of time t (s) under the ids the deciding run gave them."""
         zs = np.asarray(zs, dtype=float).reshape(-1, 2)
         k, m = self._next, len(zs)
         if k + m > len(self.log.estimated):
             raise ValueError(f"{len(self.log.estimated)} decisions for more sightings ({k + m})")
-        Q = sighting_noise(Q, omega, self.time_sigma)
+        if self.time_shared:
+            rate = (float(velocity[0]), float(velocity[1]), float(omega))
+            Qs = shared_sighting_noise(Q, zs, rate, self.time_sigma)
+        else:
+            Qs = np.broadcast_to(sighting_noise(Q, omega, self.time_sigma), (m, 2, 2))
         used = self.log.estimated[k : k + m].tolist()
         what = self.log.decision[k : k + m]
         for kind in (ASSOCIATED, CONFIRMED):  # the deciding filter's order (`_apply`)
             for i in range(m):
                 if what[i] == kind and used[i] >= 0:
-                    self.ekf.update(used[i], zs[i], Q, t)
+                    self.ekf.update(used[i], zs[i], Qs[i], t)
         self._next = k + m
         return used
 

@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.association import UNPAIRED, AssociationConfig, JcbbResult, joint_innovation
-from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog, sighting_noise
+from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog
 from ekfslam.core.filter.ekf import EKFSLAM
 
 Array = NDArray[np.float64]
@@ -123,13 +123,16 @@ class HypothesisBank:
         for _, af, _ in self._bank:
             af.predict_many(us, dts, ts, M, R)
 
-    def observe(self, zs: ArrayLike, Q: ArrayLike, t: float, omega: float = 0.0) -> None:
+    def observe(
+        self, zs: ArrayLike, Q: ArrayLike, t: float, omega: float = 0.0,
+        velocity: tuple[float, float] = (0.0, 0.0),
+    ) -> None:  # fmt: skip
         """Branch on the sightings taken at time t (s), as `AssociatingFilter.observe`."""
         zs = np.asarray(zs, dtype=float).reshape(-1, 2)
-        Q = sighting_noise(Q, omega, self.config.time_sigma)
+        Q, Qs, rate = self._bank[0][1].noises(zs, Q, omega, velocity)
         children = []
         for h, (score, af, _) in enumerate(self._bank):
-            for gain, option, free in self._options(af, zs, Q, t):
+            for gain, option, free in self._options(af, zs, Q, t, rate):
                 children.append((score + gain, h, option, free))
         children.sort(key=lambda c: -c[0])  # stable: ties keep the bank's and options' order
         kept: list[tuple[float, AssociatingFilter, tuple | None]] = []
@@ -139,18 +142,18 @@ class HypothesisBank:
                 break
             _, parent, node = self._bank[h]
             child = parent.clone() if self.config.hypotheses > 1 else parent
-            child._apply(zs, Q, t, _pairing(option), free)
+            child._apply(zs, Qs, t, _pairing(option), free)
             if any(_same(child, k, radius) for _, k, _ in kept):
                 continue
             kept.append((score, child, (node, option)))
         self._bank = kept
 
-    def _options(self, af: AssociatingFilter, zs: Array, Q: Array, t: float):
+    def _options(self, af: AssociatingFilter, zs: Array, Q: Array, t: float, rate=None):
         """(log-likelihood gain, option, free NIS) of each way this hypothesis can go."""
         if af._tentative:
             af._expire(t)
         m, cfg = len(zs), self.config
-        nu, P, nis = af._predict_all(zs, Q)
+        nu, P, nis = af._predict_all(zs, Q, rate)
         found, unclaimed = af._search(nu, P, nis, Q)
         af._counts["nodes"] += found.nodes
         af._counts["budget_hits"] += found.budget_hit
@@ -206,11 +209,11 @@ class DecisionReplay(AssociatingFilter):
         self._counts["nodes"] = winner._counts["nodes"]
         self._counts["budget_hits"] = winner._counts["budget_hits"]
 
-    def _jcbb(self, zs: Array, Q: Array) -> tuple[JcbbResult, Array]:
+    def _jcbb(self, zs: Array, Q: Array, rate=None) -> tuple[JcbbResult, Array]:
         option = next(self._options)
         if len(option) != len(zs):
             raise ValueError(f"an option for {len(option)} sightings given {len(zs)}")
-        free = _free_nis(self._predict_all(zs, Q)[2], option)
+        free = _free_nis(self._predict_all(zs, Q, rate)[2], option)
         pairing = np.array(_pairing(option), dtype=np.int64)
         return JcbbResult(pairing, 0.0, 0, False), np.array(free)
 
