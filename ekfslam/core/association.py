@@ -26,10 +26,12 @@ Four methods (`AssociationConfig.method`):
   alternatives, and the `hypotheses` most likely histories are kept
   (`ekfslam.core.filter.mht`). With one hypothesis it is ``jcbb``.
 
-What a sighting that pairs with nothing becomes (`AssociationConfig.new_landmark`): with every
-NIS above the new-landmark threshold it is a new landmark's first sighting (the filter keeps it
-tentative until it is seen again, see `ekfslam.core.filter.associating`); between the gate and
-that threshold it is ambiguous, and dropped.
+What a sighting that pairs with nothing becomes (`AssociationConfig.new_rule`, `free_nis`): a
+new landmark's first sighting (the filter keeps it tentative until it is seen again, see
+`ekfslam.core.filter.associating`) when no landmark left free explains it better than a new
+landmark would, by their likelihoods (``jcbb`` and ``mht``); with ``nn``, or ``new_rule=
+"threshold"``, when its NIS against every landmark left free exceeds the new-landmark threshold.
+Otherwise it is ambiguous, and dropped.
 
 `confusion` scores the decisions when the true ids are known after all (our runs, MRCLAM).
 """
@@ -51,6 +53,7 @@ Array = NDArray[np.float64]
 
 METHODS = ("known", "nn", "jcbb", "mht")
 UNPAIRED = -1  # a sighting paired with no landmark
+NEW_RULES = ("density", "threshold")
 
 
 @lru_cache(maxsize=256)
@@ -103,14 +106,20 @@ class AssociationConfig:
         time stamps are exact (our simulator's). A data source knows its value
         (`ekfslam.logs.mrclam.defaults.MRCLAM_TIME_SIGMA`).
     hypotheses : ``mht`` only: how many hypotheses the bank keeps (1: ``jcbb`` exactly).
-    new_log_density : ``mht`` only: log of the density, per m·rad of (range, bearing), of a
-        sighting that no mapped landmark explains (a new landmark's, or one left out). A
-        pairing scores its Gaussian log-likelihood -½(νᵀS⁻¹ν + log det 2πS), so this is the
-        price of explaining a sighting otherwise. -5: about 5% of the density a sighting spread
-        evenly over the camera's 1-7 m by 1.1 rad would have (log(1/6.6) = -1.9).
+    new_log_density : log of the density, per m·rad of (range, bearing), of a sighting that no
+        mapped landmark explains (a new landmark's, or one left out). A pairing scores its
+        Gaussian log-likelihood -½(νᵀS⁻¹ν + log det 2πS), so this is the price of explaining
+        a sighting otherwise (``mht``'s score; the ``density`` rule of `new_rule`). -5: about
+        5% of the density a sighting spread evenly over the camera's 1-7 m by 1.1 rad would
+        have (log(1/6.6) = -1.9).
     duplicate_radius : m, ``mht`` only: two hypotheses whose states (pose and every landmark)
         agree within this are one, and the less likely is dropped, so the bank holds different
         maps, not K copies of one that differ in decisions long washed out.
+    new_rule : ``jcbb`` and ``mht``: what makes a sighting the search left unpaired a new
+        landmark's rather than ambiguous (`free_nis`). "density": every landmark left free
+        explains it less than `new_log_density` does (a likelihood ratio; a sighting of a well
+        mapped landmark is then new above NIS ≈ 14, of an uncertain one sooner). "threshold":
+        its NIS against each exceeds `new_landmark` (``nn`` always decides so).
     """
 
     method: Literal["known", "nn", "jcbb", "mht"] = "known"
@@ -123,6 +132,7 @@ class AssociationConfig:
     hypotheses: int = 8
     new_log_density: float = -5.0
     duplicate_radius: float = 0.05
+    new_rule: Literal["density", "threshold"] = "density"
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -144,6 +154,10 @@ class AssociationConfig:
         whole = isinstance(self.hypotheses, int) and not isinstance(self.hypotheses, bool)
         if not (whole and self.hypotheses >= 1):
             raise ConfigError(f"hypotheses must be a whole number >= 1, got {self.hypotheses!r}")
+        if self.new_rule not in NEW_RULES:
+            raise ConfigError(
+                f"new_rule must be one of {', '.join(NEW_RULES)}, got {self.new_rule!r}"
+            )
         if not math.isfinite(self.new_log_density):
             raise ConfigError(f"new_log_density must be finite, got {self.new_log_density}")
         if not 0.0 <= self.duplicate_radius < math.inf:
@@ -177,6 +191,35 @@ def individual_nis(nu: ArrayLike, P: ArrayLike, Q: ArrayLike) -> Array:
     with np.errstate(divide="ignore", invalid="ignore"):
         nis = (c * x * x - 2.0 * b * x * y + a * y * y) / det
     return np.where((a > 0) & (det > 0) & np.isfinite(nis), nis, math.inf)
+
+
+def free_nis(
+    nis: ArrayLike, P: ArrayLike, Q: ArrayLike, pairing: ArrayLike, config: AssociationConfig
+) -> Array:
+    """Each sighting's smallest NIS over the landmarks `pairing` leaves free (inf: none), as the
+    new-landmark test reads it: above `config.new_landmark` a sighting left unpaired is new.
+
+    nis : (m, n) `individual_nis`; P : (2n, 2n) H Σ Hᵀ; Q : (2, 2) the sightings' noise;
+    pairing : (m,) landmark index or a negative value (unpaired). With the "density"
+    `AssociationConfig.new_rule` a sighting is new (inf) when every free landmark's likelihood
+    -½(NIS + log det 2πS), S = P_jj + Q (eqs. (13)-(15)'s innovation covariance), falls below
+    `config.new_log_density`, and ambiguous (at most `new_landmark`) otherwise.
+    """
+    nis, P, Q = (np.asarray(a, dtype=float) for a in (nis, P, Q))
+    m, n = nis.shape
+    free = np.ones(n, dtype=bool)
+    free[[j for j in np.asarray(pairing).tolist() if j >= 0]] = False
+    if not free.any():
+        return np.full(m, np.inf)
+    smallest = nis[:, free].min(axis=1)
+    if config.new_rule == "threshold":
+        return smallest
+    idx = np.flatnonzero(free)
+    S = np.stack([P[2 * j : 2 * j + 2, 2 * j : 2 * j + 2] for j in idx]) + Q
+    logdet = np.log(np.linalg.det(2.0 * math.pi * S))
+    best = (-0.5 * (nis[:, free] + logdet[None, :])).max(axis=1)
+    ambiguous = np.minimum(smallest, config.new_landmark)
+    return np.where(best < config.new_log_density, np.inf, ambiguous)
 
 
 def nearest_neighbour(nis: ArrayLike, gate: float) -> Array:

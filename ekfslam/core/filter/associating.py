@@ -21,8 +21,9 @@ its Q says so.
 
 A sighting paired with nothing:
 
-- ambiguous (its smallest NIS lies between the gate and the new-landmark threshold): dropped,
-  counted;
+- ambiguous (a landmark left free explains it about as well as a new one would,
+  `ekfslam.core.association.free_nis`; with ``nn``: its smallest NIS lies between the gate and
+  the new-landmark threshold): dropped, counted;
 - otherwise a new landmark, which starts TENTATIVE, outside the state, as the position the
   sighting puts it at. The rule: a tentative becomes a landmark when a later sighting (at a
   later time) that pairs with no mapped landmark puts it within the gate of the tentative
@@ -50,6 +51,7 @@ from ekfslam.core.association import (
     AssociationConfig,
     JcbbResult,
     chi2_even_quantile,
+    free_nis,
 )
 from ekfslam.core.filter import jcbb_kernels
 from ekfslam.core.filter import nearest as nearest_kernel
@@ -260,6 +262,8 @@ class AssociatingFilter:
         value, nodes, hit = jcbb_kernels.search(
             nu, P, Qs, nis, gate, chi2, budget, pairing, unclaimed
         )
+        if self.config.new_rule != "threshold":  # the kernel's figure is the threshold's
+            unclaimed = free_nis(nis, P, Q, pairing, self.config)
         return JcbbResult(pairing, value, nodes, hit), unclaimed
 
     def predicted(self, zs: Array) -> tuple[Array, Array]:
