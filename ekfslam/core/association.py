@@ -26,7 +26,8 @@ Four methods (`AssociationConfig.method`):
   alternatives, and the `hypotheses` most likely histories are kept
   (`ekfslam.core.filter.mht`). With one hypothesis it is ``jcbb``.
 
-What a sighting that pairs with nothing becomes (`AssociationConfig.new_rule`, `free_nis`): a
+What a sighting that pairs with nothing becomes (`AssociationConfig.new_rule`,
+`ekfslam.core.filter.associating.free_nis`): a
 new landmark's first sighting (the filter keeps it tentative until it is seen again, see
 `ekfslam.core.filter.associating`) when no landmark left free explains it better than a new
 landmark would, by their likelihoods (``jcbb`` and ``mht``); with ``nn``, or ``new_rule=
@@ -116,10 +117,11 @@ class AssociationConfig:
         agree within this are one, and the less likely is dropped, so the bank holds different
         maps, not K copies of one that differ in decisions long washed out.
     new_rule : ``jcbb`` and ``mht``: what makes a sighting the search left unpaired a new
-        landmark's rather than ambiguous (`free_nis`). "density": every landmark left free
-        explains it less than `new_log_density` does (a likelihood ratio; a sighting of a well
-        mapped landmark is then new above NIS ≈ 14, of an uncertain one sooner). "threshold":
-        its NIS against each exceeds `new_landmark` (``nn`` always decides so).
+        landmark's rather than ambiguous (`ekfslam.core.filter.associating.free_nis`).
+        "density": every landmark left free explains it less than `new_log_density` does (a
+        likelihood ratio; with MRCLAM's noise a sighting of a mapped landmark is then new above
+        NIS ≈ 13-14, of an uncertain one sooner). "threshold": its NIS against each exceeds
+        `new_landmark` (``nn`` always decides so).
     """
 
     method: Literal["known", "nn", "jcbb", "mht"] = "known"
@@ -191,35 +193,6 @@ def individual_nis(nu: ArrayLike, P: ArrayLike, Q: ArrayLike) -> Array:
     with np.errstate(divide="ignore", invalid="ignore"):
         nis = (c * x * x - 2.0 * b * x * y + a * y * y) / det
     return np.where((a > 0) & (det > 0) & np.isfinite(nis), nis, math.inf)
-
-
-def free_nis(
-    nis: ArrayLike, P: ArrayLike, Q: ArrayLike, pairing: ArrayLike, config: AssociationConfig
-) -> Array:
-    """Each sighting's smallest NIS over the landmarks `pairing` leaves free (inf: none), as the
-    new-landmark test reads it: above `config.new_landmark` a sighting left unpaired is new.
-
-    nis : (m, n) `individual_nis`; P : (2n, 2n) H Σ Hᵀ; Q : (2, 2) the sightings' noise;
-    pairing : (m,) landmark index or a negative value (unpaired). With the "density"
-    `AssociationConfig.new_rule` a sighting is new (inf) when every free landmark's likelihood
-    -½(NIS + log det 2πS), S = P_jj + Q (eqs. (13)-(15)'s innovation covariance), falls below
-    `config.new_log_density`, and ambiguous (at most `new_landmark`) otherwise.
-    """
-    nis, P, Q = (np.asarray(a, dtype=float) for a in (nis, P, Q))
-    m, n = nis.shape
-    free = np.ones(n, dtype=bool)
-    free[[j for j in np.asarray(pairing).tolist() if j >= 0]] = False
-    if not free.any():
-        return np.full(m, np.inf)
-    smallest = nis[:, free].min(axis=1)
-    if config.new_rule == "threshold":
-        return smallest
-    idx = np.flatnonzero(free)
-    S = np.stack([P[2 * j : 2 * j + 2, 2 * j : 2 * j + 2] for j in idx]) + Q
-    logdet = np.log(np.linalg.det(2.0 * math.pi * S))
-    best = (-0.5 * (nis[:, free] + logdet[None, :])).max(axis=1)
-    ambiguous = np.minimum(smallest, config.new_landmark)
-    return np.where(best < config.new_log_density, np.inf, ambiguous)
 
 
 def nearest_neighbour(nis: ArrayLike, gate: float) -> Array:

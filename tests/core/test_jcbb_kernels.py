@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from ekfslam.core import models
-from ekfslam.core.association import AssociationConfig, free_nis, individual_nis, jcbb
+from ekfslam.core.association import AssociationConfig, individual_nis, jcbb
 from ekfslam.core.filter import jcbb_kernels
-from ekfslam.core.filter.associating import AssociatingFilter
+from ekfslam.core.filter.associating import AssociatingFilter, free_nis
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.models import observation, observation_noise
 

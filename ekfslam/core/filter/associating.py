@@ -22,7 +22,7 @@ its Q says so.
 A sighting paired with nothing:
 
 - ambiguous (a landmark left free explains it about as well as a new one would,
-  `ekfslam.core.association.free_nis`; with ``nn``: its smallest NIS lies between the gate and
+  `free_nis`; with ``nn``: its smallest NIS lies between the gate and
   the new-landmark threshold): dropped, counted;
 - otherwise a new landmark, which starts TENTATIVE, outside the state, as the position the
   sighting puts it at. The rule: a tentative becomes a landmark when a later sighting (at a
@@ -51,7 +51,6 @@ from ekfslam.core.association import (
     AssociationConfig,
     JcbbResult,
     chi2_even_quantile,
-    free_nis,
 )
 from ekfslam.core.filter import jcbb_kernels
 from ekfslam.core.filter import nearest as nearest_kernel
@@ -106,6 +105,35 @@ def sighting_noise(Q: ArrayLike, omega: float, time_sigma: float) -> Array:
     if time_sigma and omega:
         Q = Q + np.diag([0.0, (omega * time_sigma) ** 2])
     return Q
+
+
+def free_nis(
+    nis: ArrayLike, P: ArrayLike, Q: ArrayLike, pairing: ArrayLike, config: AssociationConfig
+) -> Array:
+    """Each sighting's smallest NIS over the landmarks `pairing` leaves free (inf: none), as the
+    new-landmark test reads it: above `config.new_landmark` a sighting left unpaired is new.
+
+    nis : (m, n) `individual_nis`; P : (2n, 2n) H Σ Hᵀ; Q : (2, 2) the sightings' noise;
+    pairing : (m,) landmark index or a negative value (unpaired). With the "density"
+    `AssociationConfig.new_rule` a sighting is new (inf) when every free landmark's likelihood
+    -½(NIS + log det 2πS), S = P_jj + Q (the bracket of eq. (15); ν from eq. (13)), falls below
+    `config.new_log_density`, and ambiguous (at most `new_landmark`) otherwise.
+    """
+    nis, P, Q = (np.asarray(a, dtype=float) for a in (nis, P, Q))
+    m, n = nis.shape
+    free = np.ones(n, dtype=bool)
+    free[[j for j in np.asarray(pairing).tolist() if j >= 0]] = False
+    if not free.any():
+        return np.full(m, np.inf)
+    smallest = nis[:, free].min(axis=1)
+    if config.new_rule == "threshold":
+        return smallest
+    idx = np.flatnonzero(free)
+    S = np.stack([P[2 * j : 2 * j + 2, 2 * j : 2 * j + 2] for j in idx]) + Q
+    logdet = np.log(np.linalg.det(2.0 * math.pi * S))
+    best = (-0.5 * (nis[:, free] + logdet[None, :])).max(axis=1)
+    ambiguous = np.minimum(smallest, config.new_landmark)
+    return np.where(best < config.new_log_density, np.inf, ambiguous)
 
 
 class AssociatingFilter:

@@ -37,10 +37,14 @@ from ekfslam.core.association import (
     UNPAIRED,
     AssociationConfig,
     JcbbResult,
-    free_nis,
     joint_innovation,
 )
-from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog, sighting_noise
+from ekfslam.core.filter.associating import (
+    AssociatingFilter,
+    AssociationLog,
+    free_nis,
+    sighting_noise,
+)
 from ekfslam.core.filter.ekf import EKFSLAM
 
 Array = NDArray[np.float64]
@@ -76,8 +80,8 @@ def log_likelihood(
 
 def _free_nis(nis: Array, P: Array, Q: Array, option: tuple[int, ...], config) -> list[float]:
     """Each sighting's smallest NIS over the landmarks `option` leaves free as the new-landmark
-    rule reads it (`ekfslam.core.association.free_nis`; inf for a `NEW` sighting): what decides
-    between ambiguous and new (`AssociatingFilter._apply`)."""
+    rule reads it (`free_nis`; inf for a `NEW` sighting): what decides between ambiguous and new
+    (`AssociatingFilter._apply`)."""
     free = free_nis(nis, P, Q, option, config)
     return [math.inf if j == NEW else float(f) for j, f in zip(option, free, strict=True)]
 
