@@ -81,6 +81,7 @@ def association_robots(
     linearization: str = "standard",
     hypotheses: int | None = None,
     mapped: bool = True,
+    new_rule: str | None = None,
 ) -> list[AssociationRow]:
     """Every robot replayed with ``known`` and with each of `methods`, scored (see the module).
 
@@ -88,7 +89,8 @@ def association_robots(
     shipped default) is always the standard EKF. hypotheses : ``mht``'s bank size (None: its
     default, `ekfslam.core.association.AssociationConfig.hypotheses`). mapped : map with a
     second filter fed the decisions, with `ekfslam.analysis.association.association_map_noise`
-    (the default); False: the deciding filter's own map.
+    (the default); False: the deciding filter's own map. new_rule : what makes a sighting
+    new (`ekfslam.core.association.AssociationConfig.new_rule`; None: its default).
     """
     filter_config = dataclasses.replace(MRCLAM_CONFIG, linearization=linearization)
     rows = []
@@ -102,7 +104,7 @@ def association_robots(
         same_error = same.alignment.mean_error if same.alignment else math.nan
         known_state: dict[str, float] = {}  # mht decides from one state as jcbb does
         for method in methods:
-            config = assoc.association_config(run, method, hypotheses)
+            config = assoc.association_config(run, method, hypotheses, new_rule)
             hidden = replay(run, noise, filter_config, association=config, map_noise=map_noise)
             result, found = assoc.score(run, hidden)
             s = summarize(run, result)
