@@ -96,7 +96,8 @@ class AssociationConfig:
     method : "known" (the sightings' ids; the default), "nn" or "jcbb" (see the module).
     gate : individual compatibility, NIS of one sighting against one landmark (χ²(2) 99%).
     new_landmark : NIS above which, against every landmark, a sighting is a new landmark's
-        (χ²(2) at 1 - 1e-5: 23.0). Must exceed the gate; in between a sighting is ambiguous.
+        (χ²(2) at 1 - 1e-5: 23.0) by the "threshold" `new_rule` (and ``nn``'s). Must exceed the
+        gate; in between a sighting is ambiguous.
     joint_probability : the joint gate of a k-pair hypothesis is χ²(2k) at this probability.
     node_budget : JCBB search nodes per time step before it returns the best pairing so far.
     tentative_life : s. A tentative landmark not seen again within this time is discarded.
@@ -120,7 +121,7 @@ class AssociationConfig:
         landmark's rather than ambiguous (`ekfslam.core.filter.associating.free_nis`).
         "density": every landmark left free explains it less than `new_log_density` does (a
         likelihood ratio; with MRCLAM's noise a sighting of a mapped landmark is then new above
-        NIS ≈ 13-14, of an uncertain one sooner). "threshold": its NIS against each exceeds
+        NIS ≈ 13-15, of an uncertain one sooner). "threshold": its NIS against each exceeds
         `new_landmark` (``nn`` always decides so).
     """
 
