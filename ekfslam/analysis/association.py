@@ -30,13 +30,18 @@ MATCHINGS = {"mapping": MATCHED_THROUGH_MAPPING, "position": MATCHED_BY_NEAREST}
 
 
 def association_config(
-    run: RunLog, method: str, hypotheses: int | None = None, time_shared: bool | None = None
+    run: RunLog,
+    method: str,
+    hypotheses: int | None = None,
+    time_shared: bool | None = None,
+    new_rule: str | None = None,
 ) -> AssociationConfig:
     """The association a run is replayed with: `method`, and its source's time-stamp uncertainty.
 
     hypotheses : ``mht``'s bank size (`AssociationConfig.hypotheses`; None: its default).
     time_shared : one time-stamp error per image (True) or per sighting (False); None: the
     source's (`ekfslam.logs.mrclam.defaults.MRCLAM_TIME_SHARED`).
+    new_rule : `AssociationConfig.new_rule` (None: its default).
 
     MRCLAM's camera time stamps are off the odometry's by tenths of a second
     (`ekfslam.logs.mrclam.defaults.MRCLAM_TIME_SIGMA`); every other run's are exact.
@@ -45,6 +50,8 @@ def association_config(
     bank = {} if hypotheses is None else {"hypotheses": hypotheses}
     if time_shared is None:
         time_shared = not exact and mrclam_defaults.MRCLAM_TIME_SHARED
+    if new_rule is not None:
+        bank["new_rule"] = new_rule
     return AssociationConfig(
         method=method, time_sigma=0.0 if exact else mrclam_defaults.MRCLAM_TIME_SIGMA,
         time_shared=time_shared, **bank,

@@ -82,6 +82,7 @@ def association_robots(
     hypotheses: int | None = None,
     mapped: bool = True,
     time_shared: bool | None = None,
+    new_rule: str | None = None,
 ) -> list[AssociationRow]:
     """Every robot replayed with ``known`` and with each of `methods`, scored (see the module).
 
@@ -91,7 +92,8 @@ def association_robots(
     second filter fed the decisions, with `ekfslam.analysis.association.association_map_noise`
     (the default); False: the deciding filter's own map. time_shared : one time-stamp error
     per image or per sighting (`ekfslam.analysis.association.association_config`; None: the
-    source's, one per image).
+    source's, one per image). new_rule : what makes a sighting new
+    (`ekfslam.core.association.AssociationConfig.new_rule`; None: its default).
     """
     filter_config = dataclasses.replace(MRCLAM_CONFIG, linearization=linearization)
     rows = []
@@ -105,7 +107,7 @@ def association_robots(
         same_error = same.alignment.mean_error if same.alignment else math.nan
         known_state: dict[str, float] = {}  # mht decides from one state as jcbb does
         for method in methods:
-            config = assoc.association_config(run, method, hypotheses, time_shared)
+            config = assoc.association_config(run, method, hypotheses, time_shared, new_rule)
             hidden = replay(run, noise, filter_config, association=config, map_noise=map_noise)
             result, found = assoc.score(run, hidden)
             s = summarize(run, result)

@@ -5,7 +5,8 @@ from the filter, by the methods named, against the same robot with them known
 (`ekfslam.analysis.association_mrclam`); ``--linearization L`` runs those replays with filter L;
 ``--map-noise none`` scores the deciding filter's own map instead of the mapping filter's;
 ``--time-error independent`` gives each sighting its own time-stamp error instead of one per
-image.
+image; ``--new-rule threshold`` founds landmarks by the NIS threshold instead of the likelihood
+ratio.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from ekfslam.analysis.association_mrclam import association_robots, association_
 from ekfslam.analysis.mrclam_tuning import score_robots, scores_table
 from ekfslam.cli import args as ca
 from ekfslam.cli.common import add_hypotheses_argument, mrclam_folder
+from ekfslam.core.association import NEW_RULES
 from ekfslam.core.filter.config import LINEARIZATIONS
 
 
@@ -43,6 +45,11 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
                    help="with --association: a camera time stamp's error is one per image, "
                    "shared by its sightings (the default), or independent per sighting",
                    )  # fmt: skip
+    p.add_argument("--new-rule", choices=NEW_RULES, default=None,
+                   help="with --association jcbb or mht: what makes a sighting no landmark "
+                   "takes a new landmark's (density: no landmark explains it better than a "
+                   "new one, the default; threshold: its NIS exceeds 23 against every one)",
+                   )  # fmt: skip
     ca.add_json_argument(p, "print one JSON object: {robots: [{robot, landmarks, ...}, ...]}")
 
     def check(args: argparse.Namespace) -> str | None:
@@ -52,6 +59,8 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
             return "argument --map-noise: only with --association"
         if args.time_error is not None and not args.association:
             return "argument --time-error: only with --association"
+        if args.new_rule is not None and not {"jcbb", "mht"} & set(args.association or ()):
+            return "argument --new-rule: only with --association jcbb or mht"
         if args.hypotheses is not None and "mht" not in (args.association or ()):
             return "argument --hypotheses: only with --association mht"
         return None
@@ -69,6 +78,7 @@ def cmd_score_mrclam(args: argparse.Namespace) -> int:
             folder, methods, linearization=args.linearization or "standard",
             hypotheses=args.hypotheses, mapped=args.map_noise != "none",
             time_shared=None if args.time_error is None else args.time_error == "shared",
+            new_rule=args.new_rule,
         )  # fmt: skip
         if args.json:
             print(json.dumps({"dataset": str(folder), "rows": [_finite(r) for r in rows]},

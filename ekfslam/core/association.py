@@ -26,10 +26,13 @@ Four methods (`AssociationConfig.method`):
   alternatives, and the `hypotheses` most likely histories are kept
   (`ekfslam.core.filter.mht`). With one hypothesis it is ``jcbb``.
 
-What a sighting that pairs with nothing becomes (`AssociationConfig.new_landmark`): with every
-NIS above the new-landmark threshold it is a new landmark's first sighting (the filter keeps it
-tentative until it is seen again, see `ekfslam.core.filter.associating`); between the gate and
-that threshold it is ambiguous, and dropped.
+What a sighting that pairs with nothing becomes (`AssociationConfig.new_rule`,
+`ekfslam.core.filter.associating.free_nis`): a
+new landmark's first sighting (the filter keeps it tentative until it is seen again, see
+`ekfslam.core.filter.associating`) when no landmark left free explains it better than a new
+landmark would, by their likelihoods (``jcbb`` and ``mht``); with ``nn``, or ``new_rule=
+"threshold"``, when its NIS against every landmark left free exceeds the new-landmark threshold.
+Otherwise it is ambiguous, and dropped.
 
 `confusion` scores the decisions when the true ids are known after all (our runs, MRCLAM).
 """
@@ -51,6 +54,7 @@ Array = NDArray[np.float64]
 
 METHODS = ("known", "nn", "jcbb", "mht")
 UNPAIRED = -1  # a sighting paired with no landmark
+NEW_RULES = ("density", "threshold")
 
 
 @lru_cache(maxsize=256)
@@ -92,7 +96,8 @@ class AssociationConfig:
     method : "known" (the sightings' ids; the default), "nn" or "jcbb" (see the module).
     gate : individual compatibility, NIS of one sighting against one landmark (χ²(2) 99%).
     new_landmark : NIS above which, against every landmark, a sighting is a new landmark's
-        (χ²(2) at 1 - 1e-5: 23.0). Must exceed the gate; in between a sighting is ambiguous.
+        (χ²(2) at 1 - 1e-5: 23.0) by the "threshold" `new_rule` (and ``nn``'s). Must exceed the
+        gate; in between a sighting is ambiguous.
     joint_probability : the joint gate of a k-pair hypothesis is χ²(2k) at this probability.
     node_budget : JCBB search nodes per time step before it returns the best pairing so far.
     tentative_life : s. A tentative landmark not seen again within this time is discarded.
@@ -108,14 +113,21 @@ class AssociationConfig:
         cross-correlated term (`ekfslam.core.filter.jcbb_kernels.predict_all`) that allows a
         common shift of the image's bearings but not a relative one.
     hypotheses : ``mht`` only: how many hypotheses the bank keeps (1: ``jcbb`` exactly).
-    new_log_density : ``mht`` only: log of the density, per m·rad of (range, bearing), of a
-        sighting that no mapped landmark explains (a new landmark's, or one left out). A
-        pairing scores its Gaussian log-likelihood -½(νᵀS⁻¹ν + log det 2πS), so this is the
-        price of explaining a sighting otherwise. -5: about 5% of the density a sighting spread
-        evenly over the camera's 1-7 m by 1.1 rad would have (log(1/6.6) = -1.9).
+    new_log_density : log of the density, per m·rad of (range, bearing), of a sighting that no
+        mapped landmark explains (a new landmark's, or one left out). A pairing scores its
+        Gaussian log-likelihood -½(νᵀS⁻¹ν + log det 2πS), so this is the price of explaining
+        a sighting otherwise (``mht``'s score; the ``density`` rule of `new_rule`). -5: about
+        5% of the density a sighting spread evenly over the camera's 1-7 m by 1.1 rad would
+        have (log(1/6.6) = -1.9).
     duplicate_radius : m, ``mht`` only: two hypotheses whose states (pose and every landmark)
         agree within this are one, and the less likely is dropped, so the bank holds different
         maps, not K copies of one that differ in decisions long washed out.
+    new_rule : ``jcbb`` and ``mht``: what makes a sighting the search left unpaired a new
+        landmark's rather than ambiguous (`ekfslam.core.filter.associating.free_nis`).
+        "density": every landmark left free explains it less than `new_log_density` does (a
+        likelihood ratio; with MRCLAM's noise a sighting of a mapped landmark is then new above
+        NIS ≈ 13-15, of an uncertain one sooner). "threshold": its NIS against each exceeds
+        `new_landmark` (``nn`` always decides so).
     """
 
     method: Literal["known", "nn", "jcbb", "mht"] = "known"
@@ -129,6 +141,7 @@ class AssociationConfig:
     hypotheses: int = 8
     new_log_density: float = -5.0
     duplicate_radius: float = 0.05
+    new_rule: Literal["density", "threshold"] = "density"
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -150,6 +163,10 @@ class AssociationConfig:
         whole = isinstance(self.hypotheses, int) and not isinstance(self.hypotheses, bool)
         if not (whole and self.hypotheses >= 1):
             raise ConfigError(f"hypotheses must be a whole number >= 1, got {self.hypotheses!r}")
+        if self.new_rule not in NEW_RULES:
+            raise ConfigError(
+                f"new_rule must be one of {', '.join(NEW_RULES)}, got {self.new_rule!r}"
+            )
         if not math.isfinite(self.new_log_density):
             raise ConfigError(f"new_log_density must be finite, got {self.new_log_density}")
         if not 0.0 <= self.duplicate_radius < math.inf:

@@ -23,8 +23,8 @@ def test_the_invariant_filter_associates_but_known_stays_the_shipped_standard(mr
     assert (standard.linearization, invariant.linearization) == ("standard", "invariant")
     assert invariant.known_error == standard.known_error == pytest.approx(0.027, abs=0.003)
     assert invariant.known_same_noise != standard.known_same_noise  # replayed by the other filter
-    assert standard.aligned_error == pytest.approx(0.040, abs=0.005)
-    assert invariant.aligned_error == pytest.approx(0.054, abs=0.005)
+    assert standard.aligned_error == pytest.approx(0.061, abs=0.005)
+    assert invariant.aligned_error == pytest.approx(0.065, abs=0.005)
     assert invariant.ratio == pytest.approx(invariant.aligned_error / invariant.known_error)
     assert "invariant EKF (known: standard)" in association_table([invariant])
 
@@ -43,7 +43,7 @@ def _dataset(number: int, data_missing) -> Path:
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    ("dataset", "robot", "jcbb", "mht"), [(4, 1, 42.3, 1.05), (1, 2, 35.7, 0.93)]
+    ("dataset", "robot", "jcbb", "mht"), [(4, 1, 17.5, 1.05), (1, 2, 73.8, 0.94)]
 )
 def test_the_bank_keeps_the_robots_jcbb_loses(dataset, robot, jcbb, mht, data_missing):
     """2026-12-01, `score-mrclam 4|1 --association jcbb mht`: an early wrong pairing sends JCBB

@@ -184,3 +184,28 @@ def test_the_compiled_jcbb_decides_as_the_numpy_reference(linearization):
     assert got.pairing.tolist() == want.pairing.tolist()
     assert sum(p != UNPAIRED for p in got.pairing) >= 5
     np.testing.assert_allclose(got.joint_nis, want.joint_nis, rtol=1e-9)
+
+
+@pytest.mark.parametrize(("rule", "k", "expected"), [
+    ("threshold", 4.0, AMBIGUOUS), ("density", 4.0, "tentative"), ("density", 3.4, AMBIGUOUS),
+])  # fmt: skip
+def test_a_sighting_no_landmark_explains_better_than_a_new_one_starts_a_landmark(rule, k, expected):
+    """A range-noisy camera (0.5 m, 0.03 rad, as MRCLAM's) and a landmark A mapped from one
+    sighting (the second confirms it): S = diag(0.5 m², 0.0018 rad²), log det 2πS = -3.34. A
+    sighting k σ off in bearing (NIS k², outside the 9.21 gate): by the threshold rule ambiguous
+    below NIS 23.0; by the likelihood ratio with the density e^-5 new once -½(NIS - 3.34) < -5,
+    at NIS > 13.3, so the close neighbour of a mapped tag (NIS 16) is founded, one at NIS 11.6
+    still dropped."""
+    Qn = observation_noise(0.5, 0.03)
+    a = np.array([3.0, 0.0])
+    f = AssociatingFilter(EKFSLAM(POSE), AssociationConfig(method="jcbb", new_rule=rule))
+    f.observe(sightings(a), Qn, 0.0)
+    f.observe(sightings(a), Qn, 1.0)  # A is mapped
+    S_z = f.predicted(sightings(a))[1] + Qn
+    np.testing.assert_allclose(np.diag(S_z), [0.5, 0.0018], rtol=1e-6)
+    assert np.log(np.linalg.det(2 * np.pi * S_z)) == pytest.approx(-3.34, abs=0.005)
+    z = observation(POSE, a) + np.array([0.0, k * np.sqrt(S_z[1, 1])])
+    nu, P = f.predicted(z[None])
+    assert individual_nis(nu, P, Qn[None])[0, 0] == pytest.approx(k * k, rel=1e-6)
+    assert f.observe(z[None], Qn, 2.0) == [UNPAIRED]
+    assert f.finish().decision[-1] == expected

@@ -110,3 +110,9 @@ def test_config_refuses_a_negative_or_infinite_time_sigma():
     for bad in (-0.1, float("inf"), float("nan")):
         with pytest.raises(ConfigError, match="time_sigma"):
             AssociationConfig(method="jcbb", time_sigma=bad)
+
+
+def test_config_refuses_an_unknown_new_landmark_rule():
+    with pytest.raises(ConfigError, match="new_rule must be one of density, threshold, got 'nis'"):
+        AssociationConfig(method="jcbb", new_rule="nis")  # type: ignore[arg-type]
+    assert AssociationConfig().new_rule == "density"

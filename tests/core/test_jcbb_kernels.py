@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from ekfslam.core import models
 from ekfslam.core.association import AssociationConfig, individual_nis, jcbb
 from ekfslam.core.filter import jcbb_kernels
-from ekfslam.core.filter.associating import AssociatingFilter
+from ekfslam.core.filter.associating import AssociatingFilter, free_nis
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.models import observation, observation_noise
 
@@ -52,7 +54,12 @@ def test_compiled_jcbb_decides_as_the_reference(budget):
         free = np.ones(nis.shape[1], dtype=bool)
         free[want.pairing[want.pairing >= 0]] = False
         smallest = nis[:, free].min(axis=1) if free.any() else np.full(len(zs), np.inf)
-        np.testing.assert_allclose(unclaimed, smallest, rtol=1e-9, atol=1e-12)
+        f.config = dataclasses.replace(f.config, new_rule="threshold")  # the kernel's own figure
+        np.testing.assert_allclose(f._jcbb(zs, Q)[1], smallest, rtol=1e-9, atol=1e-12)
+        by_density = free_nis(
+            nis, P, Q, want.pairing, dataclasses.replace(f.config, new_rule="density")
+        )
+        np.testing.assert_allclose(unclaimed, by_density, rtol=1e-9, atol=1e-12)
         hits += got.budget_hit
     assert (hits > 0) == (budget == 5)  # the small budget is reached, the default not
 

@@ -28,8 +28,9 @@ Dataset 7, updating with the independent (ω σt)² instead moves the maps by at
 
 A sighting paired with nothing:
 
-- ambiguous (its smallest NIS lies between the gate and the new-landmark threshold): dropped,
-  counted;
+- ambiguous (a landmark left free explains it about as well as a new one would,
+  `free_nis`; with ``nn``: its smallest NIS lies between the gate and
+  the new-landmark threshold): dropped, counted;
 - otherwise a new landmark, which starts TENTATIVE, outside the state, as the position the
   sighting puts it at. The rule: a tentative becomes a landmark when a later sighting (at a
   later time) that pairs with no mapped landmark puts it within the gate of the tentative
@@ -139,6 +140,35 @@ def shared_sighting_noise(
             g = time_shift(z, rate)
             Qs[i] += time_sigma**2 * np.outer(g, g)
     return Qs
+
+
+def free_nis(
+    nis: ArrayLike, P: ArrayLike, Q: ArrayLike, pairing: ArrayLike, config: AssociationConfig
+) -> Array:
+    """Each sighting's smallest NIS over the landmarks `pairing` leaves free (inf: none), as the
+    new-landmark test reads it: above `config.new_landmark` a sighting left unpaired is new.
+
+    nis : (m, n) `individual_nis`; P : (2n, 2n) H Σ Hᵀ; Q : (2, 2) the sightings' noise;
+    pairing : (m,) landmark index or a negative value (unpaired). With the "density"
+    `AssociationConfig.new_rule` a sighting is new (inf) when every free landmark's likelihood
+    -½(NIS + log det 2πS), S = P_jj + Q (the bracket of eq. (15); ν from eq. (13)), falls below
+    `config.new_log_density`, and ambiguous (at most `new_landmark`) otherwise.
+    """
+    nis, P, Q = (np.asarray(a, dtype=float) for a in (nis, P, Q))
+    m, n = nis.shape
+    free = np.ones(n, dtype=bool)
+    free[[j for j in np.asarray(pairing).tolist() if j >= 0]] = False
+    if not free.any():
+        return np.full(m, np.inf)
+    smallest = nis[:, free].min(axis=1)
+    if config.new_rule == "threshold":
+        return smallest
+    idx = np.flatnonzero(free)
+    S = np.stack([P[2 * j : 2 * j + 2, 2 * j : 2 * j + 2] for j in idx]) + Q
+    logdet = np.log(np.linalg.det(2.0 * math.pi * S))
+    best = (-0.5 * (nis[:, free] + logdet[None, :])).max(axis=1)
+    ambiguous = np.minimum(smallest, config.new_landmark)
+    return np.where(best < config.new_log_density, np.inf, ambiguous)
 
 
 class AssociatingFilter:
@@ -321,6 +351,8 @@ class AssociatingFilter:
         value, nodes, hit = jcbb_kernels.search(
             nu, P, Qs, nis, gate, chi2, budget, pairing, unclaimed
         )
+        if self.config.new_rule != "threshold":  # the kernel's figure is the threshold's
+            unclaimed = free_nis(nis, P, Q, pairing, self.config)
         return JcbbResult(pairing, value, nodes, hit), unclaimed
 
     def predicted(self, zs: Array, rate=None) -> tuple[Array, Array]:

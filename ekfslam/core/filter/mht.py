@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.association import UNPAIRED, AssociationConfig, JcbbResult, joint_innovation
-from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog
+from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog, free_nis
 from ekfslam.core.filter.ekf import EKFSLAM
 
 Array = NDArray[np.float64]
@@ -68,15 +68,12 @@ def log_likelihood(
     return -0.5 * d2 - float(np.log(np.diag(L)).sum()) - k * _LOG_2PI, d2
 
 
-def _free_nis(nis: Array, option: tuple[int, ...]) -> list[float]:
-    """Each sighting's smallest NIS over the landmarks `option` leaves free (inf: none, or the
-    sighting is `NEW`): what decides between ambiguous and new (`AssociatingFilter._apply`)."""
-    taken = [j for j in option if j >= 0]
-    free = np.delete(nis, taken, axis=1)
-    out = []
-    for i, j in enumerate(option):
-        out.append(math.inf if j == NEW or free.shape[1] == 0 else float(free[i].min()))
-    return out
+def _free_nis(nis: Array, P: Array, Q: Array, option: tuple[int, ...], config) -> list[float]:
+    """Each sighting's smallest NIS over the landmarks `option` leaves free as the new-landmark
+    rule reads it (`free_nis`; inf for a `NEW` sighting): what decides between ambiguous and new
+    (`AssociatingFilter._apply`)."""
+    free = free_nis(nis, P, Q, option, config)
+    return [math.inf if j == NEW else float(f) for j, f in zip(option, free, strict=True)]
 
 
 def _same(a: AssociatingFilter, b: AssociatingFilter, radius: float) -> bool:
@@ -180,7 +177,8 @@ class HypothesisBank:
             if option != best and pairs and d2 > chi2[len(pairs)]:
                 continue
             gain = ll + cfg.new_log_density * (m - len(pairs))
-            out.append((gain, option, free if option == best else _free_nis(nis, option)))
+            free = free if option == best else _free_nis(nis, P, Q, option, cfg)
+            out.append((gain, option, free))
         return out
 
     def finish(self) -> tuple[float, AssociatingFilter, list[tuple[int, ...]]]:
@@ -213,7 +211,8 @@ class DecisionReplay(AssociatingFilter):
         option = next(self._options)
         if len(option) != len(zs):
             raise ValueError(f"an option for {len(option)} sightings given {len(zs)}")
-        free = _free_nis(self._predict_all(zs, Q, rate)[2], option)
+        _, P, nis = self._predict_all(zs, Q, rate)
+        free = _free_nis(nis, P, Q, option, self.config)
         pairing = np.array(_pairing(option), dtype=np.int64)
         return JcbbResult(pairing, 0.0, 0, False), np.array(free)
 
