@@ -3,7 +3,8 @@
 Without ``--association``: the README's MRCLAM table. With it: each robot with the barcodes hidden
 from the filter, by the methods named, against the same robot with them known
 (`ekfslam.analysis.association_mrclam`); ``--linearization L`` runs those replays with filter L;
-``--map-noise none`` scores the deciding filter's own map instead of the mapping filter's.
+``--map-noise none`` scores the deciding filter's own map instead of the mapping filter's;
+``--passes N`` decides each robot's run up to N times, each pass from the last one's map.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import math
 from ekfslam.analysis.association_mrclam import association_robots, association_table
 from ekfslam.analysis.mrclam_tuning import score_robots, scores_table
 from ekfslam.cli import args as ca
-from ekfslam.cli.common import add_hypotheses_argument, mrclam_folder
+from ekfslam.cli.common import add_hypotheses_argument, add_passes_argument, mrclam_folder
 from ekfslam.core.filter.config import LINEARIZATIONS
 
 
@@ -37,6 +38,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
                    help="with --association: the noise of a second filter that maps with the "
                    "decisions (mrclam: the consistency noise with sigma_x = sigma_y = 0.005, "
                    "the default; none: the deciding filter's own map)")  # fmt: skip
+    add_passes_argument(p)
     ca.add_json_argument(p, "print one JSON object: {robots: [{robot, landmarks, ...}, ...]}")
 
     def check(args: argparse.Namespace) -> str | None:
@@ -44,6 +46,8 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
             return "argument --linearization: only with --association"
         if args.map_noise is not None and not args.association:
             return "argument --map-noise: only with --association"
+        if args.passes != 1 and not args.association:
+            return "argument --passes: only with --association"
         if args.hypotheses is not None and "mht" not in (args.association or ()):
             return "argument --hypotheses: only with --association mht"
         return None
@@ -59,7 +63,7 @@ def cmd_score_mrclam(args: argparse.Namespace) -> int:
         methods = tuple(dict.fromkeys(args.association))
         rows = association_robots(
             folder, methods, linearization=args.linearization or "standard",
-            hypotheses=args.hypotheses, mapped=args.map_noise != "none",
+            hypotheses=args.hypotheses, mapped=args.map_noise != "none", passes=args.passes,
         )  # fmt: skip
         if args.json:
             print(json.dumps({"dataset": str(folder), "rows": [_finite(r) for r in rows]},
