@@ -96,6 +96,8 @@ def _match_needs_hidden_ids(args: argparse.Namespace) -> str | None:
         return "argument --map-noise: needs --association nn, jcbb or mht"
     if args.passes != 1 and args.association == "known":
         return "argument --passes: needs --association nn, jcbb or mht"
+    if args.passes != 1 and getattr(args, "linearization", None) == "invariant":
+        return "argument --passes: needs the standard or fej filter, not --linearization invariant"
     return None
 
 

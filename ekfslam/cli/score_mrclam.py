@@ -48,6 +48,8 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
             return "argument --map-noise: only with --association"
         if args.passes != 1 and not args.association:
             return "argument --passes: only with --association"
+        if args.passes != 1 and args.linearization == "invariant":
+            return "argument --passes: needs the standard or fej filter, not invariant"
         if args.hypotheses is not None and "mht" not in (args.association or ()):
             return "argument --hypotheses: only with --association mht"
         return None
