@@ -10,12 +10,14 @@ frames all arrive here as a `ekfslam.logs.runlog.RunLog`.
 
 Over 400 lines because the three ways of feeding the filter (ids known, ids hidden, and the
 association judged from the state the ids give) walk one schedule (`_schedule`) and must stay
-side by side, so that they predict and correct at exactly the same moments.
+side by side, so that they predict and correct at exactly the same moments; with ids hidden a
+run may be decided more than once (``passes``, `_hidden_pass`), each pass on that schedule.
 """
 
 from __future__ import annotations
 
 import copy
+import dataclasses
 import time
 import warnings
 from collections.abc import Iterator, Sequence
@@ -26,11 +28,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.association import AssociationConfig
 from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog
-from ekfslam.core.filter.config import FilterConfig, FilterCounts
+from ekfslam.core.filter.config import MAX_PASSES, FilterConfig, FilterCounts
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.filter.history import History, KeyframeRecorder, Keyframes
 from ekfslam.core.filter.mapping import MappingFilter
 from ekfslam.core.filter.mht import DecisionReplay, HypothesisBank
+from ekfslam.core.filter.prior import PassRecord, pass_record, prior_map, start_with
 from ekfslam.core.noise import NoiseConfig, default_config, default_noise
 from ekfslam.errors import ConfigError, EkfSlamError
 from ekfslam.logs.edit import truncate
@@ -57,6 +60,9 @@ class ReplayResult:
     map_noise : the mapping filter's noise when the decisions were replayed through one
         (`replay`'s ``map_noise``); the state, history and counts are then its. `noise` is the
         deciding filter's.
+    passes, chosen_pass : with `replay`'s ``passes`` > 1, each pass's record
+        (`ekfslam.core.filter.prior.PassRecord`) and which one (1, 2, ...) the result is;
+        () and 1 for a single pass.
     """
 
     name: str
@@ -72,6 +78,8 @@ class ReplayResult:
     association: AssociationLog | None = None
     keyframes: Keyframes | None = None
     map_noise: NoiseConfig | None = None
+    passes: tuple[PassRecord, ...] = ()
+    chosen_pass: int = 1
 
 
 def replay(
@@ -84,6 +92,7 @@ def replay(
     association: AssociationConfig | None = None,
     keyframes: int | None = None,
     map_noise: NoiseConfig | None = None,
+    passes: int = 1,
 ) -> ReplayResult:
     """Run the EKF over a log and return the estimate with its full history.
 
@@ -108,6 +117,13 @@ def replay(
         as ids to a fresh filter with this noise (`ekfslam.core.filter.mapping.MappingFilter`),
         whose state, history and counts the result holds; the association log is the deciding
         run's. None (the default): one filter decides and maps.
+    passes : with hidden ids, how many times to decide the whole run (offline: the run is read
+        once per pass). Pass k + 1 decides every sighting again, its filter started with pass
+        k's final map as prior knowledge (`ekfslam.core.filter.prior`); each pass's decisions
+        are then mapped from scratch (by the mapping filter; without `map_noise` by a fresh
+        filter with `noise`), so no sighting counts twice. The result is the pass whose map fits its
+        sightings best (`ekfslam.core.filter.prior.pass_record`'s cost); it stops early at a
+        fixed point (no decision changed). 1 (the default): one pass.
     """
     whole = isinstance(keyframes, int | np.integer) and not isinstance(keyframes, bool)
     if keyframes is not None and not (whole and keyframes >= 2):
@@ -122,37 +138,38 @@ def replay(
             f"start pose {p.tolist()} is not a plausible (x, y, theta): |x|, |y| <= "
             f"{MAX_POSITION:g} m, |theta| <= 2 pi rad"
         )
-    ekf = EKFSLAM(pose0, start_covariance, config)
     hidden = association is not None and association.method != "known"
     if map_noise is not None and not hidden:
         raise ConfigError("map_noise needs hidden ids (an association other than 'known')")
-    mapped = map_noise is not None  # the deciding filter keeps no history, the mapping one does
-    decider = EKFSLAM(pose0, start_covariance, config, record=False) if mapped else ekf
+    _check_passes(passes, hidden, config)
     started = time.perf_counter()  # the schedule counts: it is part of the replay's work
     steps = _schedule(run, noise)
-    taker = None if keyframes is None else _KeyframeTaker(ekf, steps, int(keyframes))
-    pause = None if taker is None else taker.pause
+    kept: list = []  # the pass the result is: filter, log, keyframes, its record's index
+    records: list[PassRecord] = []
     with np.errstate(all="ignore"):  # an overflow is caught below, once, and said where
         if not hidden:
-            _feed(ekf, *steps, pause=pause)
-        elif association.method == "mht":  # the bank decides, a replay records
-            bank = HypothesisBank(
-                EKFSLAM(pose0, start_covariance, config, record=False), association
-            )
-            _feed_hidden(bank, *steps)
-            _, winner, options = bank.finish()
-            associating = DecisionReplay(decider, association, winner, options)
+            ekf = EKFSLAM(pose0, start_covariance, config)
+            taker = None if keyframes is None else _KeyframeTaker(ekf, steps, int(keyframes))
+            _feed(ekf, *steps, pause=None if taker is None else taker.pause)
+            log = None
         else:
-            associating = AssociatingFilter(decider, association)
-        if hidden:
-            _feed_hidden(associating, *steps, pause=None if mapped else pause)
-        if mapped:
-            shared = association.time_shared and association.method != "nn"  # as it decided
-            associating = MappingFilter(ekf, associating.finish(), association.time_sigma, shared)
-            _feed_hidden(associating, *_with_noise(steps, map_noise), pause=pause)
+            made, prior, last = (pose0, start_covariance, config), None, None
+            for k in range(passes):  # each pass decides again from the last one's map
+                ekf, decider, log, taker = _hidden_pass(
+                    made, association, steps, noise, map_noise, keyframes, prior
+                )
+                if passes == 1:
+                    kept = [ekf, log, taker, k]
+                    break
+                records.append(pass_record(ekf.history(), config.gate, log.estimated, last))
+                if not kept or records[-1].cost < records[kept[3]].cost:
+                    kept = [ekf, log, taker, k]
+                if records[-1].changed == 0:
+                    break  # a fixed point: another pass would decide the same
+                prior, last = prior_map(decider), log.estimated
+            ekf, log, taker = kept[:3]
     seconds = time.perf_counter() - started
     frames = None if taker is None else taker.finish()
-    log = associating.finish() if hidden else None
     if not hidden and not (np.isfinite(ekf.mu).all() and np.isfinite(ekf.Sigma).all()):
         # once per replay, O(n²); only on failure is the run fed again, checking every step
         with np.errstate(all="ignore"):
@@ -168,7 +185,54 @@ def replay(
         )
     if hidden and not (np.isfinite(ekf.mu).all() and np.isfinite(ekf.Sigma).all()):
         raise NonFiniteStateError(f"run {run.meta.name!r}: the filter state became non-finite")
-    return _result(run, ekf, seconds, noise, config, log, frames, map_noise)
+    result = _result(run, ekf, seconds, noise, config, log, frames, map_noise)
+    if passes == 1:
+        return result
+    return dataclasses.replace(result, passes=tuple(records), chosen_pass=kept[3] + 1)
+
+
+def _check_passes(passes: object, hidden: bool, config: FilterConfig) -> None:
+    """`replay`'s ``passes``: a whole number 1..`MAX_PASSES`; more than one needs hidden ids and
+    a filter whose Σ is Cartesian (a prior map is given as one)."""
+    whole = isinstance(passes, int | np.integer) and not isinstance(passes, bool)
+    if not (whole and 1 <= passes <= MAX_PASSES):
+        raise ConfigError(f"passes must be a whole number from 1 to {MAX_PASSES}, got {passes!r}")
+    if passes > 1 and not hidden:
+        raise ConfigError("passes > 1 needs hidden ids (an association other than 'known')")
+    if passes > 1 and config.linearization == "invariant":
+        raise ConfigError("passes > 1 needs the standard or FEJ filter, not 'invariant'")
+
+
+def _hidden_pass(made, association, steps, noise, map_noise, keyframes, prior):
+    """One pass with the ids hidden: decide every sighting (from `prior`'s map, if given) and,
+    with `map_noise`, map the decisions with a fresh filter; with a prior too, with `noise` if
+    no `map_noise` (the prior holds these sightings already: the map must not get them twice).
+    Returns the filter whose state is the result (it records), the deciding filter, the
+    decisions and the keyframe taker."""
+    pose0, start_covariance, config = made
+    ekf = EKFSLAM(pose0, start_covariance, config)
+    mapped = map_noise is not None or prior is not None  # the mapping filter records
+    decider = EKFSLAM(pose0, start_covariance, config, record=False) if mapped else ekf
+    if prior is not None:
+        start_with(decider, prior)
+    taker = None if keyframes is None else _KeyframeTaker(ekf, steps, int(keyframes))
+    pause = None if taker is None else taker.pause
+    if association.method == "mht":  # the bank decides, a replay records
+        first = EKFSLAM(pose0, start_covariance, config, record=False)
+        bank = HypothesisBank(first if prior is None else start_with(first, prior), association)
+        _feed_hidden(bank, *steps)
+        _, winner, options = bank.finish()
+        associating = DecisionReplay(decider, association, winner, options)
+    else:
+        associating = AssociatingFilter(decider, association)
+    _feed_hidden(associating, *steps, pause=None if mapped else pause)
+    log = associating.finish()
+    if mapped:
+        shared = association.time_shared and association.method != "nn"  # as it decided
+        mapping = MappingFilter(ekf, log, association.time_sigma, shared)
+        _feed_hidden(mapping, *_with_noise(steps, map_noise or noise), pause=pause)
+        mapping.finish()
+    return ekf, decider, log, taker
 
 
 class _KeyframeTaker:

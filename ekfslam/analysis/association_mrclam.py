@@ -48,6 +48,8 @@ class AssociationRow:
     linearization : the filter of the replays with the association noise (`association_robots`).
     mapped : whether the decisions were fed to a second filter with the mapping noise
     (`ekfslam.analysis.association.association_map_noise`), whose map is the one scored.
+    passes, chosen_pass, changed : how many passes decided the run (`ekfslam.pipeline.replay`),
+    which one the map is, and how many decisions each pass after the first changed.
     wrong_from_known_state : the share of sightings of mapped landmarks the method pairs with
     another landmark when deciding from the state the barcodes give, its errors not fed back
     (`ekfslam.pipeline.decisions_from_known_state`): what the sensor and the map allow. For
@@ -72,6 +74,9 @@ class AssociationRow:
     wrong_from_known_state: float
     linearization: str = "standard"
     mapped: bool = False
+    passes: int = 1
+    chosen_pass: int = 1
+    changed: tuple[int, ...] = ()
 
 
 def association_robots(
@@ -83,6 +88,7 @@ def association_robots(
     mapped: bool = True,
     time_shared: bool | None = None,
     new_rule: str | None = None,
+    passes: int = 1,
 ) -> list[AssociationRow]:
     """Every robot replayed with ``known`` and with each of `methods`, scored (see the module).
 
@@ -93,7 +99,8 @@ def association_robots(
     (the default); False: the deciding filter's own map. time_shared : one time-stamp error
     per image or per sighting (`ekfslam.analysis.association.association_config`; None: the
     source's, one per image). new_rule : what makes a sighting new
-    (`ekfslam.core.association.AssociationConfig.new_rule`; None: its default).
+    (`ekfslam.core.association.AssociationConfig.new_rule`; None: its default). passes :
+    `ekfslam.pipeline.replay`'s (decide the run again from the last pass's map; offline).
     """
     filter_config = dataclasses.replace(MRCLAM_CONFIG, linearization=linearization)
     rows = []
@@ -108,7 +115,10 @@ def association_robots(
         known_state: dict[str, float] = {}  # mht decides from one state as jcbb does
         for method in methods:
             config = assoc.association_config(run, method, hypotheses, time_shared, new_rule)
-            hidden = replay(run, noise, filter_config, association=config, map_noise=map_noise)
+            hidden = replay(
+                run, noise, filter_config, association=config, map_noise=map_noise,
+                passes=passes,
+            )  # fmt: skip
             result, found = assoc.score(run, hidden)
             s = summarize(run, result)
             error = s.alignment.mean_error if s.alignment else math.nan
@@ -126,7 +136,9 @@ def association_robots(
                     wrong=found.wrong, missed=found.missed, new=counts.confirmed,
                     ambiguous=counts.ambiguous, duplicates=len(found.duplicates),
                     wrong_from_known_state=wrong_from_known, linearization=linearization,
-                    mapped=map_noise is not None,
+                    mapped=map_noise is not None, passes=passes,
+                    chosen_pass=hidden.chosen_pass,
+                    changed=tuple(p.changed for p in hidden.passes[1:]),
                 )
             )  # fmt: skip
     return rows
@@ -166,6 +178,13 @@ def association_table(rows: list[AssociationRow]) -> str:
             lines.append(f"{method} / {what}: worst {max(ratios):.2f}, mean {mean:.2f}")
     for lin in dict.fromkeys(r.linearization for r in rows):
         lines.append(f"filter with the association noise: {lin} EKF (known: standard)")
+    for r in rows:
+        if r.passes > 1:
+            changed = ", ".join(str(c) for c in r.changed)
+            lines.append(
+                f"robot {r.robot} {r.method}: map of pass {r.chosen_pass} of {r.passes} "
+                f"(decisions changed per pass: {changed})"
+            )
     for mapped in dict.fromkeys(r.mapped for r in rows):
         lines.append(
             "map: a second filter fed the decisions as ids, with the mapping noise "

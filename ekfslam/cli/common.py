@@ -17,7 +17,7 @@ import numpy as np
 from ekfslam.cli import args as ca
 from ekfslam.core.arena import SEED_ARENA
 from ekfslam.core.association import AssociationConfig
-from ekfslam.core.filter.config import FilterConfig
+from ekfslam.core.filter.config import MAX_PASSES, FilterConfig
 from ekfslam.core.noise import NoiseConfig, default_config, default_noise
 from ekfslam.errors import InputError
 from ekfslam.logs.frames import has_frames_only
@@ -162,6 +162,17 @@ def add_hypotheses_argument(p: argparse.ArgumentParser) -> None:
         "--hypotheses", type=ca.whole(1, MAX_HYPOTHESES, why="each costs a filter"), default=None,
         metavar="K", help="with --association mht: how many hypotheses the bank keeps "
         f"(default {AssociationConfig().hypotheses}; 1 is jcbb)",
+    )  # fmt: skip
+
+
+def add_passes_argument(p: argparse.ArgumentParser) -> None:
+    """``--passes N``: decide the run N times, each pass from the last one's map
+    (`ekfslam.pipeline.replay`'s ``passes``); 1 when not given."""
+    p.add_argument(
+        "--passes", type=ca.whole(1, MAX_PASSES, why="each reads the whole run again"),
+        default=1, metavar="N", help="with hidden ids: decide the whole run up to N times, each "
+        "pass again from the map the last one ended with (offline: the run is read N times), "
+        "and keep the pass whose map fits its sightings best (default 1)",
     )  # fmt: skip
 
 

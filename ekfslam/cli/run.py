@@ -16,6 +16,7 @@ from ekfslam.cli import args as ca
 from ekfslam.cli.common import (
     add_hypotheses_argument,
     add_iterations_argument,
+    add_passes_argument,
     arena_half_size,
     load_run,
     noise_from_args,
@@ -71,6 +72,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         "0.005); none: the deciding filter maps; auto (the default): the data source's choice, "
         "as score-mrclam makes it (mrclam for MRCLAM runs, none for the others)",
     )  # fmt: skip
+    add_passes_argument(run)
     run.add_check(_match_needs_hidden_ids)
     ca.add_noise_arguments(run)
     add_iterations_argument(run)
@@ -93,6 +95,10 @@ def _match_needs_hidden_ids(args: argparse.Namespace) -> str | None:
         return "argument --hypotheses: only with --association mht"
     if args.map_noise != "auto" and args.association == "known":
         return "argument --map-noise: needs --association nn, jcbb or mht"
+    if args.passes != 1 and args.association == "known":
+        return "argument --passes: needs --association nn, jcbb or mht"
+    if args.passes != 1 and getattr(args, "linearization", None) == "invariant":
+        return "argument --passes: needs the standard or fej filter, not --linearization invariant"
     return None
 
 
@@ -111,7 +117,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         result = pipeline.replay(
             run, noise, config,
             association=assoc.association_config(run, args.association, args.hypotheses),
-            map_noise=_map_noise(run, getattr(args, "map_noise", "auto")), **frames,
+            map_noise=_map_noise(run, getattr(args, "map_noise", "auto")),
+            passes=getattr(args, "passes", 1), **frames,
         )  # fmt: skip
         result, found = assoc.score(run, result, args.match)
         labels = None if animate is None else animate_args.true_labels(result, found.mapping)
@@ -122,6 +129,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     out = summary.as_dict()
     if hidden:
         out["association"] = assoc.as_dict(result, found, args.match)
+    if result.passes:  # --passes N > 1: which pass the map is, and what each one changed
+        out["passes"] = {
+            "chosen": result.chosen_pass,
+            "each": [{"cost": p.cost, "changed": p.changed} for p in result.passes],
+        }
     out["seed_report"] = _seed_report(run)
     out["detections"] = _detections_source(run, report)
     if report is not None:
@@ -208,6 +220,13 @@ def _table(summary: RunSummary, out: dict, report=None) -> str:
         lines.append(f"trajectory ATE RMSE: none, {summary.ate_note}")
     if "association" in out:
         lines.append(association_line(out["association"]))
+    if "passes" in out:
+        each = out["passes"]["each"]
+        changed = ", ".join(str(p["changed"]) for p in each[1:])
+        lines.append(
+            f"passes: the map of pass {out['passes']['chosen']} of {len(each)} (decisions "
+            f"changed per pass: {changed})"
+        )
     if "detections" in out:
         lines.append(f"detections: {out['detections']}")
     if report is not None:  # a loader's report: what it read, and what it dropped and why

@@ -7,6 +7,7 @@ from the filter, by the methods named, against the same robot with them known
 ``--time-error independent`` gives each sighting its own time-stamp error instead of one per
 image; ``--new-rule threshold`` founds landmarks by the NIS threshold instead of the likelihood
 ratio.
+``--passes N`` decides each robot's run up to N times, each pass from the last one's map.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import math
 from ekfslam.analysis.association_mrclam import association_robots, association_table
 from ekfslam.analysis.mrclam_tuning import score_robots, scores_table
 from ekfslam.cli import args as ca
-from ekfslam.cli.common import add_hypotheses_argument, mrclam_folder
+from ekfslam.cli.common import add_hypotheses_argument, add_passes_argument, mrclam_folder
 from ekfslam.core.association import NEW_RULES
 from ekfslam.core.filter.config import LINEARIZATIONS
 
@@ -50,6 +51,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
                    "takes a new landmark's (density: no landmark explains it better than a "
                    "new one, the default; threshold: its NIS exceeds 23 against every one)",
                    )  # fmt: skip
+    add_passes_argument(p)
     ca.add_json_argument(p, "print one JSON object: {robots: [{robot, landmarks, ...}, ...]}")
 
     def check(args: argparse.Namespace) -> str | None:
@@ -61,6 +63,10 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
             return "argument --time-error: only with --association"
         if args.new_rule is not None and not {"jcbb", "mht"} & set(args.association or ()):
             return "argument --new-rule: only with --association jcbb or mht"
+        if args.passes != 1 and not args.association:
+            return "argument --passes: only with --association"
+        if args.passes != 1 and args.linearization == "invariant":
+            return "argument --passes: needs the standard or fej filter, not invariant"
         if args.hypotheses is not None and "mht" not in (args.association or ()):
             return "argument --hypotheses: only with --association mht"
         return None
@@ -78,7 +84,7 @@ def cmd_score_mrclam(args: argparse.Namespace) -> int:
             folder, methods, linearization=args.linearization or "standard",
             hypotheses=args.hypotheses, mapped=args.map_noise != "none",
             time_shared=None if args.time_error is None else args.time_error == "shared",
-            new_rule=args.new_rule,
+            new_rule=args.new_rule, passes=args.passes,
         )  # fmt: skip
         if args.json:
             print(json.dumps({"dataset": str(folder), "rows": [_finite(r) for r in rows]},

@@ -198,6 +198,19 @@ CASES: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "run hypotheses not whole": (f"{BAD_RUN} --association mht --hypotheses 2.5",
                                  "--hypotheses", ()),
     "run hypotheses with known ids": (f"{BAD_RUN} --hypotheses 4", "--hypotheses", ()),
+    "run passes zero": (f"{BAD_RUN} --association jcbb --passes 0", "--passes", ()),
+    "run passes too many": (f"{BAD_RUN} --association jcbb --passes 11", "--passes", ()),
+    "run passes not whole": (f"{BAD_RUN} --association jcbb --passes 1.5", "--passes", ()),
+    "run passes with known ids": (f"{BAD_RUN} --passes 2", "--passes", ()),
+    "run passes with invariant": (
+        f"{BAD_RUN} --association jcbb --linearization invariant --passes 2", "--passes", ()
+    ),
+    "score-mrclam passes without association": ("score-mrclam 7 --passes 2", "--passes", ()),
+    "score-mrclam passes text": ("score-mrclam 7 --association jcbb --passes two", "--passes",
+                                 ()),
+    "score-mrclam passes with invariant": (
+        "score-mrclam 7 --association jcbb --linearization invariant --passes 2", "--passes", ()
+    ),
     "bench mrclam dataset twelve": ("bench --mrclam 12", "--mrclam", ()),
     "convert mrclam dataset ninety-nine": ("convert mrclam 99 --robot 1 --out {tmp}/mr99",
                                            "dataset", ("{tmp}/mr99",)),

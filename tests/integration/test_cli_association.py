@@ -86,3 +86,25 @@ def test_run_maps_as_score_mrclam_does_by_default():
     assert _map_noise(seed, "auto") is None
     assert _map_noise(robot, "auto") == MRCLAM_MAP_NOISE
     assert _map_noise(robot, "none") is None and _map_noise(seed, "mrclam") == MRCLAM_MAP_NOISE
+
+
+def test_passes_decide_again_and_say_which_pass_the_map_is():
+    out = cli("run", str(OCTAGON), "--association", "jcbb", "--passes", "2", "--json")
+    assert out.returncode == 0, out.stderr
+    passes = json.loads(out.stdout)["passes"]
+    assert passes["chosen"] == 2 and [p["changed"] for p in passes["each"]] == [-1, 8]
+    text = cli("run", str(OCTAGON), "--association", "jcbb", "--passes", "2").stdout
+    assert "passes: the map of pass 2 of 2 (decisions changed per pass: 8)" in text
+    one = json.loads(cli("run", str(OCTAGON), "--association", "jcbb", "--json").stdout)
+    assert "passes" not in one  # one pass: the output is as it was
+
+
+def test_a_bad_number_of_passes_is_one_line():
+    for words in (("--association", "jcbb", "--passes", "0"), ("--passes", "x"),
+                  ("--association", "jcbb", "--passes", "11"), ("--passes", "2")):  # fmt: skip
+        bad = cli("run", str(OCTAGON), *words)
+        assert bad.returncode == 2, words
+        assert bad.stderr.count("\n") == 1 and "--passes" in bad.stderr, bad.stderr
+    bad = cli("score-mrclam", "7", "--passes", "2")
+    assert bad.returncode == 2
+    assert bad.stderr.count("\n") == 1 and "--passes" in bad.stderr, bad.stderr

@@ -32,6 +32,10 @@ LINEARIZATIONS = ("standard", "fej", "invariant")
 CHI2_2DOF_99 = chi2_2dof_quantile(0.99)
 
 
+#: The most passes `ekfslam.pipeline.replay` makes with hidden ids (each reads the run again).
+MAX_PASSES = 10
+
+
 @dataclass(frozen=True)
 class FilterConfig:
     """Choices that change how the filter behaves (noise levels are passed per step).
