@@ -10,16 +10,11 @@ import pytest
 
 from ekfslam.core.association import UNPAIRED, AssociationConfig, chi2_even_quantile, joint_nis
 from ekfslam.core.filter import jcbb_kernels
-from ekfslam.core.filter.associating import (
-    AMBIGUOUS,
-    AssociatingFilter,
-    shared_sighting_noise,
-    sighting_noise,
-    time_shift,
-)
+from ekfslam.core.filter.associating import AMBIGUOUS, AssociatingFilter
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.filter.mapping import MappingFilter
 from ekfslam.core.models import observation, observation_noise
+from ekfslam.core.timestamp import shared_sighting_noise, sighting_noise, time_shift
 
 Q = observation_noise(0.01, 0.01)  # σr 1 cm, σb 0.01 rad
 POSE = np.zeros(3)

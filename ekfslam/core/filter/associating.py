@@ -63,6 +63,7 @@ from ekfslam.core.filter import jcbb_kernels
 from ekfslam.core.filter import nearest as nearest_kernel
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.models import inverse_observation, inverse_observation_jacobians
+from ekfslam.core.timestamp import shared_sighting_noise, sighting_noise, time_shift
 
 Array = NDArray[np.float64]
 
@@ -103,43 +104,6 @@ class AssociationLog:
     estimated: NDArray[np.int64]
     decision: tuple[str, ...]
     counts: AssociationCounts
-
-
-def sighting_noise(Q: ArrayLike, omega: float, time_sigma: float) -> Array:
-    """Q (2, 2) of a sighting taken while turning at omega rad/s whose time stamp may be off by
-    time_sigma s: (omega time_sigma)² more bearing variance (`AssociationConfig.time_sigma`)."""
-    Q = np.asarray(Q, dtype=float)
-    if time_sigma and omega:
-        Q = Q + np.diag([0.0, (omega * time_sigma) ** 2])
-    return Q
-
-
-def time_shift(z: ArrayLike, rate: tuple[float, float, float]) -> Array:
-    """g (2,): d(range, bearing)/dδt of a sighting z = (r, b) taken at body rate (vx, vy, ω)
-    when its time stamp is off by δt: H_pose u of eq. (14), u = (R(θ) (vx, vy), ω) the pose's
-    rate (eq. 6), written in the sighting's own geometry (θ cancels)."""
-    r, b = float(z[0]), float(z[1])
-    vx, vy, w = rate
-    cb, sb = math.cos(b), math.sin(b)
-    return np.array([-(vx * cb + vy * sb), (vx * sb - vy * cb) / max(r, 1e-6) - w])
-
-
-def shared_sighting_noise(
-    Q: ArrayLike, zs: ArrayLike, rate: tuple[float, float, float], time_sigma: float
-) -> Array:
-    """(m, 2, 2): each sighting's own Q plus its share of the image's one time-stamp error,
-    time_sigma² g gᵀ (`time_shift`); for a robot only turning, (ω time_sigma)² on the bearing,
-    as `sighting_noise`. The update's noise with `AssociationConfig.time_shared`: the joint test
-    carries the cross terms too (`jcbb_kernels.predict_all`), the updates one at a time only
-    each sighting's own (see `AssociatingFilter.observe`)."""
-    zs = np.asarray(zs, dtype=float).reshape(-1, 2)
-    Qs = np.empty((len(zs), 2, 2))
-    Qs[:] = np.asarray(Q, dtype=float)
-    if time_sigma:
-        for i, z in enumerate(zs):
-            g = time_shift(z, rate)
-            Qs[i] += time_sigma**2 * np.outer(g, g)
-    return Qs
 
 
 def free_nis(

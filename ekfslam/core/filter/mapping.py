@@ -21,14 +21,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ekfslam.core.filter.associating import (
-    ASSOCIATED,
-    CONFIRMED,
-    AssociationLog,
-    shared_sighting_noise,
-    sighting_noise,
-)
+from ekfslam.core.filter.associating import ASSOCIATED, CONFIRMED, AssociationLog
 from ekfslam.core.filter.ekf import EKFSLAM
+from ekfslam.core.timestamp import shared_sighting_noise, sighting_noise
 
 Array = NDArray[np.float64]
 
