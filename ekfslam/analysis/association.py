@@ -19,7 +19,7 @@ import numpy as np
 from ekfslam.analysis.alignment_unlabelled import MATCHED_BY_NEAREST, match_by_position
 from ekfslam.core.association import AssociationConfig, Confusion, confusion
 from ekfslam.core.noise import NoiseConfig, default_noise
-from ekfslam.logs.mrclam import defaults as mrclam_defaults
+from ekfslam.logs.hidden_ids import hidden_id_defaults
 from ekfslam.logs.runlog import RunLog
 from ekfslam.pipeline import ReplayResult
 
@@ -40,20 +40,20 @@ def association_config(
 
     hypotheses : ``mht``'s bank size (`AssociationConfig.hypotheses`; None: its default).
     time_shared : one time-stamp error per image (True) or per sighting (False); None: the
-    source's (`ekfslam.logs.mrclam.defaults.MRCLAM_TIME_SHARED`).
+    source's (`ekfslam.logs.hidden_ids.HiddenIdDefaults.time_shared`).
     new_rule : `AssociationConfig.new_rule` (None: its default).
 
-    MRCLAM's camera time stamps are off the odometry's by tenths of a second
-    (`ekfslam.logs.mrclam.defaults.MRCLAM_TIME_SIGMA`); every other run's are exact.
+    A source's time stamps may be off the odometry's (MRCLAM's camera by tenths of a second,
+    `ekfslam.logs.mrclam.defaults.MRCLAM_TIME_SIGMA`); every other run's are exact.
     """
-    exact = run.meta.defaults != mrclam_defaults.NAME
+    source = hidden_id_defaults(run.meta)
     bank = {} if hypotheses is None else {"hypotheses": hypotheses}
     if time_shared is None:
-        time_shared = not exact and mrclam_defaults.MRCLAM_TIME_SHARED
+        time_shared = source is not None and source.time_shared
     if new_rule is not None:
         bank["new_rule"] = new_rule
     return AssociationConfig(
-        method=method, time_sigma=0.0 if exact else mrclam_defaults.MRCLAM_TIME_SIGMA,
+        method=method, time_sigma=0.0 if source is None else source.time_sigma,
         time_shared=time_shared, **bank,
     )  # fmt: skip
 
@@ -68,9 +68,8 @@ def association_noise(run: RunLog) -> NoiseConfig:
     duplicate, and a robot without corrections gets lost. The setting tuned for consistency,
     `ekfslam.logs.mrclam.defaults.MRCLAM_CONSISTENT_NOISE` (NEES 6.1), is used instead.
     """
-    if run.meta.defaults == mrclam_defaults.NAME:
-        return mrclam_defaults.MRCLAM_CONSISTENT_NOISE
-    return default_noise(run)
+    source = hidden_id_defaults(run.meta)
+    return default_noise(run) if source is None else source.noise
 
 
 def association_map_noise(run: RunLog) -> NoiseConfig | None:
@@ -78,9 +77,8 @@ def association_map_noise(run: RunLog) -> NoiseConfig | None:
     ``map_noise``): on MRCLAM `ekfslam.logs.mrclam.defaults.MRCLAM_MAP_NOISE` (the consistency
     noise decides, a second filter with sigma_x = sigma_y = 0.005 maps); elsewhere None, one
     filter decides and maps (the seed's runs replay with their ideal noise)."""
-    if run.meta.defaults == mrclam_defaults.NAME:
-        return mrclam_defaults.MRCLAM_MAP_NOISE
-    return None
+    source = hidden_id_defaults(run.meta)
+    return None if source is None else source.map_noise
 
 
 def score(
