@@ -5,8 +5,8 @@ from the filter, by the methods named, against the same robot with them known
 (`ekfslam.analysis.association_mrclam`); ``--linearization L`` runs those replays with filter L;
 ``--map-noise none`` scores the deciding filter's own map instead of the mapping filter's;
 ``--time-error independent`` gives each sighting its own time-stamp error instead of one per
-image; ``--new-rule threshold`` founds landmarks by the NIS threshold instead of the likelihood
-ratio.
+image; ``--new-rule density|threshold`` founds landmarks by the likelihood ratio or the NIS
+threshold (the default: jcbb the first, mht the second).
 ``--passes N`` decides each robot's run up to N times, each pass from the last one's map.
 """
 
@@ -49,7 +49,8 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     p.add_argument("--new-rule", choices=NEW_RULES, default=None,
                    help="with --association jcbb or mht: what makes a sighting no landmark "
                    "takes a new landmark's (density: no landmark explains it better than a "
-                   "new one, the default; threshold: its NIS exceeds 23 against every one)",
+                   "new one, jcbb's default; threshold: its NIS exceeds 23 against every one, "
+                   "mht's default)",
                    )  # fmt: skip
     add_passes_argument(p)
     ca.add_json_argument(p, "print one JSON object: {robots: [{robot, landmarks, ...}, ...]}")

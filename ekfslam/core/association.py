@@ -30,7 +30,7 @@ What a sighting that pairs with nothing becomes (`AssociationConfig.new_rule`,
 `ekfslam.core.filter.associating.free_nis`): a
 new landmark's first sighting (the filter keeps it tentative until it is seen again, see
 `ekfslam.core.filter.associating`) when no landmark left free explains it better than a new
-landmark would, by their likelihoods (``jcbb`` and ``mht``); with ``nn``, or ``new_rule=
+landmark would, by their likelihoods (``jcbb``); with ``nn`` and ``mht``, or ``new_rule=
 "threshold"``, when its NIS against every landmark left free exceeds the new-landmark threshold.
 Otherwise it is ambiguous, and dropped.
 
@@ -101,17 +101,13 @@ class AssociationConfig:
     joint_probability : the joint gate of a k-pair hypothesis is χ²(2k) at this probability.
     node_budget : JCBB search nodes per time step before it returns the best pairing so far.
     tentative_life : s. A tentative landmark not seen again within this time is discarded.
-    time_sigma : s. How uncertain a sighting's time stamp is against the odometry's. A sighting
-        taken while the robot turns at ω has its bearing off by ω δt for a time error δt, so
-        each sighting's Q gets ω² time_sigma² more bearing variance, in the association test
-        and in the update it leads to (`ekfslam.core.filter.associating`). 0 (the default): the
-        time stamps are exact (our simulator's). A data source knows its value
-        (`ekfslam.logs.mrclam.defaults.MRCLAM_TIME_SIGMA`).
-    time_shared : the time-stamp error is one per image (True) rather than one per sighting
-        (False, the default): the sightings of one time were all taken from the pose at t + δt,
-        off by u δt (u the pose's rate), so ``jcbb`` and ``mht`` test them with a shared,
-        cross-correlated term (`ekfslam.core.filter.jcbb_kernels.predict_all`) that allows a
-        common shift of the image's bearings but not a relative one.
+    time_sigma : s, how far a sighting's time stamp may be off the odometry's: the noise it
+        adds, in the test and the update, is `ekfslam.core.timestamp`'s. 0 (the default): exact
+        (our simulator's); a data source knows its value (`ekfslam.logs.hidden_ids`).
+    time_shared : that error is one per image (True), not one per sighting (False, the
+        default): ``jcbb`` and ``mht`` test an image's sightings with a shared, cross-correlated
+        term (`ekfslam.core.filter.jcbb_kernels.predict_all`) that allows a common shift of
+        their bearings but not a relative one.
     hypotheses : ``mht`` only: how many hypotheses the bank keeps (1: ``jcbb`` exactly).
     new_log_density : log of the density, per m·rad of (range, bearing), of a sighting that no
         mapped landmark explains (a new landmark's, or one left out). A pairing scores its
@@ -127,7 +123,9 @@ class AssociationConfig:
         "density": every landmark left free explains it less than `new_log_density` does (a
         likelihood ratio; with MRCLAM's noise a sighting of a mapped landmark is then new above
         NIS ≈ 13-15, of an uncertain one sooner). "threshold": its NIS against each exceeds
-        `new_landmark` (``nn`` always decides so).
+        `new_landmark` (``nn`` always decides so). None (the default): "density" for ``jcbb``,
+        "threshold" for ``mht``, whose bank already weighs "a new landmark" against each
+        pairing by that density (a second density rule would found them twice over).
     """
 
     method: Literal["known", "nn", "jcbb", "mht"] = "known"
@@ -141,9 +139,11 @@ class AssociationConfig:
     hypotheses: int = 8
     new_log_density: float = -5.0
     duplicate_radius: float = 0.05
-    new_rule: Literal["density", "threshold"] = "density"
+    new_rule: Literal["density", "threshold"] | None = None
 
     def __post_init__(self) -> None:
+        if self.new_rule is None:  # the method's own (see the class)
+            object.__setattr__(self, "new_rule", "threshold" if self.method == "mht" else "density")
         if self.method not in METHODS:
             raise ConfigError(
                 f"association must be one of {', '.join(METHODS)}, got {self.method!r}"

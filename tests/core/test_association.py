@@ -116,3 +116,7 @@ def test_config_refuses_an_unknown_new_landmark_rule():
     with pytest.raises(ConfigError, match="new_rule must be one of density, threshold, got 'nis'"):
         AssociationConfig(method="jcbb", new_rule="nis")  # type: ignore[arg-type]
     assert AssociationConfig().new_rule == "density"
+    # each method's own founding: mht's bank already weighs "new" by the density
+    assert AssociationConfig(method="jcbb").new_rule == "density"
+    assert AssociationConfig(method="mht").new_rule == "threshold"
+    assert AssociationConfig(method="mht", new_rule="density").new_rule == "density"

@@ -55,7 +55,7 @@ def test_the_bank_overturns_jcbbs_early_pairing_that_one_hypothesis_keeps():
 
 
 def test_one_hypothesis_is_jcbb_exactly():
-    jcbb = AssociatingFilter(EKFSLAM(POSE), AssociationConfig("jcbb"))
+    jcbb = AssociatingFilter(EKFSLAM(POSE), AssociationConfig("jcbb", new_rule="threshold"))
     for t, zs in enumerate(STEPS):
         jcbb.observe(zs, Q, float(t))
     _, one, _ = run_bank(1).finish()
@@ -66,7 +66,9 @@ def test_one_hypothesis_is_jcbb_exactly():
 def test_a_replay_with_one_hypothesis_is_the_jcbb_replay(square):
     noise = default_noise(square)
     mht = pipeline.replay(square, noise, association=AssociationConfig("mht", hypotheses=1))
-    jcbb = pipeline.replay(square, noise, association=AssociationConfig("jcbb"))
+    jcbb = pipeline.replay(
+        square, noise, association=AssociationConfig("jcbb", new_rule="threshold")
+    )  # mht's own founding rule (`AssociationConfig.new_rule`)
     np.testing.assert_array_equal(mht.association.estimated, jcbb.association.estimated)
     assert mht.association.decision == jcbb.association.decision
     np.testing.assert_array_equal(mht.mu, jcbb.mu)
