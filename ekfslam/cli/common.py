@@ -16,7 +16,7 @@ import numpy as np
 
 from ekfslam.cli import args as ca
 from ekfslam.core.arena import SEED_ARENA
-from ekfslam.core.association import AssociationConfig
+from ekfslam.core.association import NEW_RULES, AssociationConfig
 from ekfslam.core.filter.config import MAX_PASSES, FilterConfig
 from ekfslam.core.noise import NoiseConfig, default_config, default_noise
 from ekfslam.errors import InputError
@@ -174,6 +174,31 @@ def add_passes_argument(p: argparse.ArgumentParser) -> None:
         "pass again from the map the last one ended with (offline: the run is read N times), "
         "and keep the pass whose map fits its sightings best (default 1)",
     )  # fmt: skip
+
+
+def add_founding_arguments(p: argparse.ArgumentParser) -> None:
+    """``--time-error shared|independent`` and ``--new-rule density|threshold``: how a hidden-id
+    replay treats a camera time stamp's error (`AssociationConfig.time_shared`) and what makes a
+    sighting new (`AssociationConfig.new_rule`); None when not given (the source's and the
+    method's own), so a command can tell they were asked for; `time_shared_of` reads the first."""
+    p.add_argument(
+        "--time-error", choices=("shared", "independent"), default=None,
+        help="with hidden ids: a camera time stamp's error is one per image, shared by its "
+        "sightings (the default where the stamps are off, as on MRCLAM), or independent per "
+        "sighting",
+    )  # fmt: skip
+    p.add_argument(
+        "--new-rule", choices=NEW_RULES, default=None,
+        help="with jcbb or mht: what makes a sighting no landmark takes a new landmark's "
+        "(density: no landmark explains it better than a new one, jcbb's default; threshold: "
+        "its NIS exceeds 23 against every one, mht's default)",
+    )  # fmt: skip
+
+
+def time_shared_of(args: argparse.Namespace) -> bool | None:
+    """``--time-error`` as `AssociationConfig.time_shared` (None: the source's own)."""
+    choice = getattr(args, "time_error", None)
+    return None if choice is None else choice == "shared"
 
 
 def add_parallel_arguments(p: argparse.ArgumentParser) -> None:

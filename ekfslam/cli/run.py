@@ -14,12 +14,14 @@ from ekfslam.analysis.evaluation import SEED_TABLE1, RunSummary, seed_experiment
 from ekfslam.cli import animate as animate_args
 from ekfslam.cli import args as ca
 from ekfslam.cli.common import (
+    add_founding_arguments,
     add_hypotheses_argument,
     add_iterations_argument,
     add_passes_argument,
     arena_half_size,
     load_run,
     noise_from_args,
+    time_shared_of,
 )
 from ekfslam.core.association import METHODS
 from ekfslam.files import save_figure
@@ -73,6 +75,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         "as score-mrclam makes it (mrclam for MRCLAM runs, none for the others)",
     )  # fmt: skip
     add_passes_argument(run)
+    add_founding_arguments(run)
     run.add_check(_match_needs_hidden_ids)
     ca.add_noise_arguments(run)
     add_iterations_argument(run)
@@ -95,6 +98,10 @@ def _match_needs_hidden_ids(args: argparse.Namespace) -> str | None:
         return "argument --hypotheses: only with --association mht"
     if args.map_noise != "auto" and args.association == "known":
         return "argument --map-noise: needs --association nn, jcbb or mht"
+    if args.time_error is not None and args.association == "known":
+        return "argument --time-error: needs --association nn, jcbb or mht"
+    if args.new_rule is not None and args.association not in ("jcbb", "mht"):
+        return "argument --new-rule: needs --association jcbb or mht"
     if args.passes != 1 and args.association == "known":
         return "argument --passes: needs --association nn, jcbb or mht"
     if args.passes != 1 and getattr(args, "linearization", None) == "invariant":
@@ -116,7 +123,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     if hidden:
         result = pipeline.replay(
             run, noise, config,
-            association=assoc.association_config(run, args.association, args.hypotheses),
+            association=assoc.association_config(
+                run, args.association, args.hypotheses, time_shared_of(args),
+                getattr(args, "new_rule", None),
+            ),
             map_noise=_map_noise(run, getattr(args, "map_noise", "auto")),
             passes=getattr(args, "passes", 1), **frames,
         )  # fmt: skip

@@ -20,8 +20,13 @@ import math
 from ekfslam.analysis.association_mrclam import association_robots, association_table
 from ekfslam.analysis.mrclam_tuning import score_robots, scores_table
 from ekfslam.cli import args as ca
-from ekfslam.cli.common import add_hypotheses_argument, add_passes_argument, mrclam_folder
-from ekfslam.core.association import NEW_RULES
+from ekfslam.cli.common import (
+    add_founding_arguments,
+    add_hypotheses_argument,
+    add_passes_argument,
+    mrclam_folder,
+    time_shared_of,
+)
 from ekfslam.core.filter.config import LINEARIZATIONS
 
 
@@ -42,16 +47,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
                    help="with --association: the noise of a second filter that maps with the "
                    "decisions (mrclam: the consistency noise with sigma_x = sigma_y = 0.005, "
                    "the default; none: the deciding filter's own map)")  # fmt: skip
-    p.add_argument("--time-error", choices=("shared", "independent"), default=None,
-                   help="with --association: a camera time stamp's error is one per image, "
-                   "shared by its sightings (the default), or independent per sighting",
-                   )  # fmt: skip
-    p.add_argument("--new-rule", choices=NEW_RULES, default=None,
-                   help="with --association jcbb or mht: what makes a sighting no landmark "
-                   "takes a new landmark's (density: no landmark explains it better than a "
-                   "new one, jcbb's default; threshold: its NIS exceeds 23 against every one, "
-                   "mht's default)",
-                   )  # fmt: skip
+    add_founding_arguments(p)
     add_passes_argument(p)
     ca.add_json_argument(p, "print one JSON object: {robots: [{robot, landmarks, ...}, ...]}")
 
@@ -84,7 +80,7 @@ def cmd_score_mrclam(args: argparse.Namespace) -> int:
         rows = association_robots(
             folder, methods, linearization=args.linearization or "standard",
             hypotheses=args.hypotheses, mapped=args.map_noise != "none",
-            time_shared=None if args.time_error is None else args.time_error == "shared",
+            time_shared=time_shared_of(args),
             new_rule=args.new_rule, passes=args.passes,
         )  # fmt: skip
         if args.json:

@@ -108,3 +108,27 @@ def test_a_bad_number_of_passes_is_one_line():
     bad = cli("score-mrclam", "7", "--passes", "2")
     assert bad.returncode == 2
     assert bad.stderr.count("\n") == 1 and "--passes" in bad.stderr, bad.stderr
+
+
+def test_run_passes_the_time_error_and_the_founding_rule_to_the_replay(monkeypatch, capsys):
+    """`run --association X --time-error T --new-rule R` replays with them; unset, with the
+    source's time error (exact on the seed's runs) and the method's own founding."""
+    from ekfslam import pipeline
+    from ekfslam.cli.main import main
+
+    seen = []
+    real = pipeline.replay
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs["association"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "replay", spy)
+    base = ["run", str(OCTAGON), "--json"]
+    assert main([*base, "--association", "mht", "--time-error", "shared",
+                 "--new-rule", "density"]) == 0  # fmt: skip
+    assert main([*base, "--association", "jcbb"]) == 0
+    capsys.readouterr()
+    (mht, jcbb) = seen
+    assert (mht.method, mht.time_shared, mht.new_rule) == ("mht", True, "density")
+    assert (jcbb.time_shared, jcbb.new_rule, jcbb.time_sigma) == (False, "density", 0.0)
