@@ -117,12 +117,21 @@ def score(
 _SIGMAS = ("sigma_x", "sigma_y", "sigma_theta", "sigma_range", "sigma_bearing")
 
 
-def as_dict(result: ReplayResult, found: Confusion, match: str = "mapping") -> dict:
-    """The ``association`` block of ``run --json``: the method, the confusion, the counts."""
+def as_dict(
+    result: ReplayResult, found: Confusion, match: str = "mapping",
+    config: AssociationConfig | None = None,
+) -> dict:  # fmt: skip
+    """The ``association`` block of ``run --json``: the method, the confusion, the counts; with
+    the `config` it replayed with, also its founding rule and time-stamp error."""
     log = result.association
     assert log is not None  # score() refused a replay with known ids
     c = log.counts
-    return {
+    rules = {} if config is None else {
+        "new_rule": config.new_rule,  # what made a sighting new (`AssociationConfig.new_rule`)
+        "time_error": {"sigma": config.time_sigma,
+                       "form": "shared" if config.time_shared else "independent"},
+    }  # fmt: skip
+    block = {
         "method": log.method,
         "correct": found.correct,
         "wrong": found.wrong,
@@ -144,3 +153,4 @@ def as_dict(result: ReplayResult, found: Confusion, match: str = "mapping") -> d
         if result.map_noise is None
         else {k: getattr(result.map_noise, k) for k in _SIGMAS},
     }
+    return block | rules

@@ -121,12 +121,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     )
     # looked up here: tests may replace it (and, with known ids, call it as before)
     if hidden:
+        association = assoc.association_config(
+            run, args.association, args.hypotheses, time_shared_of(args),
+            getattr(args, "new_rule", None),
+        )  # fmt: skip
         result = pipeline.replay(
-            run, noise, config,
-            association=assoc.association_config(
-                run, args.association, args.hypotheses, time_shared_of(args),
-                getattr(args, "new_rule", None),
-            ),
+            run, noise, config, association=association,
             map_noise=_map_noise(run, getattr(args, "map_noise", "auto")),
             passes=getattr(args, "passes", 1), **frames,
         )  # fmt: skip
@@ -138,7 +138,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     summary = summarize(run, result, method=args.align)
     out = summary.as_dict()
     if hidden:
-        out["association"] = assoc.as_dict(result, found, args.match)
+        out["association"] = assoc.as_dict(result, found, args.match, association)
     if result.passes:  # --passes N > 1: which pass the map is, and what each one changed
         out["passes"] = {
             "chosen": result.chosen_pass,

@@ -132,3 +132,7 @@ def test_run_passes_the_time_error_and_the_founding_rule_to_the_replay(monkeypat
     (mht, jcbb) = seen
     assert (mht.method, mht.time_shared, mht.new_rule) == ("mht", True, "density")
     assert (jcbb.time_shared, jcbb.new_rule, jcbb.time_sigma) == (False, "density", 0.0)
+    out = cli("run", str(OCTAGON), "--association", "mht", "--time-error", "shared", "--json")
+    block = json.loads(out.stdout)["association"]  # the JSON says what it replayed with
+    assert block["new_rule"] == "threshold"  # mht's own
+    assert block["time_error"] == {"sigma": 0.0, "form": "shared"}
