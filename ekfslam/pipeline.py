@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.association import AssociationConfig
-from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog
+from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog, shares_image_error
 from ekfslam.core.filter.config import MAX_PASSES, FilterConfig, FilterCounts
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.filter.history import History, KeyframeRecorder, Keyframes
@@ -228,7 +228,7 @@ def _hidden_pass(made, association, steps, noise, map_noise, keyframes, prior):
     _feed_hidden(associating, *steps, pause=None if mapped else pause)
     log = associating.finish()
     if mapped:
-        shared = association.time_shared and association.method != "nn"  # as it decided
+        shared = shares_image_error(association)  # as it decided
         mapping = MappingFilter(ekf, log, association.time_sigma, shared)
         _feed_hidden(mapping, *_with_noise(steps, map_noise or noise), pause=pause)
         mapping.finish()

@@ -56,3 +56,18 @@ def shared_sighting_noise(
             g = time_shift(z, rate)
             Qs[i] += time_sigma**2 * np.outer(g, g)
     return Qs
+
+
+def image_noises(
+    Q: ArrayLike, zs: ArrayLike, omega: float, velocity: tuple[float, float],
+    time_sigma: float, shared: bool,
+) -> tuple[Array, Array, tuple[float, float, float] | None]:  # fmt: skip
+    """For the sightings zs (m, 2) of one image taken at body velocity (m/s) and turn rate omega
+    (rad/s): the test's Q (2, 2), the updates' Q (2, 2) or (m, 2, 2), and the rate the joint test
+    shares among them (None: none). shared: one error per image (`shared_sighting_noise` in the
+    updates, the rate for the test's cross terms); else `sighting_noise` for both."""
+    if not (shared and time_sigma):
+        Q = sighting_noise(Q, omega, time_sigma)
+        return Q, Q, None
+    rate = (float(velocity[0]), float(velocity[1]), float(omega))
+    return np.asarray(Q, dtype=float), shared_sighting_noise(Q, zs, rate, time_sigma), rate

@@ -63,7 +63,7 @@ from ekfslam.core.filter import jcbb_kernels
 from ekfslam.core.filter import nearest as nearest_kernel
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.models import inverse_observation, inverse_observation_jacobians
-from ekfslam.core.timestamp import shared_sighting_noise, sighting_noise, time_shift
+from ekfslam.core.timestamp import image_noises, time_shift
 
 Array = NDArray[np.float64]
 
@@ -104,6 +104,12 @@ class AssociationLog:
     estimated: NDArray[np.int64]
     decision: tuple[str, ...]
     counts: AssociationCounts
+
+
+def shares_image_error(config: AssociationConfig) -> bool:
+    """Whether `config` treats a time-stamp error as one per image: ``time_shared``, except for
+    ``nn``, which tests one sighting at a time (the independent term)."""
+    return config.time_shared and config.method != "nn"
 
 
 def free_nis(
@@ -180,11 +186,7 @@ class AssociatingFilter:
         (m/s) and turn rate omega (rad/s), after `AssociationConfig.time_sigma` and
         ``time_shared`` (``nn`` tests one sighting at a time: the independent term)."""
         cfg = self.config
-        if not (cfg.time_shared and cfg.time_sigma) or cfg.method == "nn":
-            Q = sighting_noise(Q, omega, cfg.time_sigma)
-            return Q, Q, None
-        rate = (float(velocity[0]), float(velocity[1]), float(omega))
-        return np.asarray(Q, dtype=float), shared_sighting_noise(Q, zs, rate, cfg.time_sigma), rate
+        return image_noises(Q, zs, omega, velocity, cfg.time_sigma, shares_image_error(cfg))
 
     def observe(
         self, zs: ArrayLike, Q: ArrayLike, t: float, omega: float = 0.0,

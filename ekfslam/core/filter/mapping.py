@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.filter.associating import ASSOCIATED, CONFIRMED, AssociationLog
 from ekfslam.core.filter.ekf import EKFSLAM
-from ekfslam.core.timestamp import shared_sighting_noise, sighting_noise
+from ekfslam.core.timestamp import image_noises
 
 Array = NDArray[np.float64]
 
@@ -36,8 +36,9 @@ class MappingFilter:
     ekf : the mapping filter (built with the mapping noise's run; its ids become the estimated).
     log : the deciding run's decisions, one per sighting in the order they will be fed.
     time_sigma : s, `AssociationConfig.time_sigma` of the deciding run (0: no time-stamp term).
-    time_shared : `AssociationConfig.time_shared` of the deciding run (each sighting's share of
-        the image's one time-stamp error, `shared_sighting_noise`).
+    time_shared : whether the deciding run shared the image's one time-stamp error
+        (`ekfslam.core.filter.associating.shares_image_error`; each sighting's share of it,
+        `ekfslam.core.timestamp.shared_sighting_noise`).
     """
 
     def __init__(
@@ -62,11 +63,8 @@ class MappingFilter:
         k, m = self._next, len(zs)
         if k + m > len(self.log.estimated):
             raise ValueError(f"{len(self.log.estimated)} decisions for more sightings ({k + m})")
-        if self.time_shared:
-            rate = (float(velocity[0]), float(velocity[1]), float(omega))
-            Qs = shared_sighting_noise(Q, zs, rate, self.time_sigma)
-        else:
-            Qs = np.broadcast_to(sighting_noise(Q, omega, self.time_sigma), (m, 2, 2))
+        _, Qs, _ = image_noises(Q, zs, omega, velocity, self.time_sigma, self.time_shared)
+        Qs = np.broadcast_to(Qs, (m, 2, 2))
         used = self.log.estimated[k : k + m].tolist()
         what = self.log.decision[k : k + m]
         for kind in (ASSOCIATED, CONFIRMED):  # the deciding filter's order (`_apply`)
