@@ -23,8 +23,9 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], object]) -> Pa
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".partial{path.suffix}",
-                                dir=path.parent)  # fmt: skip
+    fd, name = tempfile.mkstemp(
+        prefix=f".{path.name}.", suffix=f".partial{path.suffix}", dir=path.parent
+    )
     os.close(fd)
     tmp = Path(name)
     try:

@@ -7,11 +7,6 @@ prediction runs on to the end of the controls.
 
 The filter never learns where the data came from: a simulated run, a CSV log, MRCLAM or camera
 frames all arrive here as a `ekfslam.logs.runlog.RunLog`.
-
-Over 400 lines because the three ways of feeding the filter (ids known, ids hidden, and the
-association judged from the state the ids give) walk one schedule (`_schedule`) and must stay
-side by side, so that they predict and correct at exactly the same moments; with ids hidden a
-run may be decided more than once (``passes``, `_hidden_pass`), each pass on that schedule.
 """
 
 from __future__ import annotations
@@ -290,8 +285,9 @@ def _schedule(run: RunLog, noise: NoiseConfig) -> tuple:
     us, dts, ends = (np.ascontiguousarray(a, dtype=float) for a in (us, dts, ends))
     det_id, det_time = det.tag_id.tolist(), det_t.tolist()
     det_z = np.column_stack([det.range, det.bearing]).tolist()
-    return _with_noise((upto.tolist(), us, dts, ends, None, None, det_id, det_time, det_z, None),
-                       noise)  # fmt: skip
+    return _with_noise(
+        (upto.tolist(), us, dts, ends, None, None, det_id, det_time, det_z, None), noise
+    )
 
 
 def _with_noise(steps: tuple, noise: NoiseConfig) -> tuple:

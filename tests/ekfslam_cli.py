@@ -19,6 +19,9 @@ def run_ekfslam(
     """Run ``python -m ekfslam ARGS`` with matplotlib's Agg backend; at most 300 s."""
     return subprocess.run(
         [sys.executable, "-m", "ekfslam", *args],
-        cwd=cwd, capture_output=True, text=True, timeout=300,
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=300,
         env={**os.environ, "MPLBACKEND": "Agg", **(env or {})},
-    )  # fmt: skip
+    )

@@ -67,10 +67,15 @@ FILTER_MODULES = ("core.filter.ekf", "core.filter.state", "core.filter.kernels")
 MATPLOTLIB_FLOORS = {"viz", "ui"}
 # optional or heavy dependencies a function may import late, with a `# lazy: why` comment
 LAZY_OK = {
-    "cv2", "playwright", "rosbags", "ipywidgets", "matplotlib", "pupil_apriltags",
+    "cv2",
+    "playwright",
+    "rosbags",
+    "ipywidgets",
+    "matplotlib",
+    "pupil_apriltags",
     "distributed",  # the optional extra ekfslam[dask], only for `--dask`
     "imageio_ffmpeg",  # the optional extra ekfslam[video]: its ffmpeg, only for an MP4
-}  # fmt: skip
+}
 
 # Rules the code breaks on purpose, each with its reason (violation -> why). Empty: the refactor
 # of issue 14 removed every violation it found. A new entry needs a reason a reviewer accepts;

@@ -53,9 +53,11 @@ def association_config(
     if new_rule is not None:
         bank["new_rule"] = new_rule
     return AssociationConfig(
-        method=method, time_sigma=0.0 if source is None else source.time_sigma,
-        time_shared=time_shared, **bank,
-    )  # fmt: skip
+        method=method,
+        time_sigma=0.0 if source is None else source.time_sigma,
+        time_shared=time_shared,
+        **bank,
+    )
 
 
 def association_noise(run: RunLog) -> NoiseConfig:
@@ -118,19 +120,27 @@ _SIGMAS = ("sigma_x", "sigma_y", "sigma_theta", "sigma_range", "sigma_bearing")
 
 
 def as_dict(
-    result: ReplayResult, found: Confusion, match: str = "mapping",
+    result: ReplayResult,
+    found: Confusion,
+    match: str = "mapping",
     config: AssociationConfig | None = None,
-) -> dict:  # fmt: skip
+) -> dict:
     """The ``association`` block of ``run --json``: the method, the confusion, the counts; with
     the `config` it replayed with, also its founding rule and time-stamp error."""
     log = result.association
     assert log is not None  # score() refused a replay with known ids
     c = log.counts
-    rules = {} if config is None else {
-        "new_rule": config.new_rule,  # what made a sighting new (`AssociationConfig.new_rule`)
-        "time_error": {"sigma": config.time_sigma,
-                       "form": "shared" if config.time_shared else "independent"},
-    }  # fmt: skip
+    rules = (
+        {}
+        if config is None
+        else {
+            "new_rule": config.new_rule,  # what made a sighting new (`AssociationConfig.new_rule`)
+            "time_error": {
+                "sigma": config.time_sigma,
+                "form": "shared" if config.time_shared else "independent",
+            },
+        }
+    )
     block = {
         "method": log.method,
         "correct": found.correct,

@@ -116,9 +116,13 @@ def association_robots(
         for method in methods:
             config = assoc.association_config(run, method, hypotheses, time_shared, new_rule)
             hidden = replay(
-                run, noise, filter_config, association=config, map_noise=map_noise,
+                run,
+                noise,
+                filter_config,
+                association=config,
+                map_noise=map_noise,
                 passes=passes,
-            )  # fmt: skip
+            )
             result, found = assoc.score(run, hidden)
             s = summarize(run, result)
             error = s.alignment.mean_error if s.alignment else math.nan
@@ -129,18 +133,29 @@ def association_robots(
             wrong_from_known = known_state[rule]
             rows.append(
                 AssociationRow(
-                    robot=robot, method=method, known_error=base, aligned_error=error,
-                    ratio=error / base, known_same_noise=same_error,
-                    ratio_same_noise=error / same_error, landmarks=s.landmarks_count,
-                    correct_fraction=found.correct_fraction, correct=found.correct,
-                    wrong=found.wrong, missed=found.missed, new=counts.confirmed,
-                    ambiguous=counts.ambiguous, duplicates=len(found.duplicates),
-                    wrong_from_known_state=wrong_from_known, linearization=linearization,
-                    mapped=map_noise is not None, passes=passes,
+                    robot=robot,
+                    method=method,
+                    known_error=base,
+                    aligned_error=error,
+                    ratio=error / base,
+                    known_same_noise=same_error,
+                    ratio_same_noise=error / same_error,
+                    landmarks=s.landmarks_count,
+                    correct_fraction=found.correct_fraction,
+                    correct=found.correct,
+                    wrong=found.wrong,
+                    missed=found.missed,
+                    new=counts.confirmed,
+                    ambiguous=counts.ambiguous,
+                    duplicates=len(found.duplicates),
+                    wrong_from_known_state=wrong_from_known,
+                    linearization=linearization,
+                    mapped=map_noise is not None,
+                    passes=passes,
                     chosen_pass=hidden.chosen_pass,
                     changed=tuple(p.changed for p in hidden.passes[1:]),
                 )
-            )  # fmt: skip
+            )
     return rows
 
 

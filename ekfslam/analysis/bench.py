@@ -97,9 +97,12 @@ class BenchConfig:
     @classmethod
     def quick(cls, **kwargs) -> BenchConfig:
         base = dict(
-            replay_repeats=7, step_repeats=15, literal_repeats=1, mrclam_repeats=1,
+            replay_repeats=7,
+            step_repeats=15,
+            literal_repeats=1,
+            mrclam_repeats=1,
             startup_repeats=3,
-        )  # fmt: skip
+        )
         return cls(**{**base, **kwargs})
 
 
@@ -126,9 +129,12 @@ def default_mrclam_dir() -> Path | None:
 def bench_replays(config: BenchConfig) -> dict:
     """Median replay times of the seed's runs (ms), events/s, and FEJ's cost on the octagon."""
     out: dict = {
-        "replay_ms": {}, "replay_events_per_s": {}, "fej_vs_standard": {},
-        "invariant_vs_standard": {}, "iterated_vs_invariant": {},
-    }  # fmt: skip
+        "replay_ms": {},
+        "replay_events_per_s": {},
+        "fej_vs_standard": {},
+        "invariant_vs_standard": {},
+        "iterated_vs_invariant": {},
+    }
     folder = config.runs_dir
     if folder is None or not all((folder / name).is_dir() for name in RUNS.values()):
         for key in RUNS:
@@ -170,17 +176,21 @@ def bench_mrclam(config: BenchConfig) -> dict:
     if folder is None:
         note = config.mrclam_note or MRCLAM_MISSING
         return {
-            "mrclam_replay_s": None, "mrclam_events_per_s": None, "mrclam_events": None,
+            "mrclam_replay_s": None,
+            "mrclam_events_per_s": None,
+            "mrclam_events": None,
             "mrclam_note": note,
-        }  # fmt: skip
+        }
     run, _ = load_mrclam(folder, MRCLAM_ROBOT)
     noise = default_noise(run)
     events = len(replay(run, noise).history.t)
     s = median_time(lambda: replay(run, noise), config.mrclam_repeats)
     return {
-        "mrclam_replay_s": s, "mrclam_events_per_s": events / s, "mrclam_events": events,
+        "mrclam_replay_s": s,
+        "mrclam_events_per_s": events / s,
+        "mrclam_events": events,
         "mrclam_note": None,
-    }  # fmt: skip
+    }
 
 
 # --------------------------------------------------------------------------- cost against n
@@ -254,12 +264,17 @@ def bench_sizes(config: BenchConfig) -> dict:
             g, _ = map_of(n, FilterConfig(gate=None, linearization="fej"))
             h, _ = map_of(n, FilterConfig(gate=None, linearization="invariant"))
             k, _ = map_of(n, replace(ITERATED, gate=None))
-            (p, u), (pg, ug), (ph, uh), (pk, uk) = _step_costs([f, g, h, k], zs,
-                                                               config.step_repeats)  # fmt: skip
+            (p, u), (pg, ug), (ph, uh), (pk, uk) = _step_costs(
+                [f, g, h, k], zs, config.step_repeats
+            )
             fej = {"update_n": n, "predict": pg / p, "update": ug / u}
             inv = {"update_n": n, "predict": ph / p, "update": uh / u, "step": (ph + uh) / (p + u)}
-            iterated = {"update_n": n, "update": uk / uh, "step": (pk + uk) / (ph + uh),
-                        "step_vs_standard": (pk + uk) / (p + u)}  # fmt: skip
+            iterated = {
+                "update_n": n,
+                "update": uk / uh,
+                "step": (pk + uk) / (ph + uh),
+                "step_vs_standard": (pk + uk) / (p + u),
+            }
         else:
             [(p, u)] = _step_costs([f], zs, config.step_repeats)
         eff["predict"][n], eff["update"][n] = p, u

@@ -285,9 +285,17 @@ def monte_carlo(
     starting at the true start with zero covariance; gate is `STUDY_GATE` (none: the runs have
     no outliers) unless given. See `Consistency` for what comes back.
     """
-    return compare(name, runs, (linearization,), gate=gate, first_seed=first_seed,
-                   wheel_noise_sigma=wheel_noise_sigma, iterations=iterations, jobs=jobs,
-                   dask=dask)[0]  # fmt: skip
+    return compare(
+        name,
+        runs,
+        (linearization,),
+        gate=gate,
+        first_seed=first_seed,
+        wheel_noise_sigma=wheel_noise_sigma,
+        iterations=iterations,
+        jobs=jobs,
+        dask=dask,
+    )[0]
 
 
 def compare(

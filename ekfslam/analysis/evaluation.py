@@ -32,9 +32,13 @@ Array = NDArray[np.float64]
 SEED_TABLE1 = {"square": (-0.020, 0.056, 0.142, 0.153), "octagon": (-0.040, 0.043, 0.137, 0.130)}
 #: The order of the outcome counts under "updates" in `RunSummary.as_dict` (the JSON keeps it).
 UPDATES_ORDER = (
-    Outcome.ACCEPTED, Outcome.REJECTED, Outcome.REFUSED,
-    Outcome.INITIALISED, Outcome.REINITIALISED, Outcome.SINGULAR,
-)  # fmt: skip
+    Outcome.ACCEPTED,
+    Outcome.REJECTED,
+    Outcome.REFUSED,
+    Outcome.INITIALISED,
+    Outcome.REINITIALISED,
+    Outcome.SINGULAR,
+)
 
 
 def interpolate_poses(groundtruth: GroundTruth, t: Array) -> tuple[Array, NDArray[np.bool_]]:

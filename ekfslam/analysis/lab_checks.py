@@ -156,11 +156,15 @@ def check_sources_above(guess: object, budget: ErrorBudget, threshold: float = 0
         return False
     wrong = [r for r in budget.rows if (r.source in picked) != (r.alone > threshold)]
     if not wrong:
-        print(f"Right: on the {budget.trajectory} these and only these cost over "
-              f"{100 * threshold:g} cm alone.")  # fmt: skip
+        print(
+            f"Right: on the {budget.trajectory} these and only these cost over "
+            f"{100 * threshold:g} cm alone."
+        )
         return True
     for r in wrong:
         side = "above" if r.source in picked else "below"
-        print(f"Not quite: you put {r.source} {side} {100 * threshold:g} cm; alone it costs "
-              f"{1000 * r.alone:.0f} mm on the {budget.trajectory}.")  # fmt: skip
+        print(
+            f"Not quite: you put {r.source} {side} {100 * threshold:g} cm; alone it costs "
+            f"{1000 * r.alone:.0f} mm on the {budget.trajectory}."
+        )
     return False

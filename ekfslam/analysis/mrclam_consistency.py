@@ -335,10 +335,13 @@ def tune_for_consistency(
         (str(dataset_dir), dataclasses.replace(base, **p), robots, linearization) for p in points
     ]
     found = run_tasks(_consistency_point, tasks, jobs, dask)
-    rows = [ConsistencyRow(p, nees_means, errors) for p, (nees_means, errors) in
-            zip(points, found, strict=True)]  # fmt: skip
-    return sorted(rows, key=lambda r: (map_targets is not None and not r.meets(map_targets),
-                                       r.distance))  # fmt: skip
+    rows = [
+        ConsistencyRow(p, nees_means, errors)
+        for p, (nees_means, errors) in zip(points, found, strict=True)
+    ]
+    return sorted(
+        rows, key=lambda r: (map_targets is not None and not r.meets(map_targets), r.distance)
+    )
 
 
 def _consistency_point(dataset_dir, noise, robots, linearization):

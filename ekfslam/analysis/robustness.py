@@ -232,6 +232,13 @@ def long_run(
             if ratio < worst:
                 worst, worst_step = ratio, k
     return LongRun(
-        steps, ekf.n_landmarks, linearization, worst, worst_step, asym, finite, ekf.counts,
+        steps,
+        ekf.n_landmarks,
+        linearization,
+        worst,
+        worst_step,
+        asym,
+        finite,
+        ekf.counts,
         time.perf_counter() - started,
-    )  # fmt: skip
+    )

@@ -163,9 +163,15 @@ def evaluate_vision(
     P = P.reshape(-1, 3)
     renderer = ArenaRenderer(camera, tags, mounting, arena, render)
     ready_all = tags_in_view(
-        camera, tags, mounting, P, arena.tag_positions(), arena.tag_normals(),
-        tag_height=renderer.config.tag_height, max_incidence=facing,
-    )  # fmt: skip
+        camera,
+        tags,
+        mounting,
+        P,
+        arena.tag_positions(),
+        arena.tag_normals(),
+        tag_height=renderer.config.tag_height,
+        max_incidence=facing,
+    )
     observer = TagObserver(camera, tags, mounting, arena.tag_ids.tolist(), config)
     in_view = detected = wrong = 0
     rows, wall, cpu = [], [], []
@@ -323,7 +329,9 @@ def compare_replays(folder: str | Path, config: VisionConfig | None = None) -> R
     errors = [
         summarize(r, replay(r, noise)).alignment.mean_error for r in (run, same, exact, noisy)
     ]
-    pairs = [set(zip(d.t.tolist(), d.tag_id.tolist(), strict=True)) for d in
-             (run.detections, exact.detections)]  # fmt: skip
+    pairs = [
+        set(zip(d.t.tolist(), d.tag_id.tolist(), strict=True))
+        for d in (run.detections, exact.detections)
+    ]
     counts = (len(pairs[0]), len(pairs[1]), len(pairs[0] & pairs[1]))
     return ReplayComparison(run.meta.name, *errors, *counts)

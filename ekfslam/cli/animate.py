@@ -38,17 +38,25 @@ def add_animate_arguments(p: ca.Parser) -> None:
     """``--animate FILE --fps F --frames N``: checked before the work, like ``--plot``."""
     listed = ", ".join(ANIMATION_FORMATS)
     p.add_argument(
-        "--animate", type=ca.output_file(ANIMATION_FORMATS), metavar="FILE",
+        "--animate",
+        type=ca.output_file(ANIMATION_FORMATS),
+        metavar="FILE",
         help=f"write an animation of the replay to FILE ({listed}: GIF through Pillow, MP4 "
         "through ffmpeg, found on PATH or from `pip install imageio-ffmpeg`)",
-    )  # fmt: skip
-    p.add_argument("--fps", type=ca.real(1.0, 60.0, why="what a player shows"), metavar="F",
-                   help=f"--animate's frames per second (default {DEFAULT_FPS:g})")  # fmt: skip
+    )
     p.add_argument(
-        "--frames", type=ca.whole(2, MAX_FRAMES, why="each frame keeps a copy of Σ"), metavar="N",
+        "--fps",
+        type=ca.real(1.0, 60.0, why="what a player shows"),
+        metavar="F",
+        help=f"--animate's frames per second (default {DEFAULT_FPS:g})",
+    )
+    p.add_argument(
+        "--frames",
+        type=ca.whole(2, MAX_FRAMES, why="each frame keeps a copy of Σ"),
+        metavar="N",
         help="--animate's number of frames, spread evenly over the detections (default "
         f"{DEFAULT_FRAMES})",
-    )  # fmt: skip
+    )
 
     def check(args: argparse.Namespace) -> str | None:
         if args.animate is None:

@@ -320,33 +320,49 @@ def add_replay_start_arguments(p: Parser) -> None:
     RobotN_Groundtruth.dat). ``--max-range``: MRCLAM only, drop sightings beyond M metres
     (`ekfslam.logs.mrclam.checks`; default no cut), counted in the load report.
     """
-    p.add_argument("--start", nargs=3, type=finite(), metavar=("X", "Y", "THETA"),
-                   help="the filter's start pose, m, m, rad (default: the run's nominal start; "
-                   "the origin for a robot without ground truth)")  # fmt: skip
+    p.add_argument(
+        "--start",
+        nargs=3,
+        type=finite(),
+        metavar=("X", "Y", "THETA"),
+        help="the filter's start pose, m, m, rad (default: the run's nominal start; "
+        "the origin for a robot without ground truth)",
+    )
     p.add_check(triple_check("--start", (1000.0, 1000.0, math.pi), ("X", "Y", "THETA")))
     add_max_range_argument(p)
 
 
 def add_max_range_argument(p: argparse.ArgumentParser) -> None:
     """``--max-range M``: the MRCLAM loader drops sightings beyond M m (`mrclam.checks`)."""
-    p.add_argument("--max-range", type=positive(1000.0, why="m"), metavar="M",
-                   help="MRCLAM only: drop sightings beyond M m, counted (default: keep all; "
-                   "the dataset's users cut at 6)")  # fmt: skip
+    p.add_argument(
+        "--max-range",
+        type=positive(1000.0, why="m"),
+        metavar="M",
+        help="MRCLAM only: drop sightings beyond M m, counted (default: keep all; "
+        "the dataset's users cut at 6)",
+    )
 
 
 def add_plot_argument(p: argparse.ArgumentParser, what: str) -> None:
     """``--plot FILE``: checked before the work; the suffix names the format and is required."""
     p.add_argument(
-        "--plot", type=output_file(PLOT_FORMATS), metavar="FILE",
+        "--plot",
+        type=output_file(PLOT_FORMATS),
+        metavar="FILE",
         help=f"{what}; FILE must end in {', '.join(PLOT_FORMATS)} (no extension is added); "
         "missing folders are created",
-    )  # fmt: skip
+    )
 
 
 def add_run_folder_arguments(p: Parser, required: bool = True) -> None:
     """``--out DIR --overwrite`` for commands that write a run folder, checked before the work."""
-    p.add_argument("--out", type=output_folder, required=required, metavar="DIR",
-                   help="the run folder to write (created if missing)")  # fmt: skip
+    p.add_argument(
+        "--out",
+        type=output_folder,
+        required=required,
+        metavar="DIR",
+        help="the run folder to write (created if missing)",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace an existing run folder")
     p.add_check(new_run_folder("--out"))
 
@@ -365,23 +381,30 @@ def add_noise_arguments(p: argparse.ArgumentParser) -> None:
         "--sigma-bearing", type=positive(math.pi, why="π rad"), help="bearing noise σ_φ, rad"
     )
     g.add_argument(
-        "--init", choices=["inverse", "seed"], default="inverse",
+        "--init",
+        choices=["inverse", "seed"],
+        default="inverse",
         help="landmark initialisation: inverse observation (default) or the seed's eq. (3)",
-    )  # fmt: skip
+    )
     g.add_argument(
-        "--linearization", choices=LINEARIZATIONS, default="standard",
+        "--linearization",
+        choices=LINEARIZATIONS,
+        default="standard",
         help="standard EKF (default), first-estimates Jacobian (fej), or the right-invariant "
         "EKF (invariant; its covariance is reported Cartesian)",
-    )  # fmt: skip
+    )
     g.add_argument(
-        "--gate", type=non_negative(1e6), default=CHI2_2DOF_99,
+        "--gate",
+        type=non_negative(1e6),
+        default=CHI2_2DOF_99,
         help="NIS gate (chi-square, 2 dof); 0 turns gating off (default: %(default).2f)",
-    )  # fmt: skip
+    )
     g.add_argument(
-        "--reinit-after", type=whole(2, 10**6, also=(0,)),
+        "--reinit-after",
+        type=whole(2, 10**6, also=(0,)),
         help="re-initialise a landmark after this many agreeing rejected sightings; 0: never "
         "(default: 3, but never for MRCLAM)",
-    )  # fmt: skip
+    )
 
 
 def triple_check(option: str, bounds: tuple[float, float, float], names: tuple[str, ...]) -> Check:

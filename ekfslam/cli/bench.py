@@ -28,17 +28,32 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     p = subparsers.add_parser(name, help=help)
     p.add_argument("--quick", action="store_true", help="fewer repeats (about a minute)")
     ca.add_json_argument(p, "print the results as JSON")
-    p.add_argument("--out", type=ca.output_folder, default=DEFAULT_OUT,
-                   help="where to write the table, the JSON and the plot (default: %(default)s; "
-                   "created if missing)")  # fmt: skip
-    p.add_argument("--sizes", type=ca.whole(1, MAX_SIZE, why="Σ would not fit in memory"),
-                   nargs="+", help=f"map sizes n, 1 to {MAX_SIZE} (default: {SIZES})")  # fmt: skip
-    p.add_argument("--repeats", type=ca.whole(1, 1000),
-                   help="repeats of every measurement, >= 1 (a smoke run: 1; default: the "
-                   "config's, fewer with --quick)")  # fmt: skip
-    p.add_argument("--mrclam", type=ca.mrclam_dataset, metavar="DATASET",
-                   help="the MRCLAM dataset to replay robot 1 of: its folder or its number "
-                   "1-9 (default: 7, from the shared data or the download cache)")  # fmt: skip
+    p.add_argument(
+        "--out",
+        type=ca.output_folder,
+        default=DEFAULT_OUT,
+        help="where to write the table, the JSON and the plot (default: %(default)s; "
+        "created if missing)",
+    )
+    p.add_argument(
+        "--sizes",
+        type=ca.whole(1, MAX_SIZE, why="Σ would not fit in memory"),
+        nargs="+",
+        help=f"map sizes n, 1 to {MAX_SIZE} (default: {SIZES})",
+    )
+    p.add_argument(
+        "--repeats",
+        type=ca.whole(1, 1000),
+        help="repeats of every measurement, >= 1 (a smoke run: 1; default: the "
+        "config's, fewer with --quick)",
+    )
+    p.add_argument(
+        "--mrclam",
+        type=ca.mrclam_dataset,
+        metavar="DATASET",
+        help="the MRCLAM dataset to replay robot 1 of: its folder or its number "
+        "1-9 (default: 7, from the shared data or the download cache)",
+    )
     p.add_argument("--no-mrclam", action="store_true", help="skip the MRCLAM replay")
     p.set_defaults(func=cmd_bench)
 

@@ -29,10 +29,16 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     """Register ``budget`` (`help` is the one line of `ekfslam.cli.main.COMMANDS`)."""
     p = subparsers.add_parser(name, help=help, description=__doc__.split("\n\n")[1])
     p.add_argument("trajectory", choices=TRAJECTORIES, help="the seed's experiment: two laps")
-    p.add_argument("--seeds", type=ca.seed(), nargs="+", default=list(DEFAULT_SEEDS),
-                   metavar="N", help="simulation seeds to average over (default: 1 to 8; each "
-                   f"costs {2 + 2 * len(REALISTIC)} simulations and replays, about a "
-                   "second)")  # fmt: skip
+    p.add_argument(
+        "--seeds",
+        type=ca.seed(),
+        nargs="+",
+        default=list(DEFAULT_SEEDS),
+        metavar="N",
+        help="simulation seeds to average over (default: 1 to 8; each "
+        f"costs {2 + 2 * len(REALISTIC)} simulations and replays, about a "
+        "second)",
+    )
     ca.add_json_argument(p, "print one JSON object: {trajectory, seeds, ideal, realistic, rows}")
     ca.add_plot_argument(p, "draw each source alone and what fixing it saves to FILE")
     p.add_check(_distinct_seeds)

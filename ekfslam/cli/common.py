@@ -94,11 +94,13 @@ def add_iterations_argument(p: ca.Parser) -> None:
     with ``--linearization fej`` one line naming it (FEJ keeps each Jacobian where it was first
     evaluated)."""
     p.add_argument(
-        "--iterations", type=ca.whole(1, 100), default=1,
+        "--iterations",
+        type=ca.whole(1, 100),
+        default=1,
         help="linearisations per update: 1 is the EKF (default), more the iterated EKF, each "
         "further step taken only if it fits the sighting and the prior better (standard or "
         "invariant)",
-    )  # fmt: skip
+    )
 
     def check(args: argparse.Namespace) -> str | None:
         if args.iterations > 1 and args.linearization == "fej":
@@ -121,9 +123,12 @@ def noise_from_args(
     }
     noise = replace(base, **overrides)  # validated again, as a new NoiseConfig
     config = replace(
-        default_config(run), init=args.init, gate=None if args.gate == 0 else args.gate,
-        linearization=args.linearization, iterations=args.iterations,
-    )  # fmt: skip
+        default_config(run),
+        init=args.init,
+        gate=None if args.gate == 0 else args.gate,
+        linearization=args.linearization,
+        iterations=args.iterations,
+    )
     if args.reinit_after is not None:
         config = replace(config, reinit_after=args.reinit_after or None)
     return noise, config
@@ -159,21 +164,27 @@ def add_hypotheses_argument(p: argparse.ArgumentParser) -> None:
     """``--hypotheses K``: the size of mht's bank (`AssociationConfig.hypotheses`); None when
     not given, so a command can tell it was asked for without ``--association mht``."""
     p.add_argument(
-        "--hypotheses", type=ca.whole(1, MAX_HYPOTHESES, why="each costs a filter"), default=None,
-        metavar="K", help="with --association mht: how many hypotheses the bank keeps "
+        "--hypotheses",
+        type=ca.whole(1, MAX_HYPOTHESES, why="each costs a filter"),
+        default=None,
+        metavar="K",
+        help="with --association mht: how many hypotheses the bank keeps "
         f"(default {AssociationConfig().hypotheses}; 1 is jcbb)",
-    )  # fmt: skip
+    )
 
 
 def add_passes_argument(p: argparse.ArgumentParser) -> None:
     """``--passes N``: decide the run N times, each pass from the last one's map
     (`ekfslam.pipeline.replay`'s ``passes``); 1 when not given."""
     p.add_argument(
-        "--passes", type=ca.whole(1, MAX_PASSES, why="each reads the whole run again"),
-        default=1, metavar="N", help="with hidden ids: decide the whole run up to N times, each "
+        "--passes",
+        type=ca.whole(1, MAX_PASSES, why="each reads the whole run again"),
+        default=1,
+        metavar="N",
+        help="with hidden ids: decide the whole run up to N times, each "
         "pass again from the map the last one ended with (offline: the run is read N times), "
         "and keep the pass whose map fits its sightings best (default 1)",
-    )  # fmt: skip
+    )
 
 
 def add_founding_arguments(p: argparse.ArgumentParser) -> None:
@@ -182,17 +193,21 @@ def add_founding_arguments(p: argparse.ArgumentParser) -> None:
     sighting new (`AssociationConfig.new_rule`); None when not given (the source's and the
     method's own), so a command can tell they were asked for; `time_shared_of` reads the first."""
     p.add_argument(
-        "--time-error", choices=("shared", "independent"), default=None,
+        "--time-error",
+        choices=("shared", "independent"),
+        default=None,
         help="with hidden ids: a camera time stamp's error is one per image, shared by its "
         "sightings (the default where the stamps are off, as on MRCLAM), or independent per "
         "sighting",
-    )  # fmt: skip
+    )
     p.add_argument(
-        "--new-rule", choices=NEW_RULES, default=None,
+        "--new-rule",
+        choices=NEW_RULES,
+        default=None,
         help="with jcbb or mht: what makes a sighting no landmark takes a new landmark's "
         "(density: no landmark explains it better than a new one, jcbb's default; threshold: "
         "its NIS exceeds 23 against every one, mht's default)",
-    )  # fmt: skip
+    )
 
 
 def time_shared_of(args: argparse.Namespace) -> bool | None:
@@ -207,9 +222,17 @@ def add_parallel_arguments(p: argparse.ArgumentParser) -> None:
     Every command that runs a study in parallel (``consistency``, ``tune-mrclam``) takes them
     from here.
     """
-    p.add_argument("--jobs", type=ca.whole(1, 4096), default=None, metavar="N",
-                   help="local processes for the runs; 1 runs in this process "
-                   "(default: every core)")  # fmt: skip
-    p.add_argument("--dask", type=ca._name(_dask_address, "address"), metavar="ADDRESS",
-                   help="run on the Dask cluster at ADDRESS (tcp://host:8786; needs "
-                   "pip install 'ekfslam[dask]'); --jobs is then ignored")  # fmt: skip
+    p.add_argument(
+        "--jobs",
+        type=ca.whole(1, 4096),
+        default=None,
+        metavar="N",
+        help="local processes for the runs; 1 runs in this process (default: every core)",
+    )
+    p.add_argument(
+        "--dask",
+        type=ca._name(_dask_address, "address"),
+        metavar="ADDRESS",
+        help="run on the Dask cluster at ADDRESS (tcp://host:8786; needs "
+        "pip install 'ekfslam[dask]'); --jobs is then ignored",
+    )

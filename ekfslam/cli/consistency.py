@@ -58,8 +58,11 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     _linearization(p, "standard")
     _seed(p)
     _gate(p, off=True)
-    p.add_argument("--wheel-noise", type=ca.non_negative(10.0, why="rad/s"),
-                   help="override the scenario's wheel noise, rad/s")  # fmt: skip
+    p.add_argument(
+        "--wheel-noise",
+        type=ca.non_negative(10.0, why="rad/s"),
+        help="override the scenario's wheel noise, rad/s",
+    )
     _iterations(p)
     add_parallel_arguments(p)
     ca.add_json_argument(p)
@@ -74,16 +77,22 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     _seed(p)
     _gate(p)
     p.add_argument(
-        "--gate-after", type=ca.whole(1, 10**6), default=FilterConfig.gate_after,
+        "--gate-after",
+        type=ca.whole(1, 10**6),
+        default=FilterConfig.gate_after,
         help="gate_after (default: the filter's, %(default)s)",
-    )  # fmt: skip
+    )
     add_parallel_arguments(p)
     ca.add_json_argument(p)
     p.set_defaults(func=cmd_outliers)
 
     p = studies.add_parser("long-run", help="a long Σ run: its smallest eigenvalue, its symmetry")
-    p.add_argument("--steps", type=ca.whole(1, 10**7), default=100_000,
-                   help="steps to drive (default: %(default)s)")  # fmt: skip
+    p.add_argument(
+        "--steps",
+        type=ca.whole(1, 10**7),
+        default=100_000,
+        help="steps to drive (default: %(default)s)",
+    )
     _linearization(p, "standard")
     _seed(p)
     ca.add_json_argument(p)
@@ -91,17 +100,27 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
 
     p = studies.add_parser("mrclam", help="pose NEES of the MRCLAM robots against Vicon")
     p.add_argument(
-        "dataset", nargs="?", type=ca.mrclam_dataset, default=7, metavar="DATASET",
+        "dataset",
+        nargs="?",
+        type=ca.mrclam_dataset,
+        default=7,
+        metavar="DATASET",
         help="a MRCLAM dataset: its folder or its number 1-9 (default: 7)",
-    )  # fmt: skip
+    )
     p.add_argument(
-        "--noise", choices=sorted(NOISE_SETTINGS), default="map",
+        "--noise",
+        choices=sorted(NOISE_SETTINGS),
+        default="map",
         help="noise tuned for the map (MRCLAM_NOISE) or for consistency",
-    )  # fmt: skip
+    )
     p.add_argument(
-        "--robots", type=int, nargs="+", choices=ROBOTS, default=list(ROBOTS),
+        "--robots",
+        type=int,
+        nargs="+",
+        choices=ROBOTS,
+        default=list(ROBOTS),
         help="which robots (default all five)",
-    )  # fmt: skip
+    )
     _linearization(p, "both")
     _gate(p)
     add_parallel_arguments(p)
@@ -118,10 +137,15 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     p = studies.add_parser(
         "association", help="nn against jcbb on the stress scenario (close tags, drift)"
     )
-    p.add_argument("--runs", type=ca.whole(1, 1000), default=1,
-                   help="simulated runs, 1 to 1000 (default 1)")  # fmt: skip
-    p.add_argument("--seed", type=ca.seed(), default=2,
-                   help="seed of the first run (then +1, +2...; default 2)")  # fmt: skip
+    p.add_argument(
+        "--runs", type=ca.whole(1, 1000), default=1, help="simulated runs, 1 to 1000 (default 1)"
+    )
+    p.add_argument(
+        "--seed",
+        type=ca.seed(),
+        default=2,
+        help="seed of the first run (then +1, +2...; default 2)",
+    )
     add_parallel_arguments(p)
     ca.add_json_argument(p)
     ca.add_plot_argument(p, "draw the first run's wrong associations to FILE")
@@ -129,43 +153,59 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
 
 
 def _runs_and_trajectory(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--runs", type=ca.whole(1, 10_000), default=50,
-                   help="Monte Carlo runs, 1 to 10000 (default 50)")  # fmt: skip
+    p.add_argument(
+        "--runs",
+        type=ca.whole(1, 10_000),
+        default=50,
+        help="Monte Carlo runs, 1 to 10000 (default 50)",
+    )
     p.add_argument("--trajectory", choices=SCENARIOS, default="octagon", help="the scenario")
 
 
 def _linearization(p: argparse.ArgumentParser, default: str) -> None:
-    p.add_argument("--linearization", choices=[*ALL_LINEARIZATIONS, "both", "all"],
-                   default=default,
-                   help="standard EKF, first-estimates Jacobian (fej), right-invariant EKF "
-                   "(invariant); both = standard and fej, all = the three "
-                   "(default: %(default)s)")  # fmt: skip
+    p.add_argument(
+        "--linearization",
+        choices=[*ALL_LINEARIZATIONS, "both", "all"],
+        default=default,
+        help="standard EKF, first-estimates Jacobian (fej), right-invariant EKF "
+        "(invariant); both = standard and fej, all = the three "
+        "(default: %(default)s)",
+    )
 
 
 def _iterations(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--iterations", type=ca.whole(1, 100), default=1,
-                   help="linearisations per update: 1 is the EKF, more the iterated EKF "
-                   "(standard and invariant; FEJ keeps 1; default: %(default)s)")  # fmt: skip
+    p.add_argument(
+        "--iterations",
+        type=ca.whole(1, 100),
+        default=1,
+        help="linearisations per update: 1 is the EKF, more the iterated EKF "
+        "(standard and invariant; FEJ keeps 1; default: %(default)s)",
+    )
 
 
 def _seed(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--seed", type=ca.seed(), default=0,
-                   help="seed of the first run (then +1, +2...)")  # fmt: skip
+    p.add_argument(
+        "--seed", type=ca.seed(), default=0, help="seed of the first run (then +1, +2...)"
+    )
 
 
 def _gate(p: argparse.ArgumentParser, off: bool = False) -> None:
     """--gate; off: the default is no gate (the outlier-free ``nees`` study, `STUDY_GATE`)."""
     if off:
         p.add_argument(
-            "--gate", type=ca.non_negative(1e6), default=0.0,
+            "--gate",
+            type=ca.non_negative(1e6),
+            default=0.0,
             help=f"NIS gate; default off (0): the runs have no outliers, and a gate would drop "
             f"the largest true innovations (the filter's is {CHI2_2DOF_99:.2f})",
-        )  # fmt: skip
+        )
         return
     p.add_argument(
-        "--gate", type=ca.non_negative(1e6), default=CHI2_2DOF_99,
+        "--gate",
+        type=ca.non_negative(1e6),
+        default=CHI2_2DOF_99,
         help="NIS gate; 0 turns it off (%(default).2f)",
-    )  # fmt: skip
+    )
 
 
 def _linearizations(args: argparse.Namespace) -> tuple[str, ...]:
@@ -180,10 +220,16 @@ def _emit(args: argparse.Namespace, data: dict, text: str) -> None:
 def cmd_nees(args: argparse.Namespace) -> int:
     lins = _linearizations(args)
     results = compare(
-        args.trajectory, args.runs, lins, gate=None if args.gate == 0 else args.gate,
-        first_seed=args.seed, wheel_noise_sigma=args.wheel_noise, iterations=args.iterations,
-        jobs=args.jobs, dask=args.dask,
-    )  # fmt: skip
+        args.trajectory,
+        args.runs,
+        lins,
+        gate=None if args.gate == 0 else args.gate,
+        first_seed=args.seed,
+        wheel_noise_sigma=args.wheel_noise,
+        iterations=args.iterations,
+        jobs=args.jobs,
+        dask=args.dask,
+    )
     out = {r.linearization: r.as_dict() for r in results}
     if args.plot is not None:
         save_figure(plot_consistency(results), args.plot)
@@ -196,9 +242,15 @@ def cmd_nees(args: argparse.Namespace) -> int:
 def cmd_outliers(args: argparse.Namespace) -> int:
     gate = None if args.gate == 0 else args.gate
     study = robustness.outlier_study(
-        args.trajectory, args.runs, args.rate, gate=gate or CHI2_2DOF_99,
-        gate_after=args.gate_after, first_seed=args.seed, jobs=args.jobs, dask=args.dask,
-    )  # fmt: skip
+        args.trajectory,
+        args.runs,
+        args.rate,
+        gate=gate or CHI2_2DOF_99,
+        gate_after=args.gate_after,
+        first_seed=args.seed,
+        jobs=args.jobs,
+        dask=args.dask,
+    )
     lines = [
         f"outliers at {study.rate:.0%} on {study.scenario}, {study.runs} runs: aligned map "
         "error (eq. 17), mean over runs",
@@ -283,9 +335,13 @@ def nees_table(r: Consistency) -> str:
         f"averages over the runs and the {CONFIDENCE:.0%} chi-square band",
         f"{'':<16}{'mean':>8}{'max':>8}   {'band (median)':<16}{'steps in band':>14}",
     ]
-    for key, label in (("nees_pose", "pose NEES"), ("nees_pose_xi", "pose NEES in ξ"),
-                       ("nees_heading", "heading NEES"), ("nees_landmark", "landmark NEES"),
-                       ("nis", "NIS")):  # fmt: skip
+    for key, label in (
+        ("nees_pose", "pose NEES"),
+        ("nees_pose_xi", "pose NEES in ξ"),
+        ("nees_heading", "heading NEES"),
+        ("nees_landmark", "landmark NEES"),
+        ("nis", "NIS"),
+    ):
         q = d[key]
         band = f"[{q['band'][0]:.2f}, {q['band'][1]:.2f}]"
         lines.append(

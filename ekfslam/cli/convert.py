@@ -35,16 +35,22 @@ def _add_mrclam(formats: argparse._SubParsersAction) -> None:
         "mrclam",
         help="one robot of a MRCLAM dataset -> a run folder (with its Vicon truth if it has one)",
     )
-    p.add_argument("dataset", type=ca.mrclam_dataset,
-                   help="a MRCLAM dataset: its folder or its number 1-9")  # fmt: skip
-    p.add_argument("--robot", type=ca.one_of(ca.ROBOTS, "MRCLAM robots"), required=True,
-                   help="which robot (1-5)")  # fmt: skip
+    p.add_argument(
+        "dataset", type=ca.mrclam_dataset, help="a MRCLAM dataset: its folder or its number 1-9"
+    )
+    p.add_argument(
+        "--robot",
+        type=ca.one_of(ca.ROBOTS, "MRCLAM robots"),
+        required=True,
+        help="which robot (1-5)",
+    )
     ca.add_run_folder_arguments(p)
     ca.add_max_range_argument(p)
     p.add_argument(
-        "--calibrate", action="store_true",
+        "--calibrate",
+        action="store_true",
         help="shift and scale the commands by MRCLAM_CALIBRATION (lag 0.25 s, v x0.90, w x0.935)",
-    )  # fmt: skip
+    )
     p.set_defaults(func=cmd_convert_mrclam)
 
 
@@ -71,30 +77,57 @@ def _add_rosbag(formats: argparse._SubParsersAction) -> None:
     )
     p.add_argument("bag", type=Path, nargs="+", help="ROS 2 bag folder, or ROS 1 .bag file(s)")
     ca.add_run_folder_arguments(p)
-    p.add_argument("--detections-topic", required=True, type=ca.non_empty,
-                   help="TFMessage or AprilTag detections")  # fmt: skip
+    p.add_argument(
+        "--detections-topic",
+        required=True,
+        type=ca.non_empty,
+        help="TFMessage or AprilTag detections",
+    )
     motion = p.add_mutually_exclusive_group(required=True)
     motion.add_argument("--twist-topic", type=ca.non_empty, help="Twist, TwistStamped or Odometry")
-    motion.add_argument("--wheels-topic", type=ca.non_empty,
-                        help="JointState with four wheel speeds (rad/s)")  # fmt: skip
+    motion.add_argument(
+        "--wheels-topic", type=ca.non_empty, help="JointState with four wheel speeds (rad/s)"
+    )
     p.add_argument("--wheel-joints", nargs=4, type=ca.non_empty, metavar=("FL", "FR", "RL", "RR"))
-    p.add_argument("--wheel-geometry", nargs=3, type=ca.positive(1.0, why="m"),
-                   metavar=("RADIUS", "LX", "LY"),
-                   help="mecanum wheel radius, lx, ly in m, each in (0, 1] "
-                   "(with --wheels-topic)")  # fmt: skip
-    p.add_argument("--camera-mounting", nargs=3, type=ca.finite(), default=(0.0, 0.0, 0.0),
-                   metavar=("X", "Y", "YAW"),
-                   help="camera on the robot, m, m, rad (within ±1 m, ±π)")  # fmt: skip
-    p.add_argument("--camera-pitch", type=ca.real(-math.pi / 2, math.pi / 2), default=0.0,
-                   help="rad, positive looks down, within ±π/2")  # fmt: skip
+    p.add_argument(
+        "--wheel-geometry",
+        nargs=3,
+        type=ca.positive(1.0, why="m"),
+        metavar=("RADIUS", "LX", "LY"),
+        help="mecanum wheel radius, lx, ly in m, each in (0, 1] (with --wheels-topic)",
+    )
+    p.add_argument(
+        "--camera-mounting",
+        nargs=3,
+        type=ca.finite(),
+        default=(0.0, 0.0, 0.0),
+        metavar=("X", "Y", "YAW"),
+        help="camera on the robot, m, m, rad (within ±1 m, ±π)",
+    )
+    p.add_argument(
+        "--camera-pitch",
+        type=ca.real(-math.pi / 2, math.pi / 2),
+        default=0.0,
+        help="rad, positive looks down, within ±π/2",
+    )
     p.add_argument("--camera-axes", choices=["optical", "body"], default="optical")
-    p.add_argument("--camera-frame", type=ca.non_empty,
-                   help="keep only TF transforms from this parent frame")  # fmt: skip
-    p.add_argument("--tag-frame-pattern", type=ca.regex, default=RosbagSpec.tag_frame_pattern,
-                   help="regex on TF child frames; group 1 is the tag id")  # fmt: skip
-    p.add_argument("--start", nargs=3, type=ca.finite(), default=(0.0, 0.0, 0.0),
-                   metavar=("X", "Y", "THETA"),
-                   help="nominal start pose, m, m, rad (within ±1000 m, ±π)")  # fmt: skip
+    p.add_argument(
+        "--camera-frame", type=ca.non_empty, help="keep only TF transforms from this parent frame"
+    )
+    p.add_argument(
+        "--tag-frame-pattern",
+        type=ca.regex,
+        default=RosbagSpec.tag_frame_pattern,
+        help="regex on TF child frames; group 1 is the tag id",
+    )
+    p.add_argument(
+        "--start",
+        nargs=3,
+        type=ca.finite(),
+        default=(0.0, 0.0, 0.0),
+        metavar=("X", "Y", "THETA"),
+        help="nominal start pose, m, m, rad (within ±1000 m, ±π)",
+    )
     p.add_argument("--name", type=ca.non_empty, help="the run's name (default: the bag's name)")
     p.add_check(ca.triple_check("--camera-mounting", (1.0, 1.0, math.pi), ("X", "Y", "YAW")))
     p.add_check(ca.triple_check("--start", (1000.0, 1000.0, math.pi), ("X", "Y", "THETA")))

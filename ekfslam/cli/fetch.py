@@ -19,9 +19,10 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         "--cache", type=ca.output_folder, help=f"cache folder (default: {CACHE_DEFAULT_HELP})"
     )
     p.add_argument(
-        "--url", type=_base_url,
+        "--url",
+        type=_base_url,
         help="base URL holding MRCLAM<N>.zip (default: $EKFSLAM_MRCLAM_URL)",
-    )  # fmt: skip
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_fetch)
 

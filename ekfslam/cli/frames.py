@@ -28,10 +28,13 @@ def _add_render_frames(subparsers: argparse._SubParsersAction, name: str, help: 
     ca.add_run_folder_arguments(p)
     p.add_argument("--name", type=ca.non_empty, help="the new run's name (default: the run's)")
     p.add_argument(
-        "--mounting", type=ca.finite(), nargs=3, metavar=("X", "Y", "YAW"),
+        "--mounting",
+        type=ca.finite(),
+        nargs=3,
+        metavar=("X", "Y", "YAW"),
         help="camera position (m, within ±0.5) and yaw (rad, within ±π) in the robot frame "
         "(default: the run's)",
-    )  # fmt: skip
+    )
     p.add_check(ca.triple_check("--mounting", (0.5, 0.5, math.pi), ("X", "Y", "YAW")))
     p.add_argument("--images", action="store_true", help="PNG images instead of an mp4v video")
     p.add_argument("--keep-detections", action="store_true", help="write detections.csv too")
@@ -50,20 +53,25 @@ def _add_detect(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     p = subparsers.add_parser(name, help=help)
     p.add_argument("run", type=Path, help="a run folder with frames (run.json, frames.csv, ...)")
     p.add_argument(
-        "--out", type=_detect_out, metavar="DIR|FILE.csv",
+        "--out",
+        type=_detect_out,
+        metavar="DIR|FILE.csv",
         help="a new run folder (the run copied, with detections.csv) or a FILE.csv to write; "
         "missing folders are created",
-    )  # fmt: skip
+    )
     p.add_argument(
-        "--in-place", action="store_true",
+        "--in-place",
+        action="store_true",
         help="write RUN/detections.csv instead; `run RUN` then uses it, not the frames",
-    )  # fmt: skip
+    )
     p.add_argument("--overwrite", action="store_true", help="replace an existing file")
     p.add_argument("--detector", choices=["opencv", "opencv-subpix", "apriltag"], default="opencv")
     p.add_argument(
-        "--max-incidence", type=ca.real(0.0, 90.0, lo_open=True), default=75.0,
+        "--max-incidence",
+        type=ca.real(0.0, 90.0, lo_open=True),
+        default=75.0,
         help="refuse tags seen more edge-on than this, degrees in (0, 90] (default: %(default)s)",
-    )  # fmt: skip
+    )
     p.set_defaults(func=cmd_detect)
 
 

@@ -33,20 +33,39 @@ from ekfslam.core.filter.config import LINEARIZATIONS
 def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) -> None:
     """Register ``score-mrclam`` (`help` is the one line of `ekfslam.cli.main.COMMANDS`)."""
     p = subparsers.add_parser(name, help=help)
-    p.add_argument("dataset", type=ca.mrclam_dataset, nargs="?", default=7, metavar="DATASET",
-                   help="a MRCLAM dataset: its folder or its number 1-9 (default: 7)")  # fmt: skip
-    p.add_argument("--association", nargs="+", choices=("nn", "jcbb", "mht"), metavar="METHOD",
-                   help="hide the barcodes and associate by METHOD (nn, jcbb, mht; one or "
-                   "more): each robot's map error against known's, and the decisions")  # fmt: skip
+    p.add_argument(
+        "dataset",
+        type=ca.mrclam_dataset,
+        nargs="?",
+        default=7,
+        metavar="DATASET",
+        help="a MRCLAM dataset: its folder or its number 1-9 (default: 7)",
+    )
+    p.add_argument(
+        "--association",
+        nargs="+",
+        choices=("nn", "jcbb", "mht"),
+        metavar="METHOD",
+        help="hide the barcodes and associate by METHOD (nn, jcbb, mht; one or "
+        "more): each robot's map error against known's, and the decisions",
+    )
     add_hypotheses_argument(p)
-    p.add_argument("--linearization", choices=LINEARIZATIONS, default=None,
-                   help="with --association: the filter of the replays that associate (and of "
-                   "'known, same noise'); known's column stays the shipped standard EKF "
-                   "(default: standard)")  # fmt: skip
-    p.add_argument("--map-noise", choices=("mrclam", "none"), default=None,
-                   help="with --association: the noise of a second filter that maps with the "
-                   "decisions (mrclam: the consistency noise with sigma_x = sigma_y = 0.005, "
-                   "the default; none: the deciding filter's own map)")  # fmt: skip
+    p.add_argument(
+        "--linearization",
+        choices=LINEARIZATIONS,
+        default=None,
+        help="with --association: the filter of the replays that associate (and of "
+        "'known, same noise'); known's column stays the shipped standard EKF "
+        "(default: standard)",
+    )
+    p.add_argument(
+        "--map-noise",
+        choices=("mrclam", "none"),
+        default=None,
+        help="with --association: the noise of a second filter that maps with the "
+        "decisions (mrclam: the consistency noise with sigma_x = sigma_y = 0.005, "
+        "the default; none: the deciding filter's own map)",
+    )
     add_founding_arguments(p)
     add_passes_argument(p)
     ca.add_json_argument(p, "print one JSON object: {robots: [{robot, landmarks, ...}, ...]}")
@@ -78,14 +97,23 @@ def cmd_score_mrclam(args: argparse.Namespace) -> int:
     if args.association:
         methods = tuple(dict.fromkeys(args.association))
         rows = association_robots(
-            folder, methods, linearization=args.linearization or "standard",
-            hypotheses=args.hypotheses, mapped=args.map_noise != "none",
+            folder,
+            methods,
+            linearization=args.linearization or "standard",
+            hypotheses=args.hypotheses,
+            mapped=args.map_noise != "none",
             time_shared=time_shared_of(args),
-            new_rule=args.new_rule, passes=args.passes,
-        )  # fmt: skip
+            new_rule=args.new_rule,
+            passes=args.passes,
+        )
         if args.json:
-            print(json.dumps({"dataset": str(folder), "rows": [_finite(r) for r in rows]},
-                             indent=2, allow_nan=False))  # fmt: skip
+            print(
+                json.dumps(
+                    {"dataset": str(folder), "rows": [_finite(r) for r in rows]},
+                    indent=2,
+                    allow_nan=False,
+                )
+            )
         else:
             print(association_table(rows))
         return 0

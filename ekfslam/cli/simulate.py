@@ -22,29 +22,40 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     """Register ``simulate`` (`help` is the one line of `ekfslam.cli.main.COMMANDS`)."""
     sim = subparsers.add_parser(name, help=help)
     sim.add_argument("--trajectory", choices=["square", "octagon"], required=True)
-    sim.add_argument("--laps", type=ca.whole(1, MAX_LAPS, why="the controller's time limit"),
-                     default=2, help=f"laps, 1 to {MAX_LAPS} (default: %(default)s)")  # fmt: skip
     sim.add_argument(
-        "--size", type=ca.positive(),
+        "--laps",
+        type=ca.whole(1, MAX_LAPS, why="the controller's time limit"),
+        default=2,
+        help=f"laps, 1 to {MAX_LAPS} (default: %(default)s)",
+    )
+    sim.add_argument(
+        "--size",
+        type=ca.positive(),
         help="side of the square / size of the octagon, m; the path must stay "
         f"{ARENA_MARGIN * 100:.0f} cm inside the seed's arena",
-    )  # fmt: skip
+    )
     sim.add_argument("--seed", type=ca.seed(), default=1)
     sim.add_argument(
-        "--start-error", type=ca.finite(), nargs=3, metavar=("DX", "DY", "DTHETA"),
+        "--start-error",
+        type=ca.finite(),
+        nargs=3,
+        metavar=("DX", "DY", "DTHETA"),
         help="the robot's true placement error, m, m, rad, within ±0.5 m and ±π "
         "(default: drawn from the seed)",
-    )  # fmt: skip
+    )
     sim.add_argument(
-        "--wheel-scale-sigma", type=ca.non_negative(0.3, why="a 3σ scale must stay positive"),
+        "--wheel-scale-sigma",
+        type=ca.non_negative(0.3, why="a 3σ scale must stay positive"),
         help="std of a per-wheel calibration error (a fraction; default 0: none)",
-    )  # fmt: skip
+    )
     sim.add_argument(
-        "--scenario", choices=ROBOTS, default="ideal",
+        "--scenario",
+        choices=ROBOTS,
+        default="ideal",
         help="the robot: ideal (default), or realistic: the systematic errors of a real "
         "classroom robot (tag placement, range scale, wheel radius and wheelbase, slip, motor "
         "lag, camera latency; see ekfslam.sim.config.REALISTIC)",
-    )  # fmt: skip
+    )
     ca.add_run_folder_arguments(sim)
     sim.add_check(_check_path_in_arena)
     sim.add_check(ca.triple_check("--start-error", (0.5, 0.5, math.pi), ("DX", "DY", "DTHETA")))
@@ -80,9 +91,12 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         kwargs |= REALISTIC_ERRORS
     run = simulate(SimulationConfig(**kwargs))
     write_run(
-        run, args.out, overwrite=args.overwrite, overwrite_hint="--overwrite",
+        run,
+        args.out,
+        overwrite=args.overwrite,
+        overwrite_hint="--overwrite",
         decimals=SIMULATED_DECIMALS,
-    )  # fmt: skip
+    )
     print(
         f"wrote {args.out} ({run.meta.name}): {len(run.controls.t)} controls, "
         f"{len(run.detections.t)} detections, "

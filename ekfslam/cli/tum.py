@@ -18,8 +18,12 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     p.add_argument("run", type=Path, help="a run folder or a MRCLAM dataset folder")
     ca.add_robot_argument(p)
     ca.add_replay_start_arguments(p)
-    p.add_argument("--out", type=ca.output_folder, required=True,
-                   help="folder for the .tum files (created if missing)")  # fmt: skip
+    p.add_argument(
+        "--out",
+        type=ca.output_folder,
+        required=True,
+        help="folder for the .tum files (created if missing)",
+    )
     ca.add_noise_arguments(p)
     add_iterations_argument(p)
     p.set_defaults(func=cmd_tum)

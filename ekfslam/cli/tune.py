@@ -47,15 +47,30 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     """Register ``tune`` (`help` is the one line of `ekfslam.cli.main.COMMANDS`)."""
     p = subparsers.add_parser(name, help=help, description=__doc__.split("\n\n")[0])
     p.add_argument("--bench", action="store_true", help="time the panel's update")
-    p.add_argument("--browser", action="store_true",
-                   help="time key press to new pixels in headless Chromium (Voila)")  # fmt: skip
-    p.add_argument("--against", type=Path, metavar="DIR",
-                   help="with --browser: the panel also from another checkout DIR (its "
-                   "ekfslam/), alternately; e.g. main against a branch")  # fmt: skip
-    p.add_argument("--classroom", type=ca.whole(1, 12, why="one machine"), metavar="N",
-                   help="1 .. N concurrent Voila sessions: memory and latency")  # fmt: skip
-    p.add_argument("--repeats", type=ca.whole(1, 1000), default=None,
-                   help="samples per run (default: 15, in the browser 20 moves)")  # fmt: skip
+    p.add_argument(
+        "--browser",
+        action="store_true",
+        help="time key press to new pixels in headless Chromium (Voila)",
+    )
+    p.add_argument(
+        "--against",
+        type=Path,
+        metavar="DIR",
+        help="with --browser: the panel also from another checkout DIR (its "
+        "ekfslam/), alternately; e.g. main against a branch",
+    )
+    p.add_argument(
+        "--classroom",
+        type=ca.whole(1, 12, why="one machine"),
+        metavar="N",
+        help="1 .. N concurrent Voila sessions: memory and latency",
+    )
+    p.add_argument(
+        "--repeats",
+        type=ca.whole(1, 1000),
+        default=None,
+        help="samples per run (default: 15, in the browser 20 moves)",
+    )
     ca.add_json_argument(p)
     p.set_defaults(func=cmd_tune, print_help=p.print_help)
 

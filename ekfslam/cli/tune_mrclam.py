@@ -35,15 +35,31 @@ TOP = 5
 def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) -> None:
     """Register ``tune-mrclam`` (`help` is the one line of `ekfslam.cli.main.COMMANDS`)."""
     p = subparsers.add_parser(name, help=help, description=__doc__.split("\n\n")[1])
-    p.add_argument("datasets", type=ca.mrclam_dataset, nargs="*", metavar="DATASET",
-                   help="MRCLAM datasets: folders or numbers 1-9 (default: 7 1 4)")  # fmt: skip
-    p.add_argument("--cross-validate", action="store_true",
-                   help="leave one dataset out: tune on the others, score it")  # fmt: skip
+    p.add_argument(
+        "datasets",
+        type=ca.mrclam_dataset,
+        nargs="*",
+        metavar="DATASET",
+        help="MRCLAM datasets: folders or numbers 1-9 (default: 7 1 4)",
+    )
+    p.add_argument(
+        "--cross-validate",
+        action="store_true",
+        help="leave one dataset out: tune on the others, score it",
+    )
     source = p.add_mutually_exclusive_group()
-    source.add_argument("--table", type=ca.input_path, metavar="FILE.json",
-                        help="read the grid's table (from --out) instead of replaying")  # fmt: skip
-    source.add_argument("--out", type=ca.output_file([".json"]), metavar="FILE.json",
-                        help="write the table (each robot at each point) to FILE.json")  # fmt: skip
+    source.add_argument(
+        "--table",
+        type=ca.input_path,
+        metavar="FILE.json",
+        help="read the grid's table (from --out) instead of replaying",
+    )
+    source.add_argument(
+        "--out",
+        type=ca.output_file([".json"]),
+        metavar="FILE.json",
+        help="write the table (each robot at each point) to FILE.json",
+    )
     add_parallel_arguments(p)
     ca.add_json_argument(p, "print one JSON object (the folds, or the ranking)")
     p.set_defaults(func=cmd_tune_mrclam)

@@ -30,15 +30,23 @@ MAX_BLUR = 20.0
 def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) -> None:
     """Register ``vision-eval`` (`help` is the one line of `ekfslam.cli.main.COMMANDS`)."""
     p = subparsers.add_parser(name, help=help)
-    p.add_argument("--poses", type=ca.whole(1, MAX_POSES, why="each pose renders a frame"),
-                   default=200, help="random poses (default: %(default)s)")  # fmt: skip
+    p.add_argument(
+        "--poses",
+        type=ca.whole(1, MAX_POSES, why="each pose renders a frame"),
+        default=200,
+        help="random poses (default: %(default)s)",
+    )
     p.add_argument("--seed", type=ca.seed(), default=0)
     p.add_argument("--detector", choices=["opencv", "opencv-subpix", "apriltag"], default="opencv")
     p.add_argument("--no-refine", action="store_true", help="keep the detector's own corners")
-    p.add_argument("--blur", type=ca.non_negative(MAX_BLUR, why="px; the tags would vanish"),
-                   help="lens blur sigma, px (default: RenderConfig's)")  # fmt: skip
-    p.add_argument("--run", type=ca.input_path,
-                   help="also compare replays of this simulated frames run")  # fmt: skip
+    p.add_argument(
+        "--blur",
+        type=ca.non_negative(MAX_BLUR, why="px; the tags would vanish"),
+        help="lens blur sigma, px (default: RenderConfig's)",
+    )
+    p.add_argument(
+        "--run", type=ca.input_path, help="also compare replays of this simulated frames run"
+    )
     ca.add_json_argument(p)
     p.set_defaults(func=cmd_vision_eval)
 

@@ -59,9 +59,13 @@ def shared_sighting_noise(
 
 
 def image_noises(
-    Q: ArrayLike, zs: ArrayLike, omega: float, velocity: tuple[float, float],
-    time_sigma: float, shared: bool,
-) -> tuple[Array, Array, tuple[float, float, float] | None]:  # fmt: skip
+    Q: ArrayLike,
+    zs: ArrayLike,
+    omega: float,
+    velocity: tuple[float, float],
+    time_sigma: float,
+    shared: bool,
+) -> tuple[Array, Array, tuple[float, float, float] | None]:
     """For the sightings zs (m, 2) of one image taken at body velocity (m/s) and turn rate omega
     (rad/s): the test's Q (2, 2), the updates' Q (2, 2) or (m, 2, 2), and the rate the joint test
     shares among them (None: none). shared: one error per image (`shared_sighting_noise` in the

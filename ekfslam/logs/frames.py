@@ -88,9 +88,11 @@ def iter_frames(
             image = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
         if image.shape != size:
             raise InputError(
-                where, None, f"frame {k} is {image.shape[1]}x{image.shape[0]} px, but run.json's "
+                where,
+                None,
+                f"frame {k} is {image.shape[1]}x{image.shape[0]} px, but run.json's "
                 f"camera image_size is {camera.width}x{camera.height}",
-            )  # fmt: skip
+            )
         return image
 
     if spec.kind == "images":
@@ -111,9 +113,10 @@ def iter_frames(
                 ok, image = capture.read()
                 if not ok:
                     raise InputError(
-                        path, None, f"the video ends after {k} frames, but frames.csv lists "
-                        f"frame {wanted}",
-                    )  # fmt: skip
+                        path,
+                        None,
+                        f"the video ends after {k} frames, but frames.csv lists frame {wanted}",
+                    )
                 k += 1
                 if k - 1 == wanted:
                     yield checked(image, path, wanted)

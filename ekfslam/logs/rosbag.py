@@ -107,9 +107,10 @@ def read_rosbag(
             raise InputError(path, None, "bag not found (a ROS 1 .bag file or a ROS 2 bag folder)")
         if path.is_dir() and not (path / "metadata.yaml").is_file():
             raise InputError(
-                path, None, "not a ROS 2 bag: the folder has no metadata.yaml (a ROS 1 bag is a "
-                ".bag file)"
-            )  # fmt: skip
+                path,
+                None,
+                "not a ROS 2 bag: the folder has no metadata.yaml (a ROS 1 bag is a .bag file)",
+            )
     motion_topic = spec.twist_topic or spec.wheels_topic
     try:
         with AnyReader(paths, default_typestore=get_typestore(Stores.LATEST)) as reader:

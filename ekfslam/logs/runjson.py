@@ -387,13 +387,21 @@ def meta_json(meta: RunMeta) -> str:
     c, tags, frames = meta.camera, meta.tags, meta.frames
     # the camera extension and defaults are written only when present: older runs keep their bytes
     optional = {
-        "camera": None if c is None else {
-            "image_size": [c.width, c.height], "fx": c.fx, "fy": c.fy, "cx": c.cx, "cy": c.cy,
-            "distortion": list(c.distortion), "mount_height": c.mount_height, "pitch": c.pitch,
+        "camera": None
+        if c is None
+        else {
+            "image_size": [c.width, c.height],
+            "fx": c.fx,
+            "fy": c.fy,
+            "cx": c.cx,
+            "cy": c.cy,
+            "distortion": list(c.distortion),
+            "mount_height": c.mount_height,
+            "pitch": c.pitch,
         },
         "tags": None if tags is None else {"family": tags.family, "size": tags.size},
         "frames": None if frames is None else {"kind": frames.kind, "file": frames.file},
         "defaults": meta.defaults,
-    }  # fmt: skip
+    }
     lines += [f'  "{k}": {dump_json(v)}' for k, v in optional.items() if v is not None]
     return "{\n" + ",\n".join(lines) + "\n}\n"

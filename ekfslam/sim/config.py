@@ -34,10 +34,16 @@ Array = NDArray[np.float64]
 TRAJECTORIES = ("square", "octagon")
 #: The fields of a real robot's systematic errors; at their defaults the robot is ideal.
 SYSTEMATIC_FIELDS = (
-    "tag_position_sigma", "range_scale", "wheel_radius_scale", "wheelbase_scale",
-    "slip_fraction", "camera_latency", "motor_lag", "lens_distortion_ignored",
+    "tag_position_sigma",
+    "range_scale",
+    "wheel_radius_scale",
+    "wheelbase_scale",
+    "slip_fraction",
+    "camera_latency",
+    "motor_lag",
+    "lens_distortion_ignored",
     "camera_yaw_error",
-)  # fmt: skip
+)
 DEFAULT_SIZE = 0.75  # m: the seed's square side (and octagon size), 1.5 m arena
 
 
@@ -160,20 +166,31 @@ class SimulationConfig:
             raise ConfigError("SimulationConfig.camera must be a Camera with its mount_height set")
         rules = (
             ("laps", lambda v: v == int(v) >= 1, "a positive whole number"),
-            ("size controls_hz camera_hz max_speed max_turn_rate max_accel max_angular_accel "
-             "tag_size tag_height camera_max_range max_incidence range_scale wheel_radius_scale "
-             "wheelbase_scale", lambda v: v > 0, "positive"),
-            ("heading_gain stop_duration wheel_noise_sigma wheel_noise_fraction wheel_scale_sigma "
-             "camera_min_range range_noise_sigma range_noise_fraction bearing_noise_sigma "
-             "view_margin_px tag_position_sigma camera_latency motor_lag", lambda v: v >= 0,
-             "zero or positive"),
+            (
+                "size controls_hz camera_hz max_speed max_turn_rate max_accel max_angular_accel "
+                "tag_size tag_height camera_max_range max_incidence range_scale wheel_radius_scale "
+                "wheelbase_scale",
+                lambda v: v > 0,
+                "positive",
+            ),
+            (
+                "heading_gain stop_duration wheel_noise_sigma wheel_noise_fraction "
+                "wheel_scale_sigma camera_min_range range_noise_sigma range_noise_fraction "
+                "bearing_noise_sigma "
+                "view_margin_px tag_position_sigma camera_latency motor_lag",
+                lambda v: v >= 0,
+                "zero or positive",
+            ),
             ("slip_fraction", lambda v: 0 <= v <= 0.5, "a fraction in [0, 0.5]"),
             ("lens_distortion_ignored", lambda v: 0 <= v <= 1, "a fraction in [0, 1]"),
             ("camera_yaw_error", lambda v: abs(v) < 0.5, "an angle under 0.5 rad"),
             ("start_error_sigma", lambda v: min(v) >= 0, "zero or positive"),
-            ("dropout outlier_wrong_id_rate outlier_range_rate", lambda v: 0 <= v <= 1,
-             "a probability in [0, 1]"),
-        )  # fmt: skip
+            (
+                "dropout outlier_wrong_id_rate outlier_range_rate",
+                lambda v: 0 <= v <= 1,
+                "a probability in [0, 1]",
+            ),
+        )
         for names, ok, what in rules:
             for name in names.split():
                 if not ok(getattr(self, name)):
@@ -204,8 +221,10 @@ class SimulationConfig:
             if f.name in SYSTEMATIC_FIELDS and value == f.default:
                 continue
             if isinstance(value, MecanumGeometry | Camera):
-                value = {k: list(v) if isinstance(v, tuple) else v
-                         for k, v in dataclasses.asdict(value).items()}  # fmt: skip
+                value = {
+                    k: list(v) if isinstance(v, tuple) else v
+                    for k, v in dataclasses.asdict(value).items()
+                }
             elif isinstance(value, tuple):
                 value = list(value)
             out[f.name] = value
@@ -254,52 +273,61 @@ class ErrorSource:
 #: builds the seed's experiments with them, and `ekfslam.analysis.error_budget` weighs each.
 REALISTIC: dict[str, ErrorSource] = {
     "tag placement": ErrorSource(
-        "tag_position_sigma", 0.03,
+        "tag_position_sigma",
+        0.03,
         "tags taped to the walls by hand and their map taken with a tape measure: 2-3 cm "
         "per coordinate",
     ),
     "range scale": ErrorSource(
-        "range_scale", 1.09,
+        "range_scale",
+        1.09,
         "the distance z = f S / s_px twice off: a focal length taken from the webcam's "
         "datasheet field of view instead of a calibration (3-5 % long) and tags printed "
-        "\"fit to page\", 3-6 % smaller than the S the detector is told (1.05 x 1.04)",
+        '"fit to page", 3-6 % smaller than the S the detector is told (1.05 x 1.04)',
     ),
     "lens distortion": ErrorSource(
-        "lens_distortion_ignored", 1.0,
+        "lens_distortion_ignored",
+        1.0,
         "the same uncalibrated camera has no distortion coefficients to undo, so its mild "
         "barrel distortion (k1 = -0.08) is left in: tags off to the side read up to 5 % long "
         "and 1° towards the image centre",
     ),
     "camera yaw": ErrorSource(
-        "camera_yaw_error", 0.05,
+        "camera_yaw_error",
+        0.05,
         "a webcam clamped to the chassis and aimed by eye, its optical axis taken as the "
         "image centre: 2-4° off the robot's heading (0.05 rad, 3°)",
     ),
     "wheel radius": ErrorSource(
-        "wheel_radius_scale", 0.985,
+        "wheel_radius_scale",
+        0.985,
         "the nominal 30 mm radius against the real rollers' rolling radius, read with a "
         "ruler to half a millimetre, and the rubber flattens under the robot: 1-2 % smaller",
     ),
     "wheelbase": ErrorSource(
-        "wheelbase_scale", 0.97,
+        "wheelbase_scale",
+        0.97,
         "mecanum rollers touch the floor off the wheels' centre planes, so the effective "
         "lx + ly differs from the ruler's (taken to the wheels' outer faces) by 2-4 %",
     ),
     "wheel slip": ErrorSource(
-        "slip_fraction", 0.02,
+        "slip_fraction",
+        0.02,
         "mecanum rollers on a smooth classroom floor lose a few % of the motion, at random",
     ),
     "motor lag": ErrorSource(
-        "motor_lag", 0.3,
+        "motor_lag",
+        0.3,
         "controls.csv holds the commanded wheel speeds, and small gear motors reach a new "
         "speed in a few tenths of a second: MRCLAM's robots lag their commands by 0.25-0.30 s",
     ),
     "camera latency": ErrorSource(
-        "camera_latency", 0.3,
+        "camera_latency",
+        0.3,
         "a USB webcam buffers a frame or two (0.1-0.2 s at 10 Hz) and the tag detector on a "
         "small computer takes about 0.1 s: 0.2-0.3 s from exposure to time stamp",
     ),
-}  # fmt: skip
+}
 REALISTIC_ERRORS: dict[str, float] = {s.field: s.value for s in REALISTIC.values()}
 
 #: The seed's two experiments as data/runs/generate.sh simulates them: two laps of each path,

@@ -159,17 +159,28 @@ def scenario(
     if name not in SCENARIOS:
         raise ValueError(f"scenario must be one of {SCENARIOS}, got {name!r}")
     kw = dict(
-        trajectory="octagon" if name in ("loop", "stress") else name, laps=2, seed=seed,
-        start_error=(0.0, 0.0, 0.0), wheel_noise_fraction=0.0, range_noise_fraction=0.0,
-        stop_duration=0.0, outlier_wrong_id_rate=0.0, outlier_range_rate=0.0,
-    )  # fmt: skip
+        trajectory="octagon" if name in ("loop", "stress") else name,
+        laps=2,
+        seed=seed,
+        start_error=(0.0, 0.0, 0.0),
+        wheel_noise_fraction=0.0,
+        range_noise_fraction=0.0,
+        stop_duration=0.0,
+        outlier_wrong_id_rate=0.0,
+        outlier_range_rate=0.0,
+    )
     arena = SEED_ARENA
     if name in ("loop", "stress"):
         arena = ring_arena() if name == "loop" else pairs_arena()
         kw |= dict(
-            size=3.0 * math.sqrt(2.0), laps=1, max_speed=0.3, controls_hz=10.0, camera_hz=5.0,
-            camera_max_range=4.0, wheel_noise_sigma=1.0,
-        )  # fmt: skip
+            size=3.0 * math.sqrt(2.0),
+            laps=1,
+            max_speed=0.3,
+            controls_hz=10.0,
+            camera_hz=5.0,
+            camera_max_range=4.0,
+            wheel_noise_sigma=1.0,
+        )
     if name == "stress":
         kw["laps"] = 2
     if wheel_noise_sigma is not None:
@@ -194,6 +205,9 @@ def noise_for_simulation(config: SimulationConfig, wheel_speed_rms: float = 0.0)
     M = wheel_noise_to_twist_covariance(sigma_w, c.robot) / c.controls_hz
     sx, sy, st = np.sqrt(np.diag(M)).tolist()
     return NoiseConfig(
-        sigma_x=sx, sigma_y=sy, sigma_theta=st,
-        sigma_range=c.range_noise_sigma, sigma_bearing=c.bearing_noise_sigma,
-    )  # fmt: skip
+        sigma_x=sx,
+        sigma_y=sy,
+        sigma_theta=st,
+        sigma_range=c.range_noise_sigma,
+        sigma_bearing=c.bearing_noise_sigma,
+    )

@@ -151,9 +151,18 @@ def _speed(remaining: float, previous: float, top: float, accel: float, dt: floa
 #: The fields of `SimulationConfig` the controller reads: runs that agree on them (an error
 #: budget's runs differ only in the seed and the systematic errors) share one plan.
 _PLAN_FIELDS = (
-    "trajectory", "size", "laps", "controls_hz", "max_speed", "max_turn_rate", "max_accel",
-    "max_angular_accel", "heading_gain", "stop_duration", "robot",
-)  # fmt: skip
+    "trajectory",
+    "size",
+    "laps",
+    "controls_hz",
+    "max_speed",
+    "max_turn_rate",
+    "max_accel",
+    "max_angular_accel",
+    "heading_gain",
+    "stop_duration",
+    "robot",
+)
 _PLANS: dict[tuple, CommandPlan] = {}
 
 
@@ -240,16 +249,24 @@ def visible(pose: ArrayLike, arena: Arena, config: SimulationConfig) -> NDArray[
     c = config
     p = np.asarray(pose, dtype=float).reshape(-1, 3)
     in_view = tags_in_view(
-        c.camera, c.tags, c.camera_mounting, p, arena.tag_positions(), arena.tag_normals(),
-        tag_height=c.tag_height, max_incidence=c.max_incidence, margin_px=c.view_margin_px,
-    )  # fmt: skip
+        c.camera,
+        c.tags,
+        c.camera_mounting,
+        p,
+        arena.tag_positions(),
+        arena.tag_normals(),
+        tag_height=c.tag_height,
+        max_incidence=c.max_incidence,
+        margin_px=c.view_margin_px,
+    )
     d = arena.tag_positions()[None, :, :] - p[:, None, :2]  # (F, n, 2) robot -> tag
     r = np.hypot(d[..., 0], d[..., 1])
     return in_view & (r >= c.camera_min_range) & (r <= c.camera_max_range)
 
 
-def _true_motion(config: SimulationConfig, plan: CommandPlan, true_start: Array, rng, slip_rng,
-                 t_cam):  # fmt: skip
+def _true_motion(
+    config: SimulationConfig, plan: CommandPlan, true_start: Array, rng, slip_rng, t_cam
+):
     """True poses at the control times and at the camera times, and the noisy wheel speeds."""
     c = config
     cmd = plan.wheels
@@ -344,10 +361,18 @@ def simulate(config: SimulationConfig | None = None, arena: Arena = SEED_ARENA) 
     seen = true_arena(c, arena, tag_rng)
     detections, outliers = _detect(c, seen, cam_poses, t_cam, camera_rng)
     noise_names = (
-        "wheel_noise_sigma", "wheel_noise_fraction", "wheel_scale_sigma", "start_error_sigma",
-        "range_noise_sigma", "range_noise_fraction", "bearing_noise_sigma", "dropout",
-        "outlier_wrong_id_rate", "outlier_range_rate", *SYSTEMATIC_FIELDS,
-    )  # fmt: skip
+        "wheel_noise_sigma",
+        "wheel_noise_fraction",
+        "wheel_scale_sigma",
+        "start_error_sigma",
+        "range_noise_sigma",
+        "range_noise_fraction",
+        "bearing_noise_sigma",
+        "dropout",
+        "outlier_wrong_id_rate",
+        "outlier_range_rate",
+        *SYSTEMATIC_FIELDS,
+    )
     config_dict = c.to_dict()  # holds the systematic errors only when they are not ideal
     noise_names = tuple(name for name in noise_names if name in config_dict)
     simulation = {

@@ -12,11 +12,6 @@ as printed is right; arctan(δy/δx) in eq. (13) is off by π when δx < 0; and 
 of eqs. (7) and (9) are not defined for a 3x3 inner matrix once the map holds a landmark.
 
 Derivations are cached with functools.cache (sympy is slow) and nothing is derived at import time.
-
-Over 400 lines because the seed's slips (eqs. 13, 14 and the lifts) are stated with the very
-symbols and cached models they are checked against, and notebooks 03 and 04 read both through
-one namespace (``from ekfslam.teaching import derivations as d``): a separate errata module would
-need its own import in those cells, and re-exporting it here would make a cycle.
 """
 
 from __future__ import annotations

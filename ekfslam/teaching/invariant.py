@@ -125,8 +125,13 @@ def new_landmark_jacobians() -> tuple[sp.ImmutableMatrix, sp.ImmutableMatrix]:
     g = inverse_observation_model().value
     X = sp.Matrix([*POSE, 0, 0])
     true_pose = retract(X, (*XI[:3], 0, 0))[:3]
-    subs = dict(zip((*POSE, *MEASUREMENT), (*true_pose, MEASUREMENT[0] + DZ[0],
-                                               MEASUREMENT[1] + DZ[1]), strict=True))  # fmt: skip
+    subs = dict(
+        zip(
+            (*POSE, *MEASUREMENT),
+            (*true_pose, MEASUREMENT[0] + DZ[0], MEASUREMENT[1] + DZ[1]),
+            strict=True,
+        )
+    )
     m_true = g.subs(subs, simultaneous=True)
     a = XI[2]
     xi_m = _V_inv(a) * (m_true - _rot(a) * g)

@@ -144,8 +144,9 @@ def png_from_rows(rows: np.ndarray, level: int = PNG_COMPRESS_LEVEL) -> bytes:
     height, width = rows.shape[0], (rows.shape[1] - 1) // 4
     header = struct.pack(">IIBBBBB", width, height, 8, 6, 0, 0, 0)  # 8-bit RGBA, no interlace
     idat = deflate(rows, level)
-    return b"".join((PNG_SIGNATURE, _chunk(b"IHDR", header), _chunk(b"IDAT", idat),
-                     _chunk(b"IEND", b"")))  # fmt: skip
+    return b"".join(
+        (PNG_SIGNATURE, _chunk(b"IHDR", header), _chunk(b"IDAT", idat), _chunk(b"IEND", b""))
+    )
 
 
 def _chunk(kind: bytes, body: bytes) -> bytes:

@@ -105,8 +105,16 @@ _SPLIT = """(() => {
   });
 })();"""
 #: The pieces `pieces` reports, in the order a move goes through them (ms).
-PIECES = ("key_to_send", "send_to_reply", "reply_to_frame", "frame_to_blob", "png_copy",
-          "blob_to_loaded", "loaded_to_painted", "frame_kib")  # fmt: skip
+PIECES = (
+    "key_to_send",
+    "send_to_reply",
+    "reply_to_frame",
+    "frame_to_blob",
+    "png_copy",
+    "blob_to_loaded",
+    "loaded_to_painted",
+    "frame_kib",
+)
 
 #: A move is over when the kernel reported a new replay and the canvas was quiet this long (s).
 QUIET_S = 0.4
@@ -189,9 +197,18 @@ def pieces(page) -> dict[str, float]:
             continue
         frame = max(recvs, key=lambda r: r[1])
         copy = sum(d for t0, d in t["copies"] if blob <= t0 < loads[0])
-        rows.append((sends[0] - key, recvs[0][0] - sends[0], frame[0] - recvs[0][0],
-                     blob - frame[0], copy, loads[0] - blob, painted[0] - loads[0],
-                     frame[1] / 1024))  # fmt: skip
+        rows.append(
+            (
+                sends[0] - key,
+                recvs[0][0] - sends[0],
+                frame[0] - recvs[0][0],
+                blob - frame[0],
+                copy,
+                loads[0] - blob,
+                painted[0] - loads[0],
+                frame[1] / 1024,
+            )
+        )
     if not rows:
         return {}
     return dict(zip(PIECES, np.median(np.array(rows), axis=0).tolist(), strict=True))
@@ -264,8 +281,9 @@ def voila_server(
         env = jupyter_home(tmp)
         if pythonpath is not None:
             env["PYTHONPATH"] = pythonpath
-        proc = subprocess.Popen(cmd, env=env, cwd=folder, stdout=out,
-                                stderr=subprocess.STDOUT, start_new_session=True)  # fmt: skip
+        proc = subprocess.Popen(
+            cmd, env=env, cwd=folder, stdout=out, stderr=subprocess.STDOUT, start_new_session=True
+        )
     try:
         deadline = time.monotonic() + startup_s
         while True:

@@ -60,11 +60,19 @@ def benchmark(runs: Mapping[str, RunSource] | None = None, repeats: int = 15) ->
             updated = time.perf_counter()
             fig.canvas.print_png(io.BytesIO())
             done = time.perf_counter()
-            samples.append((done - started, state.replay_seconds, updated - started,
-                            done - updated, time.process_time() - cpu))  # fmt: skip
+            samples.append(
+                (
+                    done - started,
+                    state.replay_seconds,
+                    updated - started,
+                    done - updated,
+                    time.process_time() - cpu,
+                )
+            )
         medians = (np.median(np.array(samples), axis=0) * 1e3).tolist()
-        out[name] = dict(zip(("median_ms", "replay_ms", "update_ms", "draw_ms", "cpu_ms"),
-                             medians, strict=True))  # fmt: skip
+        out[name] = dict(
+            zip(("median_ms", "replay_ms", "update_ms", "draw_ms", "cpu_ms"), medians, strict=True)
+        )
         out[name]["blit_ms"] = float(np.median(blits) * 1e3)
         seconds, sizes = np.array(frames).reshape(-1, 2).T
         out[name]["frame_ms"] = float(np.median(seconds) * 1e3)

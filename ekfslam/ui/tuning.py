@@ -136,9 +136,11 @@ def seed_runs(folder: str | Path | None = None) -> dict[str, RunSource]:
     folder = Path(RUNS_DIR if folder is None else folder)
     if not folder.is_dir():
         raise InputError(
-            folder, None, "run folder not found (an installed ekfslam ships no data/runs); "
+            folder,
+            None,
+            "run folder not found (an installed ekfslam ships no data/runs); "
             "pass seed_runs(<checkout>/data/runs)",
-        )  # fmt: skip
+        )
     return {name: partial(read_run, folder / name) for name in SEED_RUNS}
 
 

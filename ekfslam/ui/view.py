@@ -64,8 +64,9 @@ class TuningView:
         # a full draw stacks them the same way.
         (self.true_path,) = ax.plot([], [], "--", color="0.55", lw=1, label="true path", zorder=0.9)
         (self.path,) = ax.plot([], [], "-", color="tab:red", lw=1.2, label="estimated path")
-        (self.true_tags,) = ax.plot([], [], "o", color="tab:green", ms=8, label="true tags",
-                                    zorder=0.9)  # fmt: skip
+        (self.true_tags,) = ax.plot(
+            [], [], "o", color="tab:green", ms=8, label="true tags", zorder=0.9
+        )
         self.tags = ax.scatter(
             np.empty(0),
             np.empty(0),
@@ -100,9 +101,18 @@ class TuningView:
         self.header = fig.suptitle("", family="monospace", fontsize=TITLE_PT)
         below = offset_copy(fig.transFigure, fig, y=-TITLE_PT * 1.2, units="points")
         # (its glyphs rasterised once: `ekfslam.ui.glyphs`, the same pixels as a Text's)
-        self.text = fig.add_artist(CachedGlyphText(0.5, 0.98, "", family="monospace",
-                                                   fontsize=TITLE_PT, ha="center", va="top",
-                                                   transform=below))  # fmt: skip
+        self.text = fig.add_artist(
+            CachedGlyphText(
+                0.5,
+                0.98,
+                "",
+                family="monospace",
+                fontsize=TITLE_PT,
+                ha="center",
+                va="top",
+                transform=below,
+            )
+        )
         self._decades, self._limits_set = (0, 0), False
         self._truth_of: RunLog | None = None  # the run whose truth the artists show
         self._truth_xy = (np.empty((0, 2)), np.empty((0, 2)))
@@ -110,11 +120,23 @@ class TuningView:
         data = [self.path, self.tags, self.start, self.accepted]
         data += [self.rejected, self.gate_line, self.text]
         self.blitter = (
-            Blitter(fig, lambda: [*data, *self.ellipses], [ax.get_legend(), n.get_legend()],
-                    lambda: (ax.get_xlim(), ax.get_ylim(), n.get_xlim(), n.get_ylim(),
-                             self._decades, self.header.get_text(), self._truth_version))
-            if (can_blit(fig) if blit is None else blit) else None
-        )  # fmt: skip
+            Blitter(
+                fig,
+                lambda: [*data, *self.ellipses],
+                [ax.get_legend(), n.get_legend()],
+                lambda: (
+                    ax.get_xlim(),
+                    ax.get_ylim(),
+                    n.get_xlim(),
+                    n.get_ylim(),
+                    self._decades,
+                    self.header.get_text(),
+                    self._truth_version,
+                ),
+            )
+            if (can_blit(fig) if blit is None else blit)
+            else None
+        )
 
     def redraw(self) -> None:
         """Show the artists' new state: blit the data, or ask the canvas for a full draw."""
@@ -240,8 +262,9 @@ def status_text(summary: RunSummary, seed: Row | None = None) -> str:
     if summary.ate_note is None:
         return "\n".join([*lines, counts])
     start = (
-        "" if summary.start_pose is None
+        ""
+        if summary.start_pose is None
         else " (x, y, theta) = ({:.3f} m, {:.3f} m, {:+.3f} rad)".format(*summary.start_pose)
-    )  # fmt: skip
+    )
     truth = f"no ground truth, no ATE: the map is scored after eq. (17); recovered start{start}"
     return "\n".join([*lines, counts, truth if start else "no ground truth, no ATE"])

@@ -58,12 +58,14 @@ class Undistorter:
             self.margin, self._map = (0, 0), None
             return
         w, h = camera.width, camera.height
-        border = np.concatenate([
-            np.column_stack([np.arange(w), np.zeros(w)]),
-            np.column_stack([np.arange(w), np.full(w, h - 1)]),
-            np.column_stack([np.zeros(h), np.arange(h)]),
-            np.column_stack([np.full(h, w - 1), np.arange(h)]),
-        ])  # fmt: skip
+        border = np.concatenate(
+            [
+                np.column_stack([np.arange(w), np.zeros(w)]),
+                np.column_stack([np.arange(w), np.full(w, h - 1)]),
+                np.column_stack([np.zeros(h), np.arange(h)]),
+                np.column_stack([np.full(h, w - 1), np.arange(h)]),
+            ]
+        )
         ideal = undistort(border, camera)
         left = max(0, math.ceil(-ideal[:, 0].min()) + 1)
         top = max(0, math.ceil(-ideal[:, 1].min()) + 1)

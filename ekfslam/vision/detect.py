@@ -298,8 +298,9 @@ def observations_table(
 LABEL_SCALE = 0.6
 
 
-def label_box(image: NDArray[np.uint8], lines: tuple[str, ...], at: tuple[int, int],
-              size: float) -> None:  # fmt: skip
+def label_box(
+    image: NDArray[np.uint8], lines: tuple[str, ...], at: tuple[int, int], size: float
+) -> None:
     """Draw `lines` white on a black box whose bottom-left is `at` (px), kept inside `image`."""
     font, pad = cv2.FONT_HERSHEY_SIMPLEX, 3
     sizes = [cv2.getTextSize(line, font, size, 1) for line in lines]
@@ -329,8 +330,15 @@ def annotate(gray: NDArray[np.uint8], result: FrameResult, scale: int = 1) -> ND
         pts = np.rint(px * (1 << shift)).astype(np.int32)
         cv2.polylines(image, [pts], True, (0, 220, 0), 1, cv2.LINE_AA, shift)
         for k, p in enumerate(pts):
-            cv2.circle(image, tuple(p), (3 if k == 0 else 2) << shift, (255, 60, 0),
-                       -1 if k == 0 else 1, cv2.LINE_AA, shift)  # fmt: skip
+            cv2.circle(
+                image,
+                tuple(p),
+                (3 if k == 0 else 2) << shift,
+                (255, 60, 0),
+                -1 if k == 0 else 1,
+                cv2.LINE_AA,
+                shift,
+            )
         x, y = px.min(axis=0)
         lines = (f"tag {o.tag_id}", f"{o.range:.3f} m {math.degrees(o.bearing):+.1f} deg")
         label_box(image, lines, (int(x), int(y)), LABEL_SCALE * max(1, scale / 2))

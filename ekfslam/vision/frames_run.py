@@ -235,10 +235,12 @@ def detect_run(
         raise InputError(folder, None, "give --out or --in-place, not both")
     if out is None and not in_place:
         raise InputError(
-            folder, None, "say where to write the detections: --out DIR (a new run folder), "
+            folder,
+            None,
+            "say where to write the detections: --out DIR (a new run folder), "
             "--out FILE.csv, or --in-place (this run's detections.csv, which `run` then uses "
             "instead of the frames)",
-        )  # fmt: skip
+        )
     if in_place:
         target = path = folder / DETECTIONS_CSV
     elif Path(out).suffix.lower() == ".csv":

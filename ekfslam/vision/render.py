@@ -171,10 +171,15 @@ class ArenaRenderer:
             if np.all(cam_sq[:, 2] > _NEAR):
                 corners[k] = self.camera.project(cam_sq)
         in_view = tags_in_view(
-            self.camera, self.tags, self.mounting, np.asarray(pose, dtype=float)[None],
-            self.arena.tag_positions(), np.array([t.normal for t in self.arena.tags]),
-            tag_height=self.config.tag_height, margin_px=margin_px,
-        )[0]  # fmt: skip
+            self.camera,
+            self.tags,
+            self.mounting,
+            np.asarray(pose, dtype=float)[None],
+            self.arena.tag_positions(),
+            np.array([t.normal for t in self.arena.tags]),
+            tag_height=self.config.tag_height,
+            margin_px=margin_px,
+        )[0]
         d = self.arena.tag_positions() - np.asarray(pose, dtype=float)[:2]
         rng = np.hypot(d[:, 0], d[:, 1])
         bearing = wrap_angle(np.arctan2(d[:, 1], d[:, 0]) - float(pose[2]))

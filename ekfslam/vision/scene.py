@@ -129,10 +129,15 @@ def build_scene(
             )
         )
     else:
-        surfaces.append(Surface(  # a plain grey backdrop instead of the room
-            np.array([-50.0, 50.0, 30.0]), np.array([1.0, 0.0, 0.0]), np.array([0.0, -1.0, 0.0]),
-            (100.0, 100.0), (np.full((2, 2), 0.5, np.float32),),
-        ))  # fmt: skip
+        surfaces.append(
+            Surface(  # a plain grey backdrop instead of the room
+                np.array([-50.0, 50.0, 30.0]),
+                np.array([1.0, 0.0, 0.0]),
+                np.array([0.0, -1.0, 0.0]),
+                (100.0, 100.0),
+                (np.full((2, 2), 0.5, np.float32),),
+            )
+        )
     for normal in ((-1.0, 0.0), (0.0, -1.0), (1.0, 0.0), (0.0, 1.0)):
         length = 2 * half
         texel = 0.004
@@ -142,11 +147,11 @@ def build_scene(
         tex = np.clip(0.58 + grain, 0, 1).astype(np.float32)
         shade = 0.85 + 0.15 * float(np.dot(normal, light))
         centre = -half * np.array(normal)
-        surfaces.append(wall(centre, normal, length, wall_height, wall_height,
-                             (tex,), shade))  # fmt: skip
+        surfaces.append(wall(centre, normal, length, wall_height, wall_height, (tex,), shade))
     n = round(2 * half / 0.005)
-    floor = np.clip(0.36 + _smooth_noise(rng, (n, n), 1.0, 0.02)
-                    + _smooth_noise(rng, (n, n), 20.0, 0.03), 0, 1)  # fmt: skip
+    floor = np.clip(
+        0.36 + _smooth_noise(rng, (n, n), 1.0, 0.02) + _smooth_noise(rng, (n, n), 20.0, 0.03), 0, 1
+    )
     surfaces.append(
         Surface(
             np.array([-half, half, 0.0]),

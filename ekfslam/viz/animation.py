@@ -116,8 +116,9 @@ class ReplayFrames:
         self.robot_ellipse = ax.add_patch(
             Ellipse((0.0, 0.0), 0.0, 0.0, fill=False, color="darkred", lw=1.5)
         )
-        (self.landmarks,) = ax.plot([], [], "o", mfc="none", mec="tab:blue", ms=9, mew=1.5,
-                                    label="estimated landmarks")  # fmt: skip
+        (self.landmarks,) = ax.plot(
+            [], [], "o", mfc="none", mec="tab:blue", ms=9, mew=1.5, label="estimated landmarks"
+        )
         self.landmark_ellipses: list[Ellipse] = []
         for _ in kf.landmark_ids:
             e = ax.add_patch(Ellipse((0.0, 0.0), 0.0, 0.0, fill=False, color="tab:blue", lw=1.5))
@@ -159,20 +160,22 @@ class ReplayFrames:
         for edge in [2.5 + 2 * j for j in range(len(kf.landmark_ids))]:
             ax.axhline(edge, color="white", lw=0.5)
             ax.axvline(edge, color="white", lw=0.5)
-        ax.set_title("correlations in Σ (eq. 1 order: robot, then tags as first seen)",
-                     fontsize=FONT)  # fmt: skip
+        ax.set_title(
+            "correlations in Σ (eq. 1 order: robot, then tags as first seen)", fontsize=FONT
+        )
         bar = self.figure.colorbar(self.correlation, ax=ax, shrink=0.8)
         bar.ax.tick_params(labelsize=FONT)
 
     def _build_sigma(self) -> None:
         ax, kf, h = self.sigma_ax, self.keyframes, self.history
-        self.landmark_sigma = np.array([_mean_landmark_sigma(kf.Sigma[f], kf.dim[f])
-                                        for f in range(len(kf))])  # fmt: skip
+        self.landmark_sigma = np.array(
+            [_mean_landmark_sigma(kf.Sigma[f], kf.dim[f]) for f in range(len(kf))]
+        )
         robot = np.sqrt(h.pose_cov[:, 0, 0] + h.pose_cov[:, 1, 1]) if len(h.t) else np.zeros(0)
-        (self.robot_sigma_line,) = ax.plot([], [], "-", color="darkred",
-                                           label="robot √(Σxx + Σyy)")  # fmt: skip
-        (self.map_sigma_line,) = ax.plot([], [], "o-", color="tab:blue", ms=3,
-                                         label="landmarks, mean √trace Σ_ll")  # fmt: skip
+        (self.robot_sigma_line,) = ax.plot([], [], "-", color="darkred", label="robot √(Σxx + Σyy)")
+        (self.map_sigma_line,) = ax.plot(
+            [], [], "o-", color="tab:blue", ms=3, label="landmarks, mean √trace Σ_ll"
+        )
         self._robot_sigma = 100.0 * robot
         t0 = self.t0 = float(kf.t[0])  # times since the start: MRCLAM's clock is Unix time
         t_end = max(float(kf.t[-1]), float(h.t[-1]) if len(h.t) else t0) - t0
@@ -181,8 +184,11 @@ class ReplayFrames:
         ax.set_ylim(0.0, 1.1 * top)
         for t in self.lap_ends:
             ax.axvline(t - t0, color="k", lw=1.0)
-        ax.set_xlabel("time since the start (s)" + ("  (black lines: end of each lap)" if len(
-            self.lap_ends) else ""), fontsize=FONT)  # fmt: skip
+        ax.set_xlabel(
+            "time since the start (s)"
+            + ("  (black lines: end of each lap)" if len(self.lap_ends) else ""),
+            fontsize=FONT,
+        )
         ax.set_ylabel("σ (cm)", fontsize=FONT)
         ax.tick_params(labelsize=FONT)
         ax.grid(True, alpha=0.3)
@@ -214,20 +220,38 @@ class ReplayFrames:
         self.robot_sigma_line.set_data(h.t[:e] - self.t0, self._robot_sigma[:e])
         self.map_sigma_line.set_data(kf.t[: f + 1] - self.t0, 100.0 * self.landmark_sigma[: f + 1])
         lap = int(np.searchsorted(self.lap_ends, t, side="left")) + 1
-        laps = f"lap {min(lap, len(self.lap_ends))} of {len(self.lap_ends)} · " if len(
-            self.lap_ends) else ""  # fmt: skip
-        self.title.set_text(f"t = {t - self.t0:6.1f} s · {laps}{n} landmarks · {kf.detections[f]} "
-                            "detections used")  # fmt: skip
-        return [self.trajectory, self.heading, self.robot, self.robot_ellipse, self.landmarks,
-                *self.landmark_ellipses, self.correlation, self.robot_sigma_line,
-                self.map_sigma_line, self.title]  # fmt: skip
+        laps = (
+            f"lap {min(lap, len(self.lap_ends))} of {len(self.lap_ends)} · "
+            if len(self.lap_ends)
+            else ""
+        )
+        self.title.set_text(
+            f"t = {t - self.t0:6.1f} s · {laps}{n} landmarks · {kf.detections[f]} detections used"
+        )
+        return [
+            self.trajectory,
+            self.heading,
+            self.robot,
+            self.robot_ellipse,
+            self.landmarks,
+            *self.landmark_ellipses,
+            self.correlation,
+            self.robot_sigma_line,
+            self.map_sigma_line,
+            self.title,
+        ]
 
     def animation(self, fps: float = 10.0) -> mpl_animation.FuncAnimation:
         """A `FuncAnimation` of every keyframe, `fps` frames a second (for ``to_jshtml()``)."""
         return mpl_animation.FuncAnimation(
-            self.figure, self.draw, frames=len(self), interval=1000.0 / fps, blit=False,
-            repeat=True, cache_frame_data=False,
-        )  # fmt: skip
+            self.figure,
+            self.draw,
+            frames=len(self),
+            interval=1000.0 / fps,
+            blit=False,
+            repeat=True,
+            cache_frame_data=False,
+        )
 
 
 def replay_animation(
@@ -273,9 +297,10 @@ def save_animation(frames: ReplayFrames, path: str | os.PathLike, fps: float = 1
         mpl.rcParams["animation.ffmpeg_path"] = exe
         # yuv420p: the pixel format every player reads; it needs even sizes, hence the scale
         writer = mpl_animation.FFMpegWriter(
-            fps=fps, codec="libx264",
+            fps=fps,
+            codec="libx264",
             extra_args=["-pix_fmt", "yuv420p", "-vf", "scale=trunc(iw/2)*2:trunc(ih/2)*2"],
-        )  # fmt: skip
+        )
 
     def write(tmp: Path) -> None:
         # the writer's own loop, not FuncAnimation.save: that draws each frame once more

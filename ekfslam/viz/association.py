@@ -30,9 +30,14 @@ def plot_wrong_associations(study: StressStudy, methods=("nn", "jcbb")) -> Figur
         ax.plot(*study.path.T, color="0.6", lw=0.8, label="true path")
         if len(segments):
             ax.add_collection(
-                LineCollection(segments, colors="tab:red", linewidths=0.6, alpha=0.5,
-                               label=f"wrong association ({len(segments)})")
-            )  # fmt: skip
+                LineCollection(
+                    segments,
+                    colors="tab:red",
+                    linewidths=0.6,
+                    alpha=0.5,
+                    label=f"wrong association ({len(segments)})",
+                )
+            )
         ax.plot(*tags.T, "ks", ms=4, label="true tags")
         fraction = "–" if case.correct_fraction is None else f"{case.correct_fraction:.1%}"
         error = "–" if case.aligned_error is None else f"{case.aligned_error:.3f} m"

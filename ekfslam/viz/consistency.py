@@ -47,14 +47,20 @@ def plot_consistency(
         band = np.broadcast_to(band[:, None] if band.ndim == 1 else band, (2, len(r0.t)))
         ok = np.isfinite(getattr(r0, name))  # NIS exists only at camera frames
         ax.fill_between(
-            r0.t[ok], band[0, ok], band[1, ok], color="0.85",
+            r0.t[ok],
+            band[0, ok],
+            band[1, ok],
+            color="0.85",
             label=f"{r0.confidence:.0%} band for {r0.runs} runs",
-        )  # fmt: skip
+        )
         for r in results:
             ax.plot(
-                r.t[ok], getattr(r, name)[ok], lw=1.0, color=COLORS.get(r.linearization),
+                r.t[ok],
+                getattr(r, name)[ok],
+                lw=1.0,
+                color=COLORS.get(r.linearization),
                 label=f"{r.linearization}: {r.fraction_in_band(name):.0%} of steps in band",
-            )  # fmt: skip
+            )
         ax.set_ylabel(f"average {label}")
         ax.set_yscale("log")
         ax.yaxis.set_major_formatter(ScalarFormatter())  # 3, not 3 x 10^0

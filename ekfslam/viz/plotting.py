@@ -56,10 +56,15 @@ def draw_arena(ax: Axes, half_size: float) -> None:
     """The arena's walls as a square centred at the origin."""
     ax.add_patch(
         Rectangle(
-            (-half_size, -half_size), 2 * half_size, 2 * half_size,
-            fill=False, lw=2, color="0.3", label="arena walls",
+            (-half_size, -half_size),
+            2 * half_size,
+            2 * half_size,
+            fill=False,
+            lw=2,
+            color="0.3",
+            label="arena walls",
         )
-    )  # fmt: skip
+    )
 
 
 def draw_trajectory(ax: Axes, poses: NDArray, arrows: int = 60, **kwargs) -> None:
@@ -69,10 +74,17 @@ def draw_trajectory(ax: Axes, poses: NDArray, arrows: int = 60, **kwargs) -> Non
     step = max(1, len(poses) // arrows)
     p = poses[::step]
     ax.quiver(
-        p[:, 0], p[:, 1], np.cos(p[:, 2]), np.sin(p[:, 2]),
-        color=kwargs.get("color", "tab:red"), angles="xy", scale_units="xy",
-        scale=kwargs.get("arrow_scale", 12.0), width=0.004, label=kwargs.get("label"),
-    )  # fmt: skip
+        p[:, 0],
+        p[:, 1],
+        np.cos(p[:, 2]),
+        np.sin(p[:, 2]),
+        color=kwargs.get("color", "tab:red"),
+        angles="xy",
+        scale_units="xy",
+        scale=kwargs.get("arrow_scale", 12.0),
+        width=0.004,
+        label=kwargs.get("label"),
+    )
 
 
 def draw_true_landmarks(ax: Axes, tag_map: Mapping[int, ArrayLike]) -> None:
@@ -86,9 +98,16 @@ def draw_true_landmarks(ax: Axes, tag_map: Mapping[int, ArrayLike]) -> None:
         norm = float(np.hypot(*away))
         offset = 13.0 * away / norm if norm > 0 else np.array([0.0, 13.0])
         ax.annotate(
-            str(i), tuple(p), xytext=tuple(offset), textcoords="offset points",
-            ha="center", va="center", color="darkgreen", fontweight="bold", fontsize=FONT,
-        )  # fmt: skip
+            str(i),
+            tuple(p),
+            xytext=tuple(offset),
+            textcoords="offset points",
+            ha="center",
+            va="center",
+            color="darkgreen",
+            fontweight="bold",
+            fontsize=FONT,
+        )
 
 
 def plot_map(
@@ -117,9 +136,13 @@ def plot_map(
     rotate = np.eye(2)
     if alignment is not None:
         rotate = rotation(alignment.theta0)
-        poses = np.column_stack(
-            [alignment.apply(poses[:, :2]), wrap_angle(poses[:, 2] + alignment.theta0)]
-        ) if len(poses) else poses  # fmt: skip
+        poses = (
+            np.column_stack(
+                [alignment.apply(poses[:, :2]), wrap_angle(poses[:, 2] + alignment.theta0)]
+            )
+            if len(poses)
+            else poses
+        )
     if len(poses):
         draw_trajectory(ax, poses, label="estimated trajectory")
     if run.meta.tag_map:
@@ -130,17 +153,27 @@ def plot_map(
         if alignment is not None:
             est = alignment.apply(est)
         ax.plot(
-            est[:, 0], est[:, 1], "o", mfc="none", mec="tab:red", ms=10, mew=1.5,
+            est[:, 0],
+            est[:, 1],
+            "o",
+            mfc="none",
+            mec="tab:red",
+            ms=10,
+            mew=1.5,
             label="estimated landmarks",
-        )  # fmt: skip
+        )
         for i, mean in zip(ids, est, strict=True):
             cov = rotate @ np.asarray(result.landmark_covariances[i]) @ rotate.T
             ax.add_patch(covariance_ellipse(mean, cov, confidence, color="tab:blue", lw=1.2))
             if alignment is None:  # aligned, they sit on the true ids' dots
                 ax.annotate(
-                    str(i), tuple(mean), xytext=(6, 6), textcoords="offset points",
-                    color="tab:red", fontsize=FONT,
-                )  # fmt: skip
+                    str(i),
+                    tuple(mean),
+                    xytext=(6, 6),
+                    textcoords="offset points",
+                    color="tab:red",
+                    fontsize=FONT,
+                )
         ax.plot([], [], "-", color="tab:blue", label=f"{confidence:.0%} covariance ellipses")
     if true_start is not None:
         s = np.asarray(true_start, dtype=float)
@@ -225,15 +258,28 @@ def draw_tags(ax: Axes, arena: Arena, *, label: str | None = "tags (AprilTags)")
     pos, normals = arena.tag_positions(), arena.tag_normals()
     ax.plot(pos[:, 0], pos[:, 1], "s", color="tab:green", ms=9, label=label)
     ax.quiver(
-        pos[:, 0], pos[:, 1], normals[:, 0], normals[:, 1], color="tab:green",
-        angles="xy", scale_units="xy", scale=8.0, width=0.005,
-    )  # fmt: skip
+        pos[:, 0],
+        pos[:, 1],
+        normals[:, 0],
+        normals[:, 1],
+        color="tab:green",
+        angles="xy",
+        scale_units="xy",
+        scale=8.0,
+        width=0.005,
+    )
     for tag in arena.tags:  # ids just outside the wall, clear of the normal arrows
         offset = -14 * np.asarray(tag.normal)
         ax.annotate(
-            str(tag.id), tag.position, xytext=tuple(offset), textcoords="offset points",
-            ha="center", va="center", color="darkgreen", fontweight="bold",
-        )  # fmt: skip
+            str(tag.id),
+            tag.position,
+            xytext=tuple(offset),
+            textcoords="offset points",
+            ha="center",
+            va="center",
+            color="darkgreen",
+            fontweight="bold",
+        )
 
 
 def draw_pose_ellipses(
@@ -319,17 +365,35 @@ def update_figure(
 
     def state(ax: Axes, mu, S, style: str, tag: str, alpha: float = 1.0) -> None:
         ax.add_patch(covariance_ellipse(mu[:2], S[:2, :2], color="tab:red", ls=style, alpha=alpha))
-        ax.quiver(mu[0], mu[1], math.cos(mu[2]), math.sin(mu[2]), color="tab:red", alpha=alpha,
-                  angles="xy", scale_units="xy", scale=8.0, width=0.006)  # fmt: skip
+        ax.quiver(
+            mu[0],
+            mu[1],
+            math.cos(mu[2]),
+            math.sin(mu[2]),
+            color="tab:red",
+            alpha=alpha,
+            angles="xy",
+            scale_units="xy",
+            scale=8.0,
+            width=0.006,
+        )
         for k in range(len(landmark_ids)):
             l = 3 + 2 * k
             color = "tab:blue" if k == j else "0.5"
-            ax.add_patch(covariance_ellipse(mu[l : l + 2], S[l : l + 2, l : l + 2],
-                                            color=color, ls=style, alpha=alpha))  # fmt: skip
+            ax.add_patch(
+                covariance_ellipse(
+                    mu[l : l + 2], S[l : l + 2, l : l + 2], color=color, ls=style, alpha=alpha
+                )
+            )
         if alpha == 1.0 and style == "-":
             for k, i in enumerate(landmark_ids):
-                ax.annotate(str(i), mu[3 + 2 * k : 5 + 2 * k], xytext=(8, 8),
-                            textcoords="offset points", fontsize=FONT)  # fmt: skip
+                ax.annotate(
+                    str(i),
+                    mu[3 + 2 * k : 5 + 2 * k],
+                    xytext=(8, 8),
+                    textcoords="offset points",
+                    fontsize=FONT,
+                )
         ax.plot([], [], ls=style, color="tab:red", label=f"robot, {tag} (95%)")
         ax.plot([], [], ls=style, color="tab:blue", label=f"landmark {landmark_ids[j]}, {tag}")
 
@@ -347,12 +411,22 @@ def update_figure(
     r, phi = steps.z
     ang = mu0[2] + phi
     seen = mu0[:2] + r * np.array([math.cos(ang), math.sin(ang)])
-    b.plot([mu0[0], seen[0]], [mu0[1], seen[1]], "-", color="tab:orange", lw=2,
-           label=f"measured z: r = {r:.3f} m, φ = {phi:.3f} rad")  # fmt: skip
+    b.plot(
+        [mu0[0], seen[0]],
+        [mu0[1], seen[1]],
+        "-",
+        color="tab:orange",
+        lw=2,
+        label=f"measured z: r = {r:.3f} m, φ = {phi:.3f} rad",
+    )
     b.plot(*seen, "x", color="tab:orange", ms=12, mew=3)
-    b.plot([mu0[0], mu0[lj]], [mu0[1], mu0[lj + 1]], "--", color="tab:blue",
-           label=f"predicted ẑ (eq. 13): r = {steps.z_hat[0]:.3f} m, "
-                 f"φ = {steps.z_hat[1]:.3f} rad")  # fmt: skip
+    b.plot(
+        [mu0[0], mu0[lj]],
+        [mu0[1], mu0[lj + 1]],
+        "--",
+        color="tab:blue",
+        label=f"predicted ẑ (eq. 13): r = {steps.z_hat[0]:.3f} m, φ = {steps.z_hat[1]:.3f} rad",
+    )
     b.set_title(
         f"(b) measurement vs prediction: ν = ({steps.nu[0]:+.3f} m, {steps.nu[1]:+.3f} rad)"
     )
@@ -372,6 +446,7 @@ def update_figure(
     # the maps' legends (up to five entries, two of them long) cover an ellipse wherever they go
     # inside the axes: under them
     for ax in (a, b, d):
-        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=FONT,
-                  frameon=False)  # fmt: skip
+        ax.legend(
+            loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=FONT, frameon=False
+        )
     return fig

@@ -17,10 +17,11 @@ def test_the_invariant_filter_associates_but_known_stays_the_shipped_standard(mr
     (with the NIS-23 founding 0.040 and 0.054 m); the invariant EKF is consistent here, yet it
     does not associate better."""
     standard, invariant = (
-        association_robots(mrclam7, ("jcbb",), robots=(2,), linearization=lin, mapped=False,
-                           time_shared=False)[0]
+        association_robots(
+            mrclam7, ("jcbb",), robots=(2,), linearization=lin, mapped=False, time_shared=False
+        )[0]
         for lin in ("standard", "invariant")
-    )  # fmt: skip
+    )
     assert (standard.linearization, invariant.linearization) == ("standard", "invariant")
     assert invariant.known_error == standard.known_error == pytest.approx(0.027, abs=0.003)
     assert invariant.known_same_noise != standard.known_same_noise  # replayed by the other filter
@@ -51,9 +52,12 @@ def test_the_bank_keeps_the_robots_jcbb_loses(dataset, robot, jcbb, mht, data_mi
     independent`: an early wrong pairing sends JCBB to 17-74x known's map error (with the NIS-23
     founding 42x and 36x); the bank of 8 hypotheses maps these robots as well as known."""
     rows = association_robots(
-        _dataset(dataset, data_missing), ("jcbb", "mht"), robots=(robot,), mapped=False,
+        _dataset(dataset, data_missing),
+        ("jcbb", "mht"),
+        robots=(robot,),
+        mapped=False,
         time_shared=False,
-    )  # fmt: skip
+    )
     assert [r.method for r in rows] == ["jcbb", "mht"]
     assert rows[0].ratio == pytest.approx(jcbb, rel=0.1)
     assert rows[1].ratio == pytest.approx(mht, abs=0.15)
@@ -94,14 +98,28 @@ def test_the_mapping_noise_is_the_consistency_noise_with_the_maps_translation():
 #: time-stamp error and founding rule. The first is the shipped default (founding: jcbb by the
 #: likelihood ratio, mht by the threshold, `AssociationConfig.new_rule`).
 DATASET_7_MAPPED = {
-    ("shared", None): ([0.98, 1.31, 0.99, 1.30, 1.26], 1.17, [1.22, 1.45, 1.34, 1.29, 1.28],
-                       1.32, [0.790, 0.857, 0.860, 0.827, 0.800]),
-    ("shared", "threshold"): ([0.98, 1.31, 0.99, 1.30, 1.26], 1.17, [1.18, 1.60, 1.23, 1.29, 1.57],
-                              1.37, [0.79, 0.86, 0.86, 0.83, 0.80]),
-    ("independent", "threshold"): ([1.84, 1.51, 0.99, 1.32, 1.34], 1.40,
-                                   [1.17, 1.64, 1.47, 1.30, 1.65], 1.45,
-                                   [0.807, 0.846, 0.826, 0.824, 0.790]),
-}  # fmt: skip
+    ("shared", None): (
+        [0.98, 1.31, 0.99, 1.30, 1.26],
+        1.17,
+        [1.22, 1.45, 1.34, 1.29, 1.28],
+        1.32,
+        [0.790, 0.857, 0.860, 0.827, 0.800],
+    ),
+    ("shared", "threshold"): (
+        [0.98, 1.31, 0.99, 1.30, 1.26],
+        1.17,
+        [1.18, 1.60, 1.23, 1.29, 1.57],
+        1.37,
+        [0.79, 0.86, 0.86, 0.83, 0.80],
+    ),
+    ("independent", "threshold"): (
+        [1.84, 1.51, 0.99, 1.32, 1.34],
+        1.40,
+        [1.17, 1.64, 1.47, 1.30, 1.65],
+        1.45,
+        [0.807, 0.846, 0.826, 0.824, 0.790],
+    ),
+}
 
 
 @pytest.mark.slow

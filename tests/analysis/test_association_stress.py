@@ -38,8 +38,9 @@ def test_the_stress_world_is_close_pairs_seen_together():
     # both tags of a pair in one frame: the joint test has something to work with
     both = sum(
         {2 * k, 2 * k + 1} <= set(det.tag_id[det.t == t].tolist())
-        for t in np.unique(det.t) for k in range(8)
-    )  # fmt: skip
+        for t in np.unique(det.t)
+        for k in range(8)
+    )
     assert both > 100
 
 
@@ -75,11 +76,22 @@ def test_runs_must_be_positive():
 def test_cli_prints_both_methods_and_draws_the_picture(tmp_path):
     plot = tmp_path / "wrong.png"
     out = subprocess.run(
-        [sys.executable, "-m", "ekfslam", "consistency", "association", "--json",
-         "--plot", str(plot)],
-        cwd=REPO, capture_output=True, text=True, timeout=300,
+        [
+            sys.executable,
+            "-m",
+            "ekfslam",
+            "consistency",
+            "association",
+            "--json",
+            "--plot",
+            str(plot),
+        ],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=300,
         env={**os.environ, "MPLBACKEND": "Agg"},
-    )  # fmt: skip
+    )
     assert out.returncode == 0, out.stderr
     d = json.loads(out.stdout)
     assert d["nn"]["correct_fraction"] < 0.85 < 0.97 < d["jcbb"]["correct_fraction"]

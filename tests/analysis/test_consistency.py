@@ -59,9 +59,12 @@ def test_filter_noise_matches_the_simulators_own(name):
     mid = gt.pose[:-1, 2] + a / 2
     dp = np.diff(gt.pose[:, :2], axis=0) / (dt * np.sinc(a / (2 * np.pi)))[:, None]
     body = np.column_stack(
-        [np.cos(mid) * dp[:, 0] + np.sin(mid) * dp[:, 1],
-         -np.sin(mid) * dp[:, 0] + np.cos(mid) * dp[:, 1], a / dt]
-    )  # fmt: skip
+        [
+            np.cos(mid) * dp[:, 0] + np.sin(mid) * dp[:, 1],
+            -np.sin(mid) * dp[:, 0] + np.cos(mid) * dp[:, 1],
+            a / dt,
+        ]
+    )
     cmd = run.control_twist()[:-1]
     moving = np.any(cmd != 0, axis=1)
     measured = np.var(body[moving] - cmd[moving], axis=0)
@@ -194,8 +197,19 @@ def test_runs_must_be_positive():
 @pytest.mark.slow
 def test_cli_prints_the_issues_keys_and_draws_the_plot(tmp_path):
     plot = tmp_path / "c.png"
-    out = cli("consistency", "nees", "--runs", "2", "--trajectory", "square",
-              "--linearization", "fej", "--json", "--plot", str(plot))  # fmt: skip
+    out = cli(
+        "consistency",
+        "nees",
+        "--runs",
+        "2",
+        "--trajectory",
+        "square",
+        "--linearization",
+        "fej",
+        "--json",
+        "--plot",
+        str(plot),
+    )
     assert out.returncode == 0, out.stderr
     d = json.loads(out.stdout)
     assert d["linearization"] == "fej" and d["runs"] == 2
@@ -283,8 +297,19 @@ def test_the_counts_line_puts_each_label_with_its_number():
 
 
 def test_cli_all_compares_the_three_linearizations_on_the_same_runs():
-    out = cli("consistency", "nees", "--runs", "1", "--trajectory", "square",
-              "--linearization", "all", "--json", "--jobs", "1")  # fmt: skip
+    out = cli(
+        "consistency",
+        "nees",
+        "--runs",
+        "1",
+        "--trajectory",
+        "square",
+        "--linearization",
+        "all",
+        "--json",
+        "--jobs",
+        "1",
+    )
     assert out.returncode == 0, out.stderr
     d = json.loads(out.stdout)
     assert sorted(d) == ["fej", "invariant", "standard"]

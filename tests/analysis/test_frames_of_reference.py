@@ -21,9 +21,12 @@ from ekfslam.logs.edit import without_detections
 
 def test_noise_free_dead_reckoning_matches_the_truth_in_the_filter_frame() -> None:
     config = SimulationConfig(
-        laps=1, seed=5, wheel_noise_sigma=0.0, wheel_noise_fraction=0.0,
+        laps=1,
+        seed=5,
+        wheel_noise_sigma=0.0,
+        wheel_noise_fraction=0.0,
         start_error=(0.05, -0.03, 0.1),
-    )  # fmt: skip
+    )
     run = simulate(config)
     T = filter_frame_transform(run)
     framed = truth_in_filter_frame(run)

@@ -196,9 +196,14 @@ def test_cli_json_keys_values_and_plot(studies: dict, mrclam7: Path, tmp_path: P
     assert out["noise_name"] == "map" and out["noise"]["sigma_x"] == MRCLAM_NOISE.sigma_x
     row = out["robots"]["2"]["fej"]
     assert set(row) == {
-        "mean", "median", "fraction_in_interval", "heading_mean", "aligned_error", "rejected",
+        "mean",
+        "median",
+        "fraction_in_interval",
+        "heading_mean",
+        "aligned_error",
+        "rejected",
         "rows",
-    }  # fmt: skip
+    }
     assert row["mean"] == pytest.approx(studies["map"].get(2, "fej").mean, rel=1e-9)
     assert out["average"]["standard"]["mean"] == pytest.approx(
         out["robots"]["2"]["standard"]["mean"]
@@ -209,8 +214,9 @@ def test_cli_json_keys_values_and_plot(studies: dict, mrclam7: Path, tmp_path: P
 @pytest.mark.slow
 def test_cli_finds_dataset_7_and_prints_the_table(studies: dict, mrclam7: Path) -> None:
     env = {"EKFSLAM_SHARED_DATA": str(mrclam7.parents[1])}
-    done = cli("mrclam", "--noise", "consistent", "--robots", "5", "--linearization", "fej",
-               env=env)  # fmt: skip
+    done = cli(
+        "mrclam", "--noise", "consistent", "--robots", "5", "--linearization", "fej", env=env
+    )
     assert done.returncode == 0, done.stderr
     lines = done.stdout.splitlines()
     assert "noise 'consistent'" in lines[0] and "fej mean" in lines[1]

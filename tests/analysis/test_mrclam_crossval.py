@@ -159,9 +159,9 @@ def test_cli_cross_validates_a_recorded_table() -> None:
     assert done.returncode == 0, done.stderr
     out = json.loads(done.stdout)
     assert out["default"]["noise"] == {
-        k: getattr(MRCLAM_NOISE, k) for k in ("sigma_x", "sigma_theta", "sigma_range",
-                                              "sigma_bearing")
-    }  # fmt: skip
+        k: getattr(MRCLAM_NOISE, k)
+        for k in ("sigma_x", "sigma_theta", "sigma_range", "sigma_bearing")
+    }
     assert out["grid_points"] == 81 and out["replays"] == 1215
 
 

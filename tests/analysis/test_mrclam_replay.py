@@ -64,8 +64,12 @@ def test_true_start_is_vicon_at_the_first_command(mrclam7: Path) -> None:
     """Vicon starts seconds before the odometry; the true start is where the filter starts."""
     run, report = load_mrclam(mrclam7, 2)
     assert report.start_time - report.groundtruth_first_time > 5.0
-    short = RunLog(run.meta, Controls(run.controls.t[:50], "twist", run.controls.values[:50]),
-                   run.detections, run.groundtruth)  # fmt: skip
+    short = RunLog(
+        run.meta,
+        Controls(run.controls.t[:50], "twist", run.controls.values[:50]),
+        run.detections,
+        run.groundtruth,
+    )
     summary = summarize(short, replay(short, MRCLAM_NOISE))
     np.testing.assert_allclose(summary.true_start, run.meta.nominal_start, atol=1e-9)
 

@@ -91,8 +91,9 @@ def test_monte_carlo_is_the_same_on_a_dask_cluster():
     with distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None
     ) as cluster:
-        on_dask = compare("octagon", 3, ("standard", "fej"), first_seed=5,
-                          dask=cluster.scheduler_address)  # fmt: skip
+        on_dask = compare(
+            "octagon", 3, ("standard", "fej"), first_seed=5, dask=cluster.scheduler_address
+        )
         stress = association_stress.stress_study(2, 2, dask=cluster.scheduler_address)
     here = compare("octagon", 3, ("standard", "fej"), first_seed=5, jobs=1)
     for a, b in zip(here, on_dask, strict=True):
@@ -105,8 +106,11 @@ def test_mrclam_robots_are_the_same_on_one_and_two_processes(mrclam7):
     one = mrclam_consistency(mrclam7, "map", (2, 4), ("standard", "fej"), jobs=1)
     two = mrclam_consistency(mrclam7, "map", (2, 4), ("standard", "fej"), jobs=2)
     assert [(r.robot, r.linearization) for r in two.runs] == [
-        (2, "standard"), (2, "fej"), (4, "standard"), (4, "fej")
-    ]  # fmt: skip
+        (2, "standard"),
+        (2, "fej"),
+        (4, "standard"),
+        (4, "fej"),
+    ]
     assert one.as_dict() == two.as_dict()
     for a, b in zip(one.runs, two.runs, strict=True):
         np.testing.assert_array_equal(a.nees, b.nees)

@@ -186,9 +186,14 @@ def test_the_compiled_jcbb_decides_as_the_numpy_reference(linearization):
     np.testing.assert_allclose(got.joint_nis, want.joint_nis, rtol=1e-9)
 
 
-@pytest.mark.parametrize(("rule", "k", "expected"), [
-    ("threshold", 4.0, AMBIGUOUS), ("density", 4.0, "tentative"), ("density", 3.4, AMBIGUOUS),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    ("rule", "k", "expected"),
+    [
+        ("threshold", 4.0, AMBIGUOUS),
+        ("density", 4.0, "tentative"),
+        ("density", 3.4, AMBIGUOUS),
+    ],
+)
 def test_a_sighting_no_landmark_explains_better_than_a_new_one_starts_a_landmark(rule, k, expected):
     """A range-noisy camera (0.5 m, 0.03 rad, as MRCLAM's) and a landmark A mapped from one
     sighting (the second confirms it): S = diag(0.5 m², 0.0018 rad²), log det 2πS = -3.34. A

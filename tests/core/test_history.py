@@ -38,8 +38,13 @@ def test_every_code_the_correction_kernel_returns_is_an_outcome_of_that_name() -
 def test_the_codes_are_0_to_5_so_a_code_indexes_the_members() -> None:
     assert [int(o) for o in Outcome] == list(range(len(Outcome)))
     assert [o.label for o in Outcome] == [
-        "initialised", "accepted", "rejected", "refused", "reinitialised", "singular",
-    ]  # fmt: skip
+        "initialised",
+        "accepted",
+        "rejected",
+        "refused",
+        "reinitialised",
+        "singular",
+    ]
 
 
 def test_filter_counts_has_one_field_per_outcome_label() -> None:
@@ -60,9 +65,17 @@ def test_every_outcome_the_filter_records_is_a_member_and_counted() -> None:
     ]
     assert all(type(o) is Outcome for o in returned)
     h = f.history()
-    assert [Outcome(k) for k in h.obs_outcome.tolist()] == returned == [
-        Outcome.REFUSED, Outcome.INITIALISED, Outcome.ACCEPTED, Outcome.REJECTED, Outcome.SINGULAR,
-    ]  # fmt: skip
+    assert (
+        [Outcome(k) for k in h.obs_outcome.tolist()]
+        == returned
+        == [
+            Outcome.REFUSED,
+            Outcome.INITIALISED,
+            Outcome.ACCEPTED,
+            Outcome.REJECTED,
+            Outcome.SINGULAR,
+        ]
+    )
     for o in Outcome:
         assert f.counts.of(o) == returned.count(o) == int(h.outcome_mask(o).sum())
 

@@ -210,8 +210,12 @@ def test_eq_12_is_exact_to_first_order_in_xi_where_it_is_not_in_cartesian():
     w = xi[:, 2]
     c, s = np.cos(w), np.sin(w)
     va, vb = np.sin(w) / w, (1.0 - c) / w
-    p = np.column_stack([c * pose[0] - s * pose[1] + va * xi[:, 0] - vb * xi[:, 1],
-                         s * pose[0] + c * pose[1] + vb * xi[:, 0] + va * xi[:, 1]])  # fmt: skip
+    p = np.column_stack(
+        [
+            c * pose[0] - s * pose[1] + va * xi[:, 0] - vb * xi[:, 1],
+            s * pose[0] + c * pose[1] + vb * xi[:, 0] + va * xi[:, 1],
+        ]
+    )
     np.testing.assert_allclose(p[:2000], poses[:, :2], atol=1e-12)
     m = true_landmark(p, pose[2] + w)
     d = m - np.column_stack([c * m_hat[0] - s * m_hat[1], s * m_hat[0] + c * m_hat[1]])

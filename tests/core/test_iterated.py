@@ -87,8 +87,11 @@ def test_a_step_that_would_raise_the_map_cost_is_not_taken():
     z = np.array([2.6, 0.55])
     costs = []
     for iterations in (1, 2, 10):
-        f = EKFSLAM([0.2, -0.1, 0.3], np.diag([0.04, 0.03, 0.02]), FilterConfig(
-            iterations=iterations, gate=None))  # fmt: skip
+        f = EKFSLAM(
+            [0.2, -0.1, 0.3],
+            np.diag([0.04, 0.03, 0.02]),
+            FilterConfig(iterations=iterations, gate=None),
+        )
         f.update(7, (3.0, 0.4), Q)
         mu0, Sigma0 = f.mu.copy(), f.Sigma.copy()
         f.update(7, z, Q)

@@ -92,8 +92,9 @@ def test_the_replay_of_the_winners_decisions_is_the_winners_state(square):
 
 
 def test_a_replay_given_the_wrong_number_of_options_says_so():
-    replay = DecisionReplay(EKFSLAM(POSE), AssociationConfig("mht"), run_bank(1).finish()[1],
-                            [(UNPAIRED, UNPAIRED)])  # fmt: skip
+    replay = DecisionReplay(
+        EKFSLAM(POSE), AssociationConfig("mht"), run_bank(1).finish()[1], [(UNPAIRED, UNPAIRED)]
+    )
     with pytest.raises(ValueError, match="an option for 2 sightings given 1"):
         replay.observe(STEPS[0], Q, 0.0)
     left = DecisionReplay(EKFSLAM(POSE), AssociationConfig("mht"), run_bank(1).finish()[1], [()])

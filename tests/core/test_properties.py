@@ -87,8 +87,10 @@ def test_sigma_stays_a_covariance_over_10k_steps_of_a_consistent_world(
         r = np.hypot(d[:, 0], d[:, 1])
         b = wrap_angle(np.arctan2(d[:, 1], d[:, 0]) - truth[2])
         for i in np.flatnonzero((r < 3.0) & (r > 0.05) & (np.abs(b) < 1.0))[:3]:
-            z = (r[i] + range_sigma * rng.standard_normal(),
-                 wrap_angle(float(b[i] + bearing_sigma * rng.standard_normal())))  # fmt: skip
+            z = (
+                r[i] + range_sigma * rng.standard_normal(),
+                wrap_angle(float(b[i] + bearing_sigma * rng.standard_normal())),
+            )
             if z[0] > 0:
                 ekf.update(int(i), z, Q, k * 0.1)
         if k % 1000 == 999:
@@ -128,8 +130,11 @@ def _adversarial_run(config: FilterConfig, seed: int, n_landmarks: int) -> None:
         for _ in range(rng.integers(0, 3)):
             z = (rng.uniform(1e-3, 5.0), rng.uniform(-math.pi, math.pi))
             assert ekf.update(int(rng.integers(n_landmarks)), z, Q) in {
-                Outcome.INITIALISED, Outcome.ACCEPTED, Outcome.REJECTED, Outcome.REFUSED,
-            }  # fmt: skip
+                Outcome.INITIALISED,
+                Outcome.ACCEPTED,
+                Outcome.REJECTED,
+                Outcome.REFUSED,
+            }
         if k % 500 == 499:
             assert_covariance(ekf, k)
     assert_covariance(ekf, 3000)

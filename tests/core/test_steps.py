@@ -94,11 +94,24 @@ def test_the_compiled_correction_is_the_block_form(seed: int, invariant: bool) -
     m[:d], S[:d, :d] = mu, Sigma
     out = np.full(kernels.OUT_SIZE, math.nan)
     outcome = kernels.correct(
-        mu=m, S=S, d=d, l=l, z0=z[0], z1=z[1], q00=Q[0, 0], q01=Q[0, 1], q11=Q[1, 1],
-        jx=mu[l] - mu[0], jy=mu[l + 1] - mu[1], invariant=invariant, rho=0.0, dp=d,
+        mu=m,
+        S=S,
+        d=d,
+        l=l,
+        z0=z[0],
+        z1=z[1],
+        q00=Q[0, 0],
+        q01=Q[0, 1],
+        q11=Q[1, 1],
+        jx=mu[l] - mu[0],
+        jy=mu[l + 1] - mu[1],
+        invariant=invariant,
+        rho=0.0,
+        dp=d,
         gate=math.inf,
-        work=np.zeros((2, capacity)), out=out,
-    )  # fmt: skip
+        work=np.zeros((2, capacity)),
+        out=out,
+    )
     assert outcome == kernels.ACCEPTED == Outcome.ACCEPTED
     kernels.mirror(S, d)  # the kernel keeps the lower triangle
     z_hat, nu, s = kernels.OUT_Z_HAT, kernels.OUT_NU, kernels.OUT_S

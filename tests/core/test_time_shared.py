@@ -77,8 +77,12 @@ def test_one_sighting_while_turning_has_the_independent_terms_noise():
     """For one sighting and pure turning the shared term is (ω σt)² on the bearing; driving at
     v, the range moves by -v cos b δt and the bearing by (v sin b / r - ω) δt."""
     z = observation(POSE, B)
-    assert np.allclose(shared_sighting_noise(Q, z, (0.0, 0.0, TURN), 0.2)[0],
-                       sighting_noise(Q, TURN, 0.2), rtol=0, atol=1e-15)  # fmt: skip
+    assert np.allclose(
+        shared_sighting_noise(Q, z, (0.0, 0.0, TURN), 0.2)[0],
+        sighting_noise(Q, TURN, 0.2),
+        rtol=0,
+        atol=1e-15,
+    )
     r, b = z
     g = time_shift(z, (0.4, 0.0, TURN))
     assert g == pytest.approx([-0.4 * math.cos(b), 0.4 * math.sin(b) / r - TURN], rel=1e-12)

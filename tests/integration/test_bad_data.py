@@ -117,29 +117,33 @@ def _deep(old: str) -> str:
 
 
 RUNS: dict[str, Case] = {
-    "detections in ns, controls in s": Case(_csv_times("detections.csv", _epoch_ns),
-                                            "different clocks"),
-    "detections 5 s before the controls": Case(_csv_times("detections.csv", lambda t: t - 5.0),
-                                               "outside"),
-    "ground truth on another clock": Case(_csv_times("groundtruth.csv", lambda t: t + 1e9),
-                                          "groundtruth.csv"),
+    "detections in ns, controls in s": Case(
+        _csv_times("detections.csv", _epoch_ns), "different clocks"
+    ),
+    "detections 5 s before the controls": Case(
+        _csv_times("detections.csv", lambda t: t - 5.0), "outside"
+    ),
+    "ground truth on another clock": Case(
+        _csv_times("groundtruth.csv", lambda t: t + 1e9), "groundtruth.csv"
+    ),
     "nominal_start 1e308": Case(_run_json(text=_start("[1e308, 0.0, 0.0]")), "plausible"),
-    "nominal_start heading in degrees": Case(_run_json(text=_start("[0.0, 0.0, 90.0]")),
-                                             "degrees"),
-    "nominal_start integer beyond a float": Case(_run_json(text=_start(f"[1{'0' * 400}, 0, 0]")),
-                                                 "finite numbers"),
+    "nominal_start heading in degrees": Case(_run_json(text=_start("[0.0, 0.0, 90.0]")), "degrees"),
+    "nominal_start integer beyond a float": Case(
+        _run_json(text=_start(f"[1{'0' * 400}, 0, 0]")), "finite numbers"
+    ),
     "a 5,000-digit integer": Case(_run_json(text=_start(f"[{'9' * 5000}, 0, 0]")), "digits"),
     "tag id beyond int64": Case(_run_json(_tag_map_id), "64 bits"),
     "100,000-deep nesting": Case(_run_json(text=_deep), "nested too deeply"),
     "a folder named run.json": Case(_replace_file("run.json", Path.mkdir), "is a folder"),
-    "run.json a symlink loop": Case(_replace_file("run.json", lambda p: p.symlink_to(p)),
-                                    "symbolic link"),
+    "run.json a symlink loop": Case(
+        _replace_file("run.json", lambda p: p.symlink_to(p)), "symbolic link"
+    ),
     "run.json a dangling symlink": Case(
         _replace_file("run.json", lambda p: p.symlink_to(p.parent / "gone.json")), "symbolic link"
     ),
     "a folder named controls.csv": Case(_replace_file("controls.csv", Path.mkdir), "folder"),
     "an empty folder": Case(_empty_folder, "no run.json (our run format) and no Barcodes.dat"),
-}  # fmt: skip
+}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -253,24 +257,30 @@ def _negative_range(folder: Path) -> str:
 
 
 MRCLAM: dict[str, Case] = {
-    "MRCLAM without Barcodes.dat": Case(_mrclam("run", _delete("Barcodes.dat")), "missing",
-                                        mrclam=True),
-    "MRCLAM odometry files only": Case(_mrclam("run", _only("Robot1_Odometry.dat")), "MRCLAM",
-                                       mrclam=True),
+    "MRCLAM without Barcodes.dat": Case(
+        _mrclam("run", _delete("Barcodes.dat")), "missing", mrclam=True
+    ),
+    "MRCLAM odometry files only": Case(
+        _mrclam("run", _only("Robot1_Odometry.dat")), "MRCLAM", mrclam=True
+    ),
     "MRCLAM without Landmark_Groundtruth.dat": Case(
-        _mrclam("run", _delete("Landmark_Groundtruth.dat")), "not found", mrclam=True),
-    "MRCLAM bearing in degrees": Case(_mrclam("run", _bearing_in_degrees), "degrees",
-                                      mrclam=True),
+        _mrclam("run", _delete("Landmark_Groundtruth.dat")), "not found", mrclam=True
+    ),
+    "MRCLAM bearing in degrees": Case(_mrclam("run", _bearing_in_degrees), "degrees", mrclam=True),
     "MRCLAM landmark without a true position": Case(
-        _mrclam("run", _landmark_without_truth), "Landmark_Groundtruth.dat", mrclam=True),
-    "MRCLAM measurements in ns": Case(_mrclam("run", _measurements_in_ns), "different clocks",
-                                      mrclam=True),
+        _mrclam("run", _landmark_without_truth), "Landmark_Groundtruth.dat", mrclam=True
+    ),
+    "MRCLAM measurements in ns": Case(
+        _mrclam("run", _measurements_in_ns), "different clocks", mrclam=True
+    ),
     "MRCLAM negative range": Case(_mrclam("run", _negative_range), "negative", mrclam=True),
-    "convert mrclam, bearing in degrees": Case(_mrclam("convert", _bearing_in_degrees),
-                                               "degrees", mrclam=True),
+    "convert mrclam, bearing in degrees": Case(
+        _mrclam("convert", _bearing_in_degrees), "degrees", mrclam=True
+    ),
     "convert mrclam, landmark without a true position": Case(
-        _mrclam("convert", _landmark_without_truth), "Landmark_Groundtruth.dat", mrclam=True),
-}  # fmt: skip
+        _mrclam("convert", _landmark_without_truth), "Landmark_Groundtruth.dat", mrclam=True
+    ),
+}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -310,15 +320,17 @@ ROSBAGS: dict[str, Case] = {
     "rosbag: a text file named .bag": Case(_rosbag(bag=_text_file), "cannot read the bag"),
     "rosbag: --start nan": Case(_rosbag("--start", "nan", "0", "0"), "--start"),
     "rosbag: --start 1e308": Case(_rosbag("--start", "1e308", "0", "0"), "--start"),
-    "rosbag: --camera-mounting inf": Case(_rosbag("--camera-mounting", "0", "inf", "0"),
-                                          "--camera-mounting"),
-    "rosbag: pattern without a group": Case(_rosbag("--tag-frame-pattern", r"tag_\d+"),
-                                            "group 1"),
+    "rosbag: --camera-mounting inf": Case(
+        _rosbag("--camera-mounting", "0", "inf", "0"), "--camera-mounting"
+    ),
+    "rosbag: pattern without a group": Case(_rosbag("--tag-frame-pattern", r"tag_\d+"), "group 1"),
     "rosbag: pattern whose group 1 is not digits": Case(
-        _rosbag("--tag-frame-pattern", r"(tag)_\d+"), "group 1"),
-    "rosbag: pattern that does not compile": Case(_rosbag("--tag-frame-pattern", r"tag_(\d+"),
-                                                  "regular expression"),
-}  # fmt: skip
+        _rosbag("--tag-frame-pattern", r"(tag)_\d+"), "group 1"
+    ),
+    "rosbag: pattern that does not compile": Case(
+        _rosbag("--tag-frame-pattern", r"tag_(\d+"), "regular expression"
+    ),
+}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -366,9 +378,13 @@ def outcomes(request, tmp_path_factory) -> dict[str, tuple[subprocess.CompletedP
             continue
         argv, where = case.build(root / f"case{i:02d}")
         proc = subprocess.Popen(
-            [sys.executable, "-m", "ekfslam", *argv], cwd=REPO, env=env, text=True,
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        )  # fmt: skip
+            [sys.executable, "-m", "ekfslam", *argv],
+            cwd=REPO,
+            env=env,
+            text=True,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
         started[name] = (proc, where)
     done = {}
     for name, (proc, where) in started.items():

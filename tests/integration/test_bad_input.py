@@ -86,42 +86,77 @@ def _bad_byte(name: str, line: int) -> Callable[[Path], None]:
 
 #: name -> (mutation, where the error must point: "file:line:" or just "file", a word it must say)
 BROKEN: dict[str, tuple[Callable[[Path], None], str, str]] = {
-    "truncated line": (_edit_line("controls.csv", 6, lambda r: r.rsplit(",", 1)[0]),
-                       "controls.csv:6:", "truncated"),
-    "missing column": (_edit_line("detections.csv", 1, lambda r: "t,tag_id,range"),
-                       "detections.csv:1:", "bearing"),
-    "text in a number": (_edit_line("detections.csv", 4, _field(2, "abc")),
-                         "detections.csv:4:", "abc"),
+    "truncated line": (
+        _edit_line("controls.csv", 6, lambda r: r.rsplit(",", 1)[0]),
+        "controls.csv:6:",
+        "truncated",
+    ),
+    "missing column": (
+        _edit_line("detections.csv", 1, lambda r: "t,tag_id,range"),
+        "detections.csv:1:",
+        "bearing",
+    ),
+    "text in a number": (
+        _edit_line("detections.csv", 4, _field(2, "abc")),
+        "detections.csv:4:",
+        "abc",
+    ),
     "NaN": (_edit_line("controls.csv", 7, _field(2, "nan")), "controls.csv:7:", "nan"),
     "inf": (_edit_line("detections.csv", 5, _field(3, "inf")), "detections.csv:5:", "inf"),
-    "time backwards": (_edit_line("controls.csv", 9, _field(0, "0.01")),
-                       "controls.csv:9:", "earlier"),
+    "time backwards": (
+        _edit_line("controls.csv", 9, _field(0, "0.01")),
+        "controls.csv:9:",
+        "earlier",
+    ),
     "duplicate header": (_insert_line("controls.csv", 10), "controls.csv:10:", "header"),
     "blank line": (_insert_line("controls.csv", 8, ""), "controls.csv:8:", "blank"),
     "empty file": (_write("detections.csv", ""), "detections.csv:1:", "empty"),
     "header only": (_write("controls.csv", "t,w1,w2,w3,w4\n"), "controls.csv:2:", "no controls"),
-    "wrong format version": (_json_edit('"format_version": 1', '"format_version": 2'),
-                             "run.json:3:", "format_version"),
-    "invalid JSON": (_json_edit('"source": "simulated",', '"source": "simulated",,'),
-                     "run.json:5:", "JSON"),
-    "duplicate key": (_json_edit('"source": "simulated",', '"source": "simulated", "name": "x",'),
-                      "run.json:5:", "twice"),
-    "angles in degrees (units)": (_json_edit('"angle": "rad"', '"angle": "deg"'),
-                                  "run.json:6:", "units"),
-    "negative range": (_edit_line("detections.csv", 3, _field(2, "-0.5")),
-                       "detections.csv:3:", "negative"),
-    "bearing in degrees": (_edit_line("detections.csv", 6, _field(3, "45.0")),
-                           "detections.csv:6:", "degrees"),
-    "unknown tag id": (_edit_line("detections.csv", 7, _field(1, "99")),
-                       "detections.csv:7:", "99"),
-    "tag id not an integer": (_edit_line("detections.csv", 8, _field(1, "2.5")),
-                              "detections.csv:8:", "integer"),
-    "ground truth NaN": (_edit_line("groundtruth.csv", 4, _field(1, "nan")),
-                         "groundtruth.csv:4:", "nan"),
+    "wrong format version": (
+        _json_edit('"format_version": 1', '"format_version": 2'),
+        "run.json:3:",
+        "format_version",
+    ),
+    "invalid JSON": (
+        _json_edit('"source": "simulated",', '"source": "simulated",,'),
+        "run.json:5:",
+        "JSON",
+    ),
+    "duplicate key": (
+        _json_edit('"source": "simulated",', '"source": "simulated", "name": "x",'),
+        "run.json:5:",
+        "twice",
+    ),
+    "angles in degrees (units)": (
+        _json_edit('"angle": "rad"', '"angle": "deg"'),
+        "run.json:6:",
+        "units",
+    ),
+    "negative range": (
+        _edit_line("detections.csv", 3, _field(2, "-0.5")),
+        "detections.csv:3:",
+        "negative",
+    ),
+    "bearing in degrees": (
+        _edit_line("detections.csv", 6, _field(3, "45.0")),
+        "detections.csv:6:",
+        "degrees",
+    ),
+    "unknown tag id": (_edit_line("detections.csv", 7, _field(1, "99")), "detections.csv:7:", "99"),
+    "tag id not an integer": (
+        _edit_line("detections.csv", 8, _field(1, "2.5")),
+        "detections.csv:8:",
+        "integer",
+    ),
+    "ground truth NaN": (
+        _edit_line("groundtruth.csv", 4, _field(1, "nan")),
+        "groundtruth.csv:4:",
+        "nan",
+    ),
     "not UTF-8": (_bad_byte("detections.csv", 5), "detections.csv:5:", "UTF-8"),
     "missing run.json": (_delete("run.json"), "run.json", "missing"),
     "missing controls.csv": (_delete("controls.csv"), "controls.csv", "missing"),
-}  # fmt: skip
+}
 
 
 def _bom(folder: Path) -> None:
@@ -157,11 +192,14 @@ def outcomes(tmp_path_factory) -> dict[str, tuple[subprocess.CompletedProcess, P
         started[name] = (
             subprocess.Popen(
                 [sys.executable, "-m", "ekfslam", "run", str(folder), *json_flag],
-                cwd=REPO, env=env, text=True,
-                stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                cwd=REPO,
+                env=env,
+                text=True,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
             ),
             folder,
-        )  # fmt: skip
+        )
     done = {}
     for name, (proc, folder) in started.items():
         out, err = proc.communicate(timeout=600)

@@ -47,7 +47,9 @@ CASES: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "run gate huge": (f"{BAD_RUN} --gate 1e300", "--gate", ()),
     "run iterations zero": (f"{BAD_RUN} --iterations 0", "--iterations", ()),
     "run iterations with fej": (
-        f"{BAD_RUN} --linearization fej --iterations 2", "--iterations", ()
+        f"{BAD_RUN} --linearization fej --iterations 2",
+        "--iterations",
+        (),
     ),
     "consistency iterations zero": ("consistency nees --iterations 0", "--iterations", ()),
     "run reinit-after negative": (f"{BAD_RUN} --reinit-after -2", "--reinit-after", ()),
@@ -89,20 +91,29 @@ CASES: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "simulate size huge": (f"{SIM} --size 1e6", "--size", ("sim",)),
     "simulate size nan": (f"{SIM} --size nan", "--size", ("sim",)),
     "simulate octagon outside arena": (
-        "simulate --trajectory octagon --size 1.2 --out {tmp}/sim", "--size", ("sim",)),
+        "simulate --trajectory octagon --size 1.2 --out {tmp}/sim",
+        "--size",
+        ("sim",),
+    ),
     "simulate seed negative": (f"{SIM} --seed -1", "--seed", ("sim",)),
     "simulate start-error nan": (f"{SIM} --start-error 0 0 nan", "--start-error", ("sim",)),
     "simulate start-error far": (f"{SIM} --start-error 5 0 0", "--start-error", ("sim",)),
     "simulate start-error two values": (f"{SIM} --start-error 0 0", "--start-error", ("sim",)),
-    "simulate wheel-scale negative": (f"{SIM} --wheel-scale-sigma -0.1", "--wheel-scale-sigma",
-                                      ("sim",)),
+    "simulate wheel-scale negative": (
+        f"{SIM} --wheel-scale-sigma -0.1",
+        "--wheel-scale-sigma",
+        ("sim",),
+    ),
     "simulate wheel-scale huge": (f"{SIM} --wheel-scale-sigma 5", "--wheel-scale-sigma", ("sim",)),
     "simulate scenario unknown": (f"{SIM} --scenario perfect", "--scenario", ("sim",)),
     "simulate out is a file": ("simulate --trajectory square --out {file}", "--out", ()),
     "simulate out under a file": ("simulate --trajectory square --out {file}/r", "--out", ()),
     "simulate out not empty": ("simulate --trajectory square --out {run}", "--overwrite", ()),
-    "simulate unknown trajectory": ("simulate --trajectory circle --out {tmp}/sim",
-                                    "--trajectory", ("sim",)),
+    "simulate unknown trajectory": (
+        "simulate --trajectory circle --out {tmp}/sim",
+        "--trajectory",
+        ("sim",),
+    ),
     "simulate no out": ("simulate --trajectory square", "--out", ()),
     # fetch
     "fetch dataset 10": ("fetch mrclam 10", "1, 2, 3, 4, 5, 6, 7, 8, 9", ()),
@@ -112,34 +123,58 @@ CASES: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "fetch cache is a file": ("fetch mrclam 7 --cache {file}", "--cache", ()),
     "fetch url scheme": ("fetch mrclam 7 --url ftp://example.org", "--url", ()),
     # convert mrclam
-    "convert mrclam robot zero": ("convert mrclam {tmp} --robot 0 --out {tmp}/mr", "--robot",
-                                  ("mr",)),
-    "convert mrclam robot text": ("convert mrclam {tmp} --robot x --out {tmp}/mr", "--robot",
-                                  ("mr",)),
+    "convert mrclam robot zero": (
+        "convert mrclam {tmp} --robot 0 --out {tmp}/mr",
+        "--robot",
+        ("mr",),
+    ),
+    "convert mrclam robot text": (
+        "convert mrclam {tmp} --robot x --out {tmp}/mr",
+        "--robot",
+        ("mr",),
+    ),
     "convert mrclam out is a file": ("convert mrclam {tmp} --robot 1 --out {file}", "--out", ()),
     "convert unknown format": ("convert kitti x --out {tmp}/mr", "format", ("mr",)),
     # convert rosbag
     "rosbag pitch over 90 degrees": (f"{BAG} --camera-pitch 2", "--camera-pitch", ("bagrun",)),
     "rosbag bad regex": (f"{BAG} --tag-frame-pattern '('", "--tag-frame-pattern", ("bagrun",)),
-    "rosbag wheel radius zero": (f"{BAG} --wheel-geometry 0 0.1 0.1", "--wheel-geometry",
-                                 ("bagrun",)),
+    "rosbag wheel radius zero": (
+        f"{BAG} --wheel-geometry 0 0.1 0.1",
+        "--wheel-geometry",
+        ("bagrun",),
+    ),
     "rosbag mounting nan": (f"{BAG} --camera-mounting 0 0 nan", "--camera-mounting", ("bagrun",)),
     "rosbag start far away": (f"{BAG} --start 1e9 0 0", "--start", ("bagrun",)),
-    "rosbag empty topic": ("convert rosbag {tmp}/bag --out {tmp}/bagrun --twist-topic /odom "
-                           "--detections-topic ''", "--detections-topic", ("bagrun",)),
-    "rosbag out is a file": ("convert rosbag {tmp}/bag --out {file} --twist-topic /odom "
-                             "--detections-topic /tf", "--out", ()),
+    "rosbag empty topic": (
+        "convert rosbag {tmp}/bag --out {tmp}/bagrun --twist-topic /odom --detections-topic ''",
+        "--detections-topic",
+        ("bagrun",),
+    ),
+    "rosbag out is a file": (
+        "convert rosbag {tmp}/bag --out {file} --twist-topic /odom --detections-topic /tf",
+        "--out",
+        (),
+    ),
     # tum
     "tum out is a file": ("tum {run} --out {file}", "--out", ()),
     "tum robot nine": ("tum {run} --robot 9 --out {tmp}/tum", "--robot", ("tum",)),
-    "tum sigma-range zero": ("tum {run} --sigma-range 0 --out {tmp}/tum", "--sigma-range",
-                             ("tum",)),
+    "tum sigma-range zero": (
+        "tum {run} --sigma-range 0 --out {tmp}/tum",
+        "--sigma-range",
+        ("tum",),
+    ),
     "tum gate inf": ("tum {run} --gate inf --out {tmp}/tum", "--gate", ("tum",)),
     # render-frames
-    "render mounting yaw": ("render-frames {run} --out {tmp}/fr --mounting 0 0 9", "--mounting",
-                            ("fr",)),
-    "render mounting text": ("render-frames {run} --out {tmp}/fr --mounting 0 x 0", "--mounting",
-                             ("fr",)),
+    "render mounting yaw": (
+        "render-frames {run} --out {tmp}/fr --mounting 0 0 9",
+        "--mounting",
+        ("fr",),
+    ),
+    "render mounting text": (
+        "render-frames {run} --out {tmp}/fr --mounting 0 x 0",
+        "--mounting",
+        ("fr",),
+    ),
     "render seed negative": ("render-frames {run} --out {tmp}/fr --seed -1", "--seed", ("fr",)),
     "render out is a file": ("render-frames {run} --out {file}", "--out", ()),
     "render out not empty": ("render-frames {run} --out {run}", "--overwrite", ()),
@@ -176,53 +211,95 @@ CASES: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "consistency mrclam dataset ten": ("consistency mrclam 10", "DATASET", ()),
     "score-mrclam dataset zero": ("score-mrclam 0", "DATASET", ()),
     "score-mrclam dataset missing folder": ("score-mrclam {tmp}/nowhere", "DATASET", ()),
-    "score-mrclam linearization without association": ("score-mrclam 7 --linearization fej",
-                                                         "--linearization", ()),
-    "score-mrclam hypotheses without mht": ("score-mrclam 7 --association jcbb --hypotheses 4",
-                                             "--hypotheses", ()),
-    "score-mrclam map-noise without association": ("score-mrclam 7 --map-noise none",
-                                                    "--map-noise", ()),
-    "score-mrclam map-noise unknown": ("score-mrclam 7 --association jcbb --map-noise x005",
-                                       "--map-noise", ()),
-    "score-mrclam time-error without association": ("score-mrclam 7 --time-error shared",
-                                                     "--time-error", ()),
-    "score-mrclam time-error unknown": ("score-mrclam 7 --association jcbb --time-error both",
-                                        "--time-error", ()),
-    "score-mrclam hypotheses too many": ("score-mrclam 7 --association mht --hypotheses 1000",
-                                         "--hypotheses", ()),
-    "score-mrclam new-rule with nn": ("score-mrclam 7 --association nn --new-rule threshold",
-                                      "--new-rule", ()),
-    "score-mrclam new-rule unknown": ("score-mrclam 7 --association jcbb --new-rule nis",
-                                      "--new-rule", ()),
+    "score-mrclam linearization without association": (
+        "score-mrclam 7 --linearization fej",
+        "--linearization",
+        (),
+    ),
+    "score-mrclam hypotheses without mht": (
+        "score-mrclam 7 --association jcbb --hypotheses 4",
+        "--hypotheses",
+        (),
+    ),
+    "score-mrclam map-noise without association": (
+        "score-mrclam 7 --map-noise none",
+        "--map-noise",
+        (),
+    ),
+    "score-mrclam map-noise unknown": (
+        "score-mrclam 7 --association jcbb --map-noise x005",
+        "--map-noise",
+        (),
+    ),
+    "score-mrclam time-error without association": (
+        "score-mrclam 7 --time-error shared",
+        "--time-error",
+        (),
+    ),
+    "score-mrclam time-error unknown": (
+        "score-mrclam 7 --association jcbb --time-error both",
+        "--time-error",
+        (),
+    ),
+    "score-mrclam hypotheses too many": (
+        "score-mrclam 7 --association mht --hypotheses 1000",
+        "--hypotheses",
+        (),
+    ),
+    "score-mrclam new-rule with nn": (
+        "score-mrclam 7 --association nn --new-rule threshold",
+        "--new-rule",
+        (),
+    ),
+    "score-mrclam new-rule unknown": (
+        "score-mrclam 7 --association jcbb --new-rule nis",
+        "--new-rule",
+        (),
+    ),
     "run hypotheses zero": (f"{BAD_RUN} --association mht --hypotheses 0", "--hypotheses", ()),
-    "run hypotheses not whole": (f"{BAD_RUN} --association mht --hypotheses 2.5",
-                                 "--hypotheses", ()),
+    "run hypotheses not whole": (
+        f"{BAD_RUN} --association mht --hypotheses 2.5",
+        "--hypotheses",
+        (),
+    ),
     "run hypotheses with known ids": (f"{BAD_RUN} --hypotheses 4", "--hypotheses", ()),
     "run new-rule with nn": (f"{BAD_RUN} --association nn --new-rule density", "--new-rule", ()),
     "run new-rule unknown": (f"{BAD_RUN} --association jcbb --new-rule nis", "--new-rule", ()),
     "run time-error with known ids": (f"{BAD_RUN} --time-error shared", "--time-error", ()),
-    "run time-error unknown": (f"{BAD_RUN} --association jcbb --time-error late", "--time-error",
-                               ()),
+    "run time-error unknown": (
+        f"{BAD_RUN} --association jcbb --time-error late",
+        "--time-error",
+        (),
+    ),
     "run passes zero": (f"{BAD_RUN} --association jcbb --passes 0", "--passes", ()),
     "run passes too many": (f"{BAD_RUN} --association jcbb --passes 11", "--passes", ()),
     "run passes not whole": (f"{BAD_RUN} --association jcbb --passes 1.5", "--passes", ()),
     "run passes with known ids": (f"{BAD_RUN} --passes 2", "--passes", ()),
     "run passes with invariant": (
-        f"{BAD_RUN} --association jcbb --linearization invariant --passes 2", "--passes", ()
+        f"{BAD_RUN} --association jcbb --linearization invariant --passes 2",
+        "--passes",
+        (),
     ),
     "score-mrclam passes without association": ("score-mrclam 7 --passes 2", "--passes", ()),
-    "score-mrclam passes text": ("score-mrclam 7 --association jcbb --passes two", "--passes",
-                                 ()),
+    "score-mrclam passes text": ("score-mrclam 7 --association jcbb --passes two", "--passes", ()),
     "score-mrclam passes with invariant": (
-        "score-mrclam 7 --association jcbb --linearization invariant --passes 2", "--passes", ()
+        "score-mrclam 7 --association jcbb --linearization invariant --passes 2",
+        "--passes",
+        (),
     ),
     "bench mrclam dataset twelve": ("bench --mrclam 12", "--mrclam", ()),
-    "convert mrclam dataset ninety-nine": ("convert mrclam 99 --robot 1 --out {tmp}/mr99",
-                                           "dataset", ("{tmp}/mr99",)),
+    "convert mrclam dataset ninety-nine": (
+        "convert mrclam 99 --robot 1 --out {tmp}/mr99",
+        "dataset",
+        ("{tmp}/mr99",),
+    ),
     "consistency two modes": ("consistency outliers 0.1 --steps 5", "--steps", ()),
     "consistency jobs zero": ("consistency nees --jobs 0", "--jobs", ()),
-    "consistency dask without scheme": ("consistency outliers 0.1 --dask localhost:8786", "--dask",
-                                        ()),
+    "consistency dask without scheme": (
+        "consistency outliers 0.1 --dask localhost:8786",
+        "--dask",
+        (),
+    ),
     "consistency dask empty host": ("consistency association --dask tcp://", "--dask", ()),
     # bench
     "bench sizes negative": ("bench --sizes -5 --out {tmp}/bench", "--sizes", ("bench",)),
@@ -232,11 +309,14 @@ CASES: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "bench repeats zero": ("bench --repeats 0 --out {tmp}/bench", "--repeats", ("bench",)),
     "bench repeats negative": ("bench --repeats -1 --out {tmp}/bench", "--repeats", ("bench",)),
     "bench out is a file": ("bench --out {file}", "--out", ()),
-    "bench mrclam missing": ("bench --mrclam {tmp}/missing --out {tmp}/bench", "--mrclam",
-                             ("bench",)),
+    "bench mrclam missing": (
+        "bench --mrclam {tmp}/missing --out {tmp}/bench",
+        "--mrclam",
+        ("bench",),
+    ),
     # the top level
     "unknown command": ("frobnicate", "frobnicate", ()),
-}  # fmt: skip
+}
 
 
 def _tree(root: Path) -> list[str]:
@@ -264,9 +344,13 @@ def outcomes(scratch) -> dict[str, subprocess.CompletedProcess]:
     def run(args: str) -> subprocess.CompletedProcess:
         argv = shlex.split(args.format(**{k: str(v) for k, v in scratch.items()}))
         return subprocess.run(
-            [sys.executable, "-m", "ekfslam", *argv], cwd=root, env=env, text=True,
-            capture_output=True, timeout=300,
-        )  # fmt: skip
+            [sys.executable, "-m", "ekfslam", *argv],
+            cwd=root,
+            env=env,
+            text=True,
+            capture_output=True,
+            timeout=300,
+        )
 
     with ThreadPoolExecutor(max_workers=max(2, os.cpu_count() or 1)) as pool:
         done = dict(zip(CASES, pool.map(run, (c[0] for c in CASES.values())), strict=True))
@@ -277,8 +361,18 @@ def outcomes(scratch) -> dict[str, subprocess.CompletedProcess]:
 def test_the_table_is_big_enough():
     assert len(CASES) >= 60
     commands = {args.split()[0] for args, _, _ in CASES.values()}
-    assert commands >= {"run", "simulate", "fetch", "convert", "tum", "render-frames", "detect",
-                        "vision-eval", "consistency", "bench"}  # fmt: skip
+    assert commands >= {
+        "run",
+        "simulate",
+        "fetch",
+        "convert",
+        "tum",
+        "render-frames",
+        "detect",
+        "vision-eval",
+        "consistency",
+        "bench",
+    }
 
 
 @pytest.mark.parametrize("name", list(CASES))

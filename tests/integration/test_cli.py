@@ -131,8 +131,10 @@ def _numbers_close(a: object, b: object, where: str) -> list[str]:
 def _csv_differences(made: Path, kept: Path) -> list[str]:
     made_lines, kept_lines = made.read_text().splitlines(), kept.read_text().splitlines()
     if made_lines[0] != kept_lines[0] or len(made_lines) != len(kept_lines):
-        return [f"header or row count: {made_lines[0]!r} x{len(made_lines)} != "
-                f"{kept_lines[0]!r} x{len(kept_lines)}"]  # fmt: skip
+        return [
+            f"header or row count: {made_lines[0]!r} x{len(made_lines)} != "
+            f"{kept_lines[0]!r} x{len(kept_lines)}"
+        ]
     problems = []
     for number, (x, y) in enumerate(zip(made_lines, kept_lines, strict=True), start=1):
         if x != y:
@@ -252,8 +254,17 @@ def test_simulate_writes_rounded_values_that_read_back_exactly(tmp_path: Path):
     for name in ("detections.csv", "controls.csv", "groundtruth.csv"):
         kept = (a / name).read_bytes()
         assert (tmp_path / "c" / name).read_bytes() == kept == (tmp_path / "d" / name).read_bytes()
-    out = cli("simulate", "--trajectory", "square", "--laps", "1", "--seed", "4", "--out",
-              str(tmp_path / "cli"))  # fmt: skip
+    out = cli(
+        "simulate",
+        "--trajectory",
+        "square",
+        "--laps",
+        "1",
+        "--seed",
+        "4",
+        "--out",
+        str(tmp_path / "cli"),
+    )
     assert out.returncode == 0, out.stderr
     assert (tmp_path / "cli" / "detections.csv").read_bytes() == (a / "detections.csv").read_bytes()
 
@@ -308,8 +319,12 @@ def test_only_the_seeds_experiment_prints_the_seeds_row(tmp_path: Path):
     shipped = json.loads(cli("run", str(RUNS / "octagon-2laps"), "--json").stdout)
     assert shipped["name"] == "octagon-2laps"
     assert shipped["seed_report"] == {
-        "trajectory": "octagon", "x0": -0.04, "y0": 0.043, "theta0": 0.137, "mean_error": 0.13
-    }  # fmt: skip
+        "trajectory": "octagon",
+        "x0": -0.04,
+        "y0": 0.043,
+        "theta0": 0.137,
+        "mean_error": 0.13,
+    }
 
 
 @pytest.mark.slow
@@ -367,8 +382,10 @@ def test_a_closed_pipe_ends_quietly():
     """``python -m ekfslam run RUN | head -1``: the reader leaves early; no traceback, exit 0."""
     proc = subprocess.Popen(
         [sys.executable, "-m", "ekfslam", "run", str(REPO / "data/runs/octagon-2laps"), "--json"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=REPO,
-    )  # fmt: skip
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        cwd=REPO,
+    )
     proc.stdout.close()  # before the replay has printed anything
     stderr = proc.communicate(timeout=120)[1].decode()
     assert proc.returncode == 0, stderr
@@ -420,8 +437,10 @@ def test_tune_browser_against_a_folder_that_is_no_checkout_names_it(tmp_path: Pa
     assert "Traceback" not in out.stderr
 
 
-@pytest.mark.parametrize(("flag", "mapped"), [((), True), (("--map-noise", "mrclam"), True),
-                                              (("--map-noise", "none"), False)])  # fmt: skip
+@pytest.mark.parametrize(
+    ("flag", "mapped"),
+    [((), True), (("--map-noise", "mrclam"), True), (("--map-noise", "none"), False)],
+)
 def test_score_mrclam_maps_with_a_second_filter_unless_told_not_to(
     flag, mapped, monkeypatch, tmp_path: Path, capsys
 ):

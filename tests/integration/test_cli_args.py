@@ -55,7 +55,7 @@ def _refused(parse, text: str) -> str:
         (ca.regex, "(", "not a valid regular expression"),
         (ca.non_empty, " ", "must not be empty"),
     ],
-)  # fmt: skip
+)
 def test_types_refuse_with_the_bound_and_the_value(parse, text, message):
     assert message in _refused(parse, text)
 
@@ -246,8 +246,10 @@ def test_a_mrclam_dataset_is_a_folder_or_a_number(tmp_path):
 @pytest.mark.slow
 def test_run_animate_writes_a_gif_of_the_frames_asked_for(tmp_path, capsys):
     movie = tmp_path / "movies" / "octagon.gif"
-    assert main(["run", str(RUN), "--animate", str(movie), "--frames", "6", "--fps", "4",
-                 "--json"]) == 0  # fmt: skip
+    assert (
+        main(["run", str(RUN), "--animate", str(movie), "--frames", "6", "--fps", "4", "--json"])
+        == 0
+    )
     out = json.loads(capsys.readouterr().out)
     assert (out["animation"], out["animation_frames"]) == (str(movie), 6)
     with Image.open(movie) as gif:

@@ -63,14 +63,19 @@ def test_map_noise_feeds_the_decisions_to_a_second_filter_and_says_so():
     assert out.returncode == 0, out.stderr
     mapped = json.loads(out.stdout)
     assert mapped["association"]["map_noise"] == {
-        "sigma_x": 0.005, "sigma_y": 0.005, "sigma_theta": 0.05, "sigma_range": 0.5,
+        "sigma_x": 0.005,
+        "sigma_y": 0.005,
+        "sigma_theta": 0.05,
+        "sigma_range": 0.5,
         "sigma_bearing": 0.03,
-    }  # fmt: skip
+    }
     assert mapped["association"]["correct"] == plain["association"]["correct"] == 614
     assert mapped["association"]["noise"] == plain["association"]["noise"]  # the deciding one
     assert mapped["alignment"] != plain["alignment"]
-    cases = [(("--map-noise", "mrclam"), "--association"),
-             (("--association", "jcbb", "--map-noise", "x005"), "--map-noise")]  # fmt: skip
+    cases = [
+        (("--map-noise", "mrclam"), "--association"),
+        (("--association", "jcbb", "--map-noise", "x005"), "--map-noise"),
+    ]
     for bad_args, word in cases:
         bad = cli("run", str(OCTAGON), *bad_args)
         assert bad.returncode == 2
@@ -100,8 +105,12 @@ def test_passes_decide_again_and_say_which_pass_the_map_is():
 
 
 def test_a_bad_number_of_passes_is_one_line():
-    for words in (("--association", "jcbb", "--passes", "0"), ("--passes", "x"),
-                  ("--association", "jcbb", "--passes", "11"), ("--passes", "2")):  # fmt: skip
+    for words in (
+        ("--association", "jcbb", "--passes", "0"),
+        ("--passes", "x"),
+        ("--association", "jcbb", "--passes", "11"),
+        ("--passes", "2"),
+    ):
         bad = cli("run", str(OCTAGON), *words)
         assert bad.returncode == 2, words
         assert bad.stderr.count("\n") == 1 and "--passes" in bad.stderr, bad.stderr
@@ -125,8 +134,10 @@ def test_run_passes_the_time_error_and_the_founding_rule_to_the_replay(monkeypat
 
     monkeypatch.setattr(pipeline, "replay", spy)
     base = ["run", str(OCTAGON), "--json"]
-    assert main([*base, "--association", "mht", "--time-error", "shared",
-                 "--new-rule", "density"]) == 0  # fmt: skip
+    assert (
+        main([*base, "--association", "mht", "--time-error", "shared", "--new-rule", "density"])
+        == 0
+    )
     assert main([*base, "--association", "jcbb"]) == 0
     capsys.readouterr()
     (mht, jcbb) = seen

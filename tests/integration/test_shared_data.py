@@ -108,8 +108,12 @@ def test_every_test_that_reads_shared_data_is_marked_and_deselectable(tmp_path: 
     args = ["--collect-only", "-q", "-p", "record_items", "-p", "no:cacheprovider"]
     out = subprocess.run(
         [sys.executable, "-m", "pytest", *args, "-m", "not shared_data", "tests"],
-        cwd=REPO, env=env, capture_output=True, text=True, timeout=600,
-    )  # fmt: skip
+        cwd=REPO,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     items = json.loads((tmp_path / "items.json").read_text())
     kept, deselected = items["kept"], items["deselected"]

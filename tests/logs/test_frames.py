@@ -70,8 +70,17 @@ def _errors(run: RunLog) -> tuple[np.ndarray, np.ndarray]:
 
 
 def test_camera_tags_and_frames_round_trip_through_run_json(tmp_path: Path, short_run) -> None:
-    camera = Camera(800, 600, 610.5, 611.25, 401.0, 297.5, (-0.1, 0.02, 0.001, -0.002, 0.005),
-                    mount_height=0.2, pitch=0.05)  # fmt: skip
+    camera = Camera(
+        800,
+        600,
+        610.5,
+        611.25,
+        401.0,
+        297.5,
+        (-0.1, 0.02, 0.001, -0.002, 0.005),
+        mount_height=0.2,
+        pitch=0.05,
+    )
     meta = dataclasses.replace(
         short_run.meta, camera=camera, tags=TagSpec(0.1), frames=FramesSpec("images", "f/%04d.png")
     )
@@ -106,8 +115,9 @@ def test_runs_without_a_camera_keep_their_exact_run_json() -> None:
 
 def test_a_simulated_run_is_framed_with_the_camera_its_simulator_saw_with() -> None:
     camera = pinhole_camera(horizontal_fov_deg=80.0, mount_height=0.2)
-    config = SimulationConfig(laps=1, seed=2, camera=camera, tag_size=0.1,
-                              camera_mounting=(0.03, 0.0, 0.0))  # fmt: skip
+    config = SimulationConfig(
+        laps=1, seed=2, camera=camera, tag_size=0.1, camera_mounting=(0.03, 0.0, 0.0)
+    )
     framed = with_camera(simulate(config))
     assert framed.meta.camera == camera and framed.meta.tags == TagSpec(0.1)
     assert framed.meta.camera_mounting.tolist() == [0.03, 0.0, 0.0]
@@ -118,13 +128,17 @@ def test_a_simulated_run_is_framed_with_the_camera_its_simulator_saw_with() -> N
 def _write_doc(folder: Path, **changes) -> Path:
     folder.mkdir()
     doc = {
-        "format": "ekfslam-run", "format_version": 1, "name": "x", "source": "recorded",
+        "format": "ekfslam-run",
+        "format_version": 1,
+        "name": "x",
+        "source": "recorded",
         "units": {"length": "m", "angle": "rad", "time": "s"},
-        "camera_mounting": {"x": 0.0, "y": 0.0, "yaw": 0.0}, "nominal_start": [0.0, 0.0, 0.0],
+        "camera_mounting": {"x": 0.0, "y": 0.0, "yaw": 0.0},
+        "nominal_start": [0.0, 0.0, 0.0],
         "camera": {"image_size": [640, 480], "fx": 500.0, "fy": 500.0, "cx": 319.5, "cy": 239.5},
         "tags": {"family": "tag36h11", "size": 0.16},
         "frames": {"kind": "video", "file": "frames.mp4"},
-    } | changes  # fmt: skip
+    } | changes
     (folder / "run.json").write_text(json.dumps({k: v for k, v in doc.items() if v is not None}))
     (folder / "controls.csv").write_text("t,vx,vy,wz\n0.0,0.0,0.0,0.0\n")
     return folder
@@ -169,9 +183,10 @@ def test_a_frames_run_without_detections_says_how_to_make_them(tmp_path: Path) -
         read_run(folder)
     assert has_frames_only(folder)
     (folder / "run.json").write_text(
-        (folder / "run.json").read_text().replace(', "frames": {"kind": "video", "file": '
-                                                  '"frames.mp4"}', "")
-    )  # fmt: skip
+        (folder / "run.json")
+        .read_text()
+        .replace(', "frames": {"kind": "video", "file": "frames.mp4"}', "")
+    )
     with pytest.raises(InputError, match="a run folder holds"):
         read_run(folder)
 
@@ -225,8 +240,9 @@ def test_image_frames_are_exact(tmp_path: Path, short_run) -> None:
     assert (tmp_path / "img" / "frames" / "000003.png").is_file()
     assert not (tmp_path / "img" / "frames" / "000004.png").exists()
     frames = list(iter_frames(tmp_path / "img", run.meta, index))
-    renderer = ArenaRenderer(run.meta.camera, run.meta.tags, (0.06, 0.0, 0.0),
-                             config=RenderConfig(seed=4))  # fmt: skip
+    renderer = ArenaRenderer(
+        run.meta.camera, run.meta.tags, (0.06, 0.0, 0.0), config=RenderConfig(seed=4)
+    )
     ft = frame_times(short_run.groundtruth.t, short_run.groundtruth.pose, 10.0)
     assert np.array_equal(frames[3], renderer.render(ft.pose[3], 3))
 
@@ -252,8 +268,12 @@ def test_detections_from_frames_match_the_truth(video_run) -> None:
     assert set(d) == {"loaded", "dropped"}
     assert d["loaded"]["detections"] == len(run.detections.t)
     assert set(d["dropped"]) == {
-        "nonfinite", "unknown_id", "duplicate_id", "outside_frame", "edge_on"
-    }  # fmt: skip
+        "nonfinite",
+        "unknown_id",
+        "duplicate_id",
+        "outside_frame",
+        "edge_on",
+    }
     assert all(set(v) == {"count", "reason"} for v in d["dropped"].values())
 
 

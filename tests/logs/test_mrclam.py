@@ -366,8 +366,9 @@ def test_a_sighted_landmark_without_a_true_position_is_named_at_its_line(small: 
     path.write_bytes(b"\r\n".join(kept))
     with pytest.raises(InputError) as caught:
         load_mrclam(small, 1)
-    first = next(i for i, ln in enumerate(measurements.read_text().splitlines(), 1)
-                 if not ln.startswith("#"))  # fmt: skip
+    first = next(
+        i for i, ln in enumerate(measurements.read_text().splitlines(), 1) if not ln.startswith("#")
+    )
     assert (Path(caught.value.path), caught.value.line) == (measurements, first)
     assert f"landmark {subject} (barcode {barcode}" in caught.value.problem
     assert "Landmark_Groundtruth.dat" in caught.value.problem

@@ -47,9 +47,11 @@ def test_range_cut_is_counted(mrclam7: Path) -> None:
     assert len(all_kept.detections.t) - len(cut.detections.t) == far
     assert float(cut.detections.range.max()) <= 6.0 < float(all_kept.detections.range.max())
     assert report.measurement_rows == (
-        report.measurements_kept + report.robot_sightings_dropped
-        + report.unknown_barcodes_dropped + far
-    )  # fmt: skip
+        report.measurements_kept
+        + report.robot_sightings_dropped
+        + report.unknown_barcodes_dropped
+        + far
+    )
     dropped = report.as_dict()["dropped"]["beyond_range"]
     assert dropped["count"] == far and dropped["max_range_m"] == 6.0
     assert f"{far} beyond range (range over 6 m" in report.lines()[1]

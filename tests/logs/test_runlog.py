@@ -615,7 +615,7 @@ def test_run_json_numbers_that_break_python_are_one_error_at_their_line(tmp_path
         "5,000-digit integer": (good.replace(x_start, "9" * 5000 + y_start), "digits"),
         "nominal_start 1e308": (good.replace(x_start, "1e308" + y_start), "plausible"),
         "heading in degrees": (good.replace("-0.375,\n    0.0", "-0.375,\n    90.0"), "degrees"),
-    }  # fmt: skip
+    }
     for name, (text, word) in cases.items():
         assert text != good, name
         err = json_error(tmp_path / name.replace(" ", "-"), text)

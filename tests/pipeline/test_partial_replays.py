@@ -54,8 +54,9 @@ def test_prior_before_and_update_steps_reproduce_the_replay(square) -> None:
     prior = prior_before(square, k)
     slots = landmark_slots(prior)
     z = [square.detections.range[k], square.detections.bearing[k]]
-    steps = update_steps(prior.mu, prior.Sigma, slots.index(int(square.detections.tag_id[k])),
-                         z, NoiseConfig().Q)  # fmt: skip
+    steps = update_steps(
+        prior.mu, prior.Sigma, slots.index(int(square.detections.tag_id[k])), z, NoiseConfig().Q
+    )
     after = replay(truncate(square, float(square.detections.t[k]), max_detections=k + 1))
     np.testing.assert_allclose(steps.mu_post, after.mu, atol=1e-12)
     np.testing.assert_allclose(steps.Sigma_joseph, after.Sigma, atol=1e-12)

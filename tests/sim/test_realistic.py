@@ -31,9 +31,16 @@ from ekfslam.sim.systematic import through_lens
 
 RUNS = Path(__file__).resolve().parents[2] / "data" / "runs"
 NOISELESS = dict(
-    trajectory="square", laps=1, seed=4, wheel_noise_sigma=0.0, wheel_noise_fraction=0.0,
-    start_error=(0.0, 0.0, 0.0), range_noise_sigma=0.0, bearing_noise_sigma=0.0, dropout=0.0,
-)  # fmt: skip
+    trajectory="square",
+    laps=1,
+    seed=4,
+    wheel_noise_sigma=0.0,
+    wheel_noise_fraction=0.0,
+    start_error=(0.0, 0.0, 0.0),
+    range_noise_sigma=0.0,
+    bearing_noise_sigma=0.0,
+    dropout=0.0,
+)
 
 
 def _truth_at(run, t):
@@ -64,11 +71,18 @@ def test_every_source_is_a_documented_field_whose_default_is_the_ideal_robot():
 
 @pytest.mark.parametrize(
     "field, value",
-    [("range_scale", 0.0), ("wheel_radius_scale", -1.0), ("wheelbase_scale", 0.0),
-     ("slip_fraction", 0.7), ("camera_latency", -0.1), ("motor_lag", -1.0),
-     ("tag_position_sigma", -0.01), ("lens_distortion_ignored", 1.5),
-     ("camera_yaw_error", float("nan"))],
-)  # fmt: skip
+    [
+        ("range_scale", 0.0),
+        ("wheel_radius_scale", -1.0),
+        ("wheelbase_scale", 0.0),
+        ("slip_fraction", 0.7),
+        ("camera_latency", -0.1),
+        ("motor_lag", -1.0),
+        ("tag_position_sigma", -0.01),
+        ("lens_distortion_ignored", 1.5),
+        ("camera_yaw_error", float("nan")),
+    ],
+)
 def test_a_bad_systematic_error_is_refused_by_name(field, value):
     with pytest.raises(ConfigError, match=f"SimulationConfig.{field} must be"):
         SimulationConfig(**{field: value})
@@ -204,9 +218,12 @@ def test_the_shipped_realistic_runs_replay_with_their_noise(trajectory, expected
     assert (summary.rejected, summary.reinitialised) == (0, 0)
     ideal = summarize(run, replay(run, NoiseConfig()))
     assert (ideal.rejected, ideal.reinitialised) == {"square": (74, 4), "octagon": (177, 7)}[
-        trajectory]  # fmt: skip
-    assert json.loads((RUNS / f"{trajectory}-2laps-realistic" / "run.json").read_text())[
-        "name"] == f"{trajectory}-2laps-realistic"  # fmt: skip
+        trajectory
+    ]
+    assert (
+        json.loads((RUNS / f"{trajectory}-2laps-realistic" / "run.json").read_text())["name"]
+        == f"{trajectory}-2laps-realistic"
+    )
 
 
 def test_the_realistic_noise_is_the_ideal_one_grown_by_each_unmodelled_error():

@@ -238,8 +238,17 @@ def test_log_layout(square):
 def test_config_round_trip_and_validation():
     config = SimulationConfig(trajectory="octagon", laps=3, start_error=(0.01, -0.02, 0.1))
     assert config_from_dict(json.loads(json.dumps(config.to_dict()))) == config
-    camera = Camera(800, 600, 610.5, 611.25, 401.0, 297.5, (-0.1, 0.02, 0.001, -0.002),
-                    mount_height=0.2, pitch=0.05)  # fmt: skip
+    camera = Camera(
+        800,
+        600,
+        610.5,
+        611.25,
+        401.0,
+        297.5,
+        (-0.1, 0.02, 0.001, -0.002),
+        mount_height=0.2,
+        pitch=0.05,
+    )
     other = SimulationConfig(camera=camera, camera_mounting=[0.05, -0.01, 0.1], tag_size=0.1)
     back = config_from_dict(json.loads(json.dumps(other.to_dict())))
     assert back == other and back.camera == camera and back.camera_mounting == (0.05, -0.01, 0.1)
@@ -383,10 +392,12 @@ def test_tags_are_never_seen_from_behind():
     # two tags at one spot ahead of the robot: one faces it, the other faces away
     arena = Arena(
         0.75,
-        (Tag(0, np.array([0.55, -0.375]), np.array([-1.0, 0.0])),
-         Tag(1, np.array([0.55, -0.375]), np.array([1.0, 0.0]))),
+        (
+            Tag(0, np.array([0.55, -0.375]), np.array([-1.0, 0.0])),
+            Tag(1, np.array([0.55, -0.375]), np.array([1.0, 0.0])),
+        ),
         SEED_ARENA.nominal_start,
-    )  # fmt: skip
+    )
     log = simulate(SimulationConfig(**NOISELESS), arena=arena)
     assert log.meta.tag_map.keys() == {0, 1}
     counts = np.bincount(log.detections.tag_id, minlength=2)
@@ -442,8 +453,10 @@ def test_outliers_are_injected_at_their_rates_and_counted():
     n = len(dr)
     assert abs(wrong_id.mean() - 0.2) < 3 * math.sqrt(0.2 * 0.8 / n)
     assert abs(gross.sum() / (~wrong_id).sum() - 0.15) < 3 * math.sqrt(0.15 * 0.85 / n)
-    assert np.all((ratio[gross] >= 1.5 - 1e-9) & (ratio[gross] <= 3.0 + 1e-9)
-                  | (ratio[gross] >= 1 / 3 - 1e-9) & (ratio[gross] <= 1 / 1.5 + 1e-9))  # fmt: skip
+    assert np.all(
+        (ratio[gross] >= 1.5 - 1e-9) & (ratio[gross] <= 3.0 + 1e-9)
+        | (ratio[gross] >= 1 / 3 - 1e-9) & (ratio[gross] <= 1 / 1.5 + 1e-9)
+    )
     counted = log.meta.simulation["outliers"]
     assert counted["wrong_id"] == wrong_id.sum()
     assert counted["range"] >= gross.sum()  # a misread tag may also carry a gross range
@@ -457,9 +470,13 @@ def test_a_run_is_named_after_what_makes_it_differ_from_the_seeds():
     assert SimulationConfig(**SEED_EXPERIMENTS["square-2laps"]).name == "square-2laps"
     assert SimulationConfig(trajectory="octagon", seed=5).name == "octagon-2laps-seed5"
     other = SimulationConfig(
-        trajectory="square", laps=1, seed=3, size=0.6, start_error=(-0.03, 0.04, 0.12),
+        trajectory="square",
+        laps=1,
+        seed=3,
+        size=0.6,
+        start_error=(-0.03, 0.04, 0.12),
         wheel_scale_sigma=0.01,
-    )  # fmt: skip
+    )
     assert other.name == "square-1lap-seed3-size0.6-start-0.03,0.04,0.12-wheelscale0.01"
     # the seed's experiment with one thing changed is no longer the seed's experiment
     changed = {**SEED_EXPERIMENTS["octagon-2laps"], "dropout": 0.2}

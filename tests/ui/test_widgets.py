@@ -179,8 +179,9 @@ def test_update_moves_the_same_artists_to_the_new_replay(square, octagon):
 def test_the_ellipse_pool_follows_the_number_of_landmarks(square, octagon):
     d = square.detections
     few = d.tag_id < 3  # only three tags ever seen
-    three = replace(square, detections=Detections(d.t[few], d.tag_id[few], d.range[few],
-                                                  d.bearing[few]))  # fmt: skip
+    three = replace(
+        square, detections=Detections(d.t[few], d.tag_id[few], d.range[few], d.bearing[few])
+    )
     tuner = make_tuner(three, square)
     tuner.apply(run="octagon")
     pool = list(tuner.view.ellipses)
@@ -200,8 +201,9 @@ def test_text_shows_the_table1_row_and_the_average_nis(square, octagon):
     nis = h.obs_nis[h.obs_outcome == Outcome.ACCEPTED].mean()
     row = state.text.splitlines()[1].split()
     assert row[0] == "square-2laps"
-    np.testing.assert_allclose([float(v) for v in row[1:6]], [a.x0, a.y0, a.theta0,
-                               a.mean_error, nis], atol=6e-3)  # fmt: skip
+    np.testing.assert_allclose(
+        [float(v) for v in row[1:6]], [a.x0, a.y0, a.theta0, a.mean_error, nis], atol=6e-3
+    )
     counts = dict(re.findall(r"(\w+) (\d+)", state.text.splitlines()[2]))
     assert int(counts["accepted"]) == int(np.sum(h.obs_outcome == Outcome.ACCEPTED))
     shown = [tuner.view.header.get_text(), tuner.view.text.get_text()]

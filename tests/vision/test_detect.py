@@ -160,8 +160,12 @@ def test_every_refusal_is_counted_and_never_passed_on(renderer) -> None:
     counts = observer.counts
     assert (counts.frames, counts.found, counts.accepted) == (2, 6, 1)
     assert counts.refused == {
-        "nonfinite": 1, "unknown_id": 1, "duplicate_id": 2, "outside_frame": 1, "edge_on": 0
-    }  # fmt: skip
+        "nonfinite": 1,
+        "unknown_id": 1,
+        "duplicate_id": 2,
+        "outside_frame": 1,
+        "edge_on": 0,
+    }
     assert counts.as_dict()["refused_duplicate_id"] == 2
 
 

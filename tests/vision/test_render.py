@@ -184,8 +184,9 @@ def test_camera_pose_applies_the_mounting() -> None:
     assert centre == pytest.approx([1.0 - 0.02, 2.0 + 0.06, 0.12])
     # the optical axis, mapped back through optical_to_robot, is the camera's heading and pitch
     axis = optical_to_robot([[0.0, 0.0, 1.0]], (0.0, 0.0, 0.3), 0.1)[0]
-    assert axis == pytest.approx([math.cos(0.3) * math.cos(0.1), math.sin(0.3) * math.cos(0.1),
-                                  -math.sin(0.1)])  # fmt: skip
+    assert axis == pytest.approx(
+        [math.cos(0.3) * math.cos(0.1), math.sin(0.3) * math.cos(0.1), -math.sin(0.1)]
+    )
     world_axis = R.T @ [0.0, 0.0, 1.0]
     heading = math.pi / 2 + 0.3
     assert world_axis == pytest.approx(

@@ -35,9 +35,15 @@ def test_tags_in_view_is_the_renderers_truth(mounting, pitch) -> None:
     limit = math.radians(70.0)
     expected = np.array([t.in_view & (t.incidence <= limit) for t in truth])
     got = tags_in_view(
-        camera, TAGS, mounting, poses, SEED_ARENA.tag_positions(), SEED_ARENA.tag_normals(),
-        tag_height=renderer.config.tag_height, max_incidence=limit,
-    )  # fmt: skip
+        camera,
+        TAGS,
+        mounting,
+        poses,
+        SEED_ARENA.tag_positions(),
+        SEED_ARENA.tag_normals(),
+        tag_height=renderer.config.tag_height,
+        max_incidence=limit,
+    )
     assert got.shape == (150, 8)
     assert 100 < expected.sum() < 600  # both verdicts are well represented
     assert np.array_equal(got, expected)
@@ -46,8 +52,14 @@ def test_tags_in_view_is_the_renderers_truth(mounting, pitch) -> None:
 def test_a_wider_margin_and_a_stricter_angle_see_fewer_tags() -> None:
     camera = pinhole_camera()
     poses = random_poses(200, seed=22)
-    args = (camera, TAGS, (0.06, 0.0, 0.0), poses, SEED_ARENA.tag_positions(),
-            SEED_ARENA.tag_normals())  # fmt: skip
+    args = (
+        camera,
+        TAGS,
+        (0.06, 0.0, 0.0),
+        poses,
+        SEED_ARENA.tag_positions(),
+        SEED_ARENA.tag_normals(),
+    )
     base = tags_in_view(*args, max_incidence=math.radians(75.0))
     narrow = tags_in_view(*args, max_incidence=math.radians(45.0))
     inset = tags_in_view(*args, max_incidence=math.radians(75.0), margin_px=40.0)

@@ -34,7 +34,15 @@ def test_the_table_gives_each_source_alone_and_all_but_in_mm_with_the_seeds_row(
     assert len(text) == 6  # one seed's errors are not given: no spread line
     spread = dataclasses.replace(budgets[0], realistic_by_seed=(0.0904, 0.0796, 0.120))
     assert budget_text(spread).splitlines()[-1].split() == [
-        "by", "seed", "min", "80,", "median", "90,", "max", "120"]  # fmt: skip
+        "by",
+        "seed",
+        "min",
+        "80,",
+        "median",
+        "90,",
+        "max",
+        "120",
+    ]
 
 
 def test_the_figure_has_a_panel_per_path_with_the_sources_on_top_first():

@@ -18,11 +18,19 @@ def _study(linearization: str, heading: np.ndarray) -> SimpleNamespace:
     t = np.linspace(0.0, 72.0, heading.size)
     band = lambda lo, hi: np.array([lo, hi])  # noqa: E731
     return SimpleNamespace(
-        t=t, nees_pose=3 * heading, nees_heading=heading, nis=2 * np.sqrt(heading),
-        band_pose=band(2.3, 3.7), band_heading=band(0.65, 1.45), band_nis=band(1.5, 2.6),
-        confidence=0.95, runs=50, linearization=linearization, scenario="loop",
+        t=t,
+        nees_pose=3 * heading,
+        nees_heading=heading,
+        nis=2 * np.sqrt(heading),
+        band_pose=band(2.3, 3.7),
+        band_heading=band(0.65, 1.45),
+        band_nis=band(1.5, 2.6),
+        confidence=0.95,
+        runs=50,
+        linearization=linearization,
+        scenario="loop",
         fraction_in_band=lambda name: 0.5,
-    )  # fmt: skip
+    )
 
 
 def overlapping_labels(fig) -> list[tuple[str, str]]:
@@ -33,10 +41,12 @@ def overlapping_labels(fig) -> list[tuple[str, str]]:
     for ax in fig.axes:
         ticks = ax.yaxis.get_major_ticks() + ax.yaxis.get_minor_ticks()
         shown = [
-            t.label1 for t in ticks
-            if t.label1.get_visible() and t.label1.get_text()
+            t.label1
+            for t in ticks
+            if t.label1.get_visible()
+            and t.label1.get_text()
             and ax.get_ylim()[0] <= t.get_loc() <= ax.get_ylim()[1]
-        ]  # fmt: skip
+        ]
         boxes = [(s.get_text(), s.get_window_extent(renderer)) for s in shown]
         for i, (a, box_a) in enumerate(boxes):
             pairs += [(a, b) for b, box_b in boxes[i + 1 :] if box_a.overlaps(box_b)]

@@ -161,9 +161,17 @@ class AssociatingFilter:
         self._decision: list[str] = []
         self._chi2: dict[int, Array] = {}  # m -> the joint gates of 0..m pairs
         self._counts = dict.fromkeys(
-            ("associated", "confirmed", "tentative", "tentative_discarded", "ambiguous",
-             "budget_hits", "nodes"), 0,
-        )  # fmt: skip
+            (
+                "associated",
+                "confirmed",
+                "tentative",
+                "tentative_discarded",
+                "ambiguous",
+                "budget_hits",
+                "nodes",
+            ),
+            0,
+        )
 
     def clone(self) -> AssociatingFilter:
         """An independent copy (filter state, tentatives, counts) whose decision log starts
@@ -189,9 +197,13 @@ class AssociatingFilter:
         return image_noises(Q, zs, omega, velocity, cfg.time_sigma, shares_image_error(cfg))
 
     def observe(
-        self, zs: ArrayLike, Q: ArrayLike, t: float, omega: float = 0.0,
+        self,
+        zs: ArrayLike,
+        Q: ArrayLike,
+        t: float,
+        omega: float = 0.0,
         velocity: tuple[float, float] = (0.0, 0.0),
-    ) -> list[int]:  # fmt: skip
+    ) -> list[int]:
         """Use the sightings taken at time t (s): zs (m, 2) range (m), bearing (rad); Q (2, 2).
 
         omega : rad/s, the robot's turn rate at t; with `AssociationConfig.time_sigma` it adds
@@ -243,9 +255,12 @@ class AssociatingFilter:
         return used
 
     def decide(
-        self, zs: ArrayLike, Q: ArrayLike, omega: float = 0.0,
+        self,
+        zs: ArrayLike,
+        Q: ArrayLike,
+        omega: float = 0.0,
         velocity: tuple[float, float] = (0.0, 0.0),
-    ) -> list[int]:  # fmt: skip
+    ) -> list[int]:
         """The landmark ids `observe` would pair the sightings with now (-1: none), changing
         nothing: to ask how well the association does from a given state (the one the filter
         reaches with the true ids, say)."""
@@ -267,9 +282,18 @@ class AssociatingFilter:
         ekf._settle()  # the invariant filter's owed heading noise, before Σ is read
         # positional, each argument named as the kernel's parameter (see `EKFSLAM._propagate`)
         nearest_kernel.nearest(
-            ekf._mu, ekf._Sigma, ekf._dim, zs, q00, q01, q11, self.config.gate, ekf._invariant,
-            pairing, smallest,
-        )  # fmt: skip
+            ekf._mu,
+            ekf._Sigma,
+            ekf._dim,
+            zs,
+            q00,
+            q01,
+            q11,
+            self.config.gate,
+            ekf._invariant,
+            pairing,
+            smallest,
+        )
         return pairing.tolist(), smallest.tolist()
 
     def _jcbb(self, zs: Array, Q: Array, rate=None) -> tuple[JcbbResult, Array]:

@@ -73,9 +73,12 @@ _wrap = kernels.wrap
 _OUTCOME = tuple(Outcome)  # the codes are 0, 1, ...: _OUTCOME[code] is Outcome(code)
 _LABEL = tuple(o.label for o in Outcome)
 _INITIALISED, _ACCEPTED, _REJECTED, _REFUSED, _REINITIALISED = (
-    int(Outcome.INITIALISED), int(Outcome.ACCEPTED), int(Outcome.REJECTED),
-    int(Outcome.REFUSED), int(Outcome.REINITIALISED),
-)  # fmt: skip
+    int(Outcome.INITIALISED),
+    int(Outcome.ACCEPTED),
+    int(Outcome.REJECTED),
+    int(Outcome.REFUSED),
+    int(Outcome.REINITIALISED),
+)
 
 
 class EKFSLAM(FilterState):
@@ -374,8 +377,14 @@ class EKFSLAM(FilterState):
             n = rec.reserve(OBSERVE, 1)
             m = rec.reserve_observation()
             mu, S, t, (z0, z1), out, rows, obs = (
-                self._mu, self._Sigma, self._t, z, self._out, rec.rows, rec.obs
-            )  # fmt: skip
+                self._mu,
+                self._Sigma,
+                self._t,
+                z,
+                self._out,
+                rec.rows,
+                rec.obs,
+            )
             # positional, each argument named as the kernel's parameter (see `_propagate`)
             invariant, rho, dp = self._invariant, self._rho, self._owed_to
             kernels.record(

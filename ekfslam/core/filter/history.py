@@ -159,9 +159,28 @@ ROW = ("t", "x", "y", "theta", "xx", "xy", "xtheta", "yy", "ytheta", "thetatheta
 #: landmark's ẑ): time, the index of its event, the landmark id, z, ẑ, ν, S (2x2, row-major),
 #: the NIS, the outcome (an `Outcome` code), the landmark's mean and covariance after it.
 OBS_ROW = (
-    "t", "event", "id", "r", "phi", "r_hat", "phi_hat", "nu_r", "nu_phi",
-    "S00", "S01", "S10", "S11", "nis", "outcome", "mx", "my", "Mxx", "Mxy", "Myx", "Myy",
-)  # fmt: skip
+    "t",
+    "event",
+    "id",
+    "r",
+    "phi",
+    "r_hat",
+    "phi_hat",
+    "nu_r",
+    "nu_phi",
+    "S00",
+    "S01",
+    "S10",
+    "S11",
+    "nis",
+    "outcome",
+    "mx",
+    "my",
+    "Mxx",
+    "Mxy",
+    "Myx",
+    "Myy",
+)
 
 
 def _span(names: tuple[str, ...], first: str, last: str) -> slice:

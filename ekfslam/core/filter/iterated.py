@@ -48,8 +48,12 @@ RES_Z, RES_J, RES_ITERATIONS, RES_SIZE = 0, 2, 4, 5
 TOLERANCE = 1e-7
 USE, PLAIN = 0, 1  # `linearise`'s verdicts
 if (MIN_RANGE_SQUARED, OUT_Z_HAT, OUT_NU, OUT_S, OUT_NIS) != (
-    kernels.MIN_RANGE_SQUARED, kernels.OUT_Z_HAT, kernels.OUT_NU, kernels.OUT_S, kernels.OUT_NIS
-):  # fmt: skip
+    kernels.MIN_RANGE_SQUARED,
+    kernels.OUT_Z_HAT,
+    kernels.OUT_NU,
+    kernels.OUT_S,
+    kernels.OUT_NIS,
+):
     raise ImportError("ekfslam.core.filter.iterated's constants disagree with kernels")
 
 

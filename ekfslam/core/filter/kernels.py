@@ -42,17 +42,45 @@ ROW_T, ROW_POSE, ROW_COV, ROW_SIZE = 0, 1, 4, 10
 OBS_T, OBS_EVENT, OBS_ID, OBS_Z, OBS_Z_HAT, OBS_NU, OBS_S, OBS_NIS = 0, 1, 2, 3, 5, 7, 9, 13
 OBS_OUTCOME, OBS_LANDMARK, OBS_LANDMARK_COV, OBS_SIZE = 14, 15, 17, 21
 _r, _o, _O = history.ROW_COLUMNS, history.OBS_COLUMNS, history.Outcome
-if (ACCEPTED, REJECTED, REFUSED, SINGULAR, MIN_RANGE_SQUARED) != (
-    _O.ACCEPTED, _O.REJECTED, _O.REFUSED, _O.SINGULAR, models.MIN_RANGE_SQUARED,
-) or (ROW_T, ROW_POSE, ROW_COV, ROW_SIZE) != (
-    _r.t, _r.pose.start, _r.cov.start, len(history.ROW)
-) or (
-    OBS_T, OBS_EVENT, OBS_ID, OBS_Z, OBS_Z_HAT, OBS_NU, OBS_S, OBS_NIS, OBS_OUTCOME,
-    OBS_LANDMARK, OBS_LANDMARK_COV, OBS_SIZE,
-) != (
-    _o.t, _o.event, _o.id, _o.z.start, _o.z_hat.start, _o.innovation.start, _o.S.start, _o.nis,
-    _o.outcome, _o.landmark.start, _o.landmark_cov.start, len(history.OBS_ROW),
-):  # fmt: skip
+if (
+    (ACCEPTED, REJECTED, REFUSED, SINGULAR, MIN_RANGE_SQUARED)
+    != (
+        _O.ACCEPTED,
+        _O.REJECTED,
+        _O.REFUSED,
+        _O.SINGULAR,
+        models.MIN_RANGE_SQUARED,
+    )
+    or (ROW_T, ROW_POSE, ROW_COV, ROW_SIZE) != (_r.t, _r.pose.start, _r.cov.start, len(history.ROW))
+    or (
+        OBS_T,
+        OBS_EVENT,
+        OBS_ID,
+        OBS_Z,
+        OBS_Z_HAT,
+        OBS_NU,
+        OBS_S,
+        OBS_NIS,
+        OBS_OUTCOME,
+        OBS_LANDMARK,
+        OBS_LANDMARK_COV,
+        OBS_SIZE,
+    )
+    != (
+        _o.t,
+        _o.event,
+        _o.id,
+        _o.z.start,
+        _o.z_hat.start,
+        _o.innovation.start,
+        _o.S.start,
+        _o.nis,
+        _o.outcome,
+        _o.landmark.start,
+        _o.landmark_cov.start,
+        len(history.OBS_ROW),
+    )
+):
     raise ImportError(
         "ekfslam.core.filter.kernels' constants disagree with ekfslam.core.filter.history or models"
     )
@@ -191,8 +219,13 @@ def propagate(mu, S, d, us, dts, use_dts, N, fej, invariant, px, py, ts, rows, r
             p, c = ROW_POSE, ROW_COV
             row[ROW_T], row[p], row[p + 1], row[p + 2] = ts[k], x, y, th
             row[c], row[c + 1], row[c + 2], row[c + 3], row[c + 4], row[c + 5] = (
-                s00, s01, s02, s11, s12, s22
-            )  # fmt: skip
+                s00,
+                s01,
+                s02,
+                s11,
+                s12,
+                s22,
+            )
             if invariant:
                 cartesian_pose(row, c, x, y)
         if invariant and not use_dts:  # the fixed R again for the next step (it was mapped)
@@ -359,8 +392,13 @@ def record(mu, S, l, t, landmark_id, z0, z1, out, code, invariant, rho, dp, rows
     p, c = ROW_POSE, ROW_COV
     row[ROW_T], row[p], row[p + 1], row[p + 2] = t, mu[0], mu[1], mu[2]
     row[c], row[c + 1], row[c + 2], row[c + 3], row[c + 4], row[c + 5] = (
-        S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]
-    )  # fmt: skip
+        S[0, 0],
+        S[0, 1],
+        S[0, 2],
+        S[1, 1],
+        S[1, 2],
+        S[2, 2],
+    )
     if invariant:
         cartesian_pose(row, c, mu[0], mu[1])
     o = obs[m]

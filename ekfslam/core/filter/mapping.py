@@ -55,9 +55,13 @@ class MappingFilter:
         self.ekf.predict_many(us, dts, ts, M, R)
 
     def observe(
-        self, zs: ArrayLike, Q: ArrayLike, t: float, omega: float = 0.0,
+        self,
+        zs: ArrayLike,
+        Q: ArrayLike,
+        t: float,
+        omega: float = 0.0,
         velocity: tuple[float, float] = (0.0, 0.0),
-    ) -> list[int]:  # fmt: skip
+    ) -> list[int]:
         """Feed the sightings of time t (s) under the ids the deciding run gave them."""
         zs = np.asarray(zs, dtype=float).reshape(-1, 2)
         k, m = self._next, len(zs)

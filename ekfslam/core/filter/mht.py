@@ -121,9 +121,13 @@ class HypothesisBank:
             af.predict_many(us, dts, ts, M, R)
 
     def observe(
-        self, zs: ArrayLike, Q: ArrayLike, t: float, omega: float = 0.0,
+        self,
+        zs: ArrayLike,
+        Q: ArrayLike,
+        t: float,
+        omega: float = 0.0,
         velocity: tuple[float, float] = (0.0, 0.0),
-    ) -> None:  # fmt: skip
+    ) -> None:
         """Branch on the sightings taken at time t (s), as `AssociatingFilter.observe`."""
         zs = np.asarray(zs, dtype=float).reshape(-1, 2)
         Q, Qs, rate = self._bank[0][1].noises(zs, Q, omega, velocity)
@@ -200,8 +204,13 @@ class DecisionReplay(AssociatingFilter):
     winner's own (this filter searches nothing).
     """
 
-    def __init__(self, ekf: EKFSLAM, config: AssociationConfig, winner: AssociatingFilter,
-                 options: list[tuple[int, ...]]) -> None:  # fmt: skip
+    def __init__(
+        self,
+        ekf: EKFSLAM,
+        config: AssociationConfig,
+        winner: AssociatingFilter,
+        options: list[tuple[int, ...]],
+    ) -> None:
         super().__init__(ekf, config)
         self._options = iter(options)
         self._counts["nodes"] = winner._counts["nodes"]

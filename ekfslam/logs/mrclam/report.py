@@ -61,15 +61,23 @@ class MrclamLoadReport:
             "groundtruth_span_s": span,
             "start_time_s": round(self.start_time, 3),
             "time_offsets": self.time_offsets,
-            "barcode_swap": {"fixed": self.barcode_swap_fixed,
-                             "sightings_renamed": self.barcode_swap_renamed,
-                             "reason": _SWAP_WHY if self.barcode_swap_fixed else None},
-        }  # fmt: skip
+            "barcode_swap": {
+                "fixed": self.barcode_swap_fixed,
+                "sightings_renamed": self.barcode_swap_renamed,
+                "reason": _SWAP_WHY if self.barcode_swap_fixed else None,
+            },
+        }
         robots = {"count": self.robot_sightings_dropped, "reason": _ROBOTS_WHY}
-        unknown = {"count": self.unknown_barcodes_dropped, "reason": _UNKNOWN_WHY,
-                   "barcodes": sorted(self.unknown_barcodes)}  # fmt: skip
-        far = {"count": self.beyond_range_dropped, "max_range_m": self.max_range,
-               "reason": _far_why(self.max_range)}  # fmt: skip
+        unknown = {
+            "count": self.unknown_barcodes_dropped,
+            "reason": _UNKNOWN_WHY,
+            "barcodes": sorted(self.unknown_barcodes),
+        }
+        far = {
+            "count": self.beyond_range_dropped,
+            "max_range_m": self.max_range,
+            "reason": _far_why(self.max_range),
+        }
         dropped = {"robot_sightings": robots, "unknown_barcodes": unknown, "beyond_range": far}
         return {"dataset": self.dataset, "robot": self.robot, "loaded": loaded, "dropped": dropped}
 
@@ -90,24 +98,39 @@ class MrclamLoadReport:
             f"{self.odometry_max_gap_s:.3f} s, {self.odometry_duplicate_times} duplicate times), "
             f"{self.measurements_kept} of {self.measurement_rows} measurements, {truth}"
             + (f"; {unsorted} rows out of time order, sorted" if unsorted else "")
-            + (f"; measurements start {off['start_s']:+.3f} s after the odometry and end "
-               f"{off['end_s']:+.3f} s before it" if off else "")
-            + (f"; {BARCODES}: {_SWAP_WHY}, {self.barcode_swap_renamed} sightings renamed"
-               if self.barcode_swap_fixed else ""),
+            + (
+                f"; measurements start {off['start_s']:+.3f} s after the odometry and end "
+                f"{off['end_s']:+.3f} s before it"
+                if off
+                else ""
+            )
+            + (
+                f"; {BARCODES}: {_SWAP_WHY}, {self.barcode_swap_renamed} sightings renamed"
+                if self.barcode_swap_fixed
+                else ""
+            ),
             f"dropped: {self.robot_sightings_dropped} robot sightings ({_ROBOTS_WHY}), "
             f"{self.unknown_barcodes_dropped} sightings of unknown barcodes{unknown} "
             f"({_UNKNOWN_WHY}), {self.beyond_range_dropped} beyond range "
             f"({_far_why(self.max_range)})",
-        )  # fmt: skip
+        )
 
     def summary(self) -> str:
         """A few lines for a terminal: the dataset, what was loaded, what was dropped and why."""
         return "\n  ".join([f"MRCLAM dataset {self.dataset}, robot {self.robot}", *self.lines()])
 
 
-_LOADED = ("odometry_rows", "odometry_duplicate_times", "odometry_out_of_order", "measurement_rows",
-           "measurements_kept", "measurement_out_of_order", "groundtruth_rows",
-           "groundtruth_out_of_order", "start_inside_groundtruth")  # fmt: skip
+_LOADED = (
+    "odometry_rows",
+    "odometry_duplicate_times",
+    "odometry_out_of_order",
+    "measurement_rows",
+    "measurements_kept",
+    "measurement_out_of_order",
+    "groundtruth_rows",
+    "groundtruth_out_of_order",
+    "start_inside_groundtruth",
+)
 _ROBOTS_WHY, _UNKNOWN_WHY = "other robots, not landmarks", f"not in {BARCODES}"
 _SWAP_WHY = "barcodes of subjects 11 and 17 swapped back (published swapped)"
 
