@@ -1,6 +1,20 @@
-"""ekfslam's own exception types: each message is one line a student can act on."""
+"""ekfslam's own exception types: each message is one line a student can act on.
+
+The hierarchy (``docs/guide/errors.md`` shows each with an example)::
+
+    EkfSlamError                    every error ekfslam raises on purpose
+    ├── InputError                  bad data in a file: names the file, the line, the problem
+    ├── OutputError                 a result cannot be written where the user asked
+    ├── ConfigError (ValueError)    a setting, option or argument with a bad value
+    │   └── WrongTypeError (TypeError too)  an argument of the wrong type (a str for a σ)
+    └── AlignmentError (ValueError) the map cannot be aligned (eq. 17)
+
+`Interrupted` is not an error: a signal (Ctrl-C, SIGTERM) ended a command on the command line.
+"""
 
 from __future__ import annotations
+
+import signal
 
 
 class EkfSlamError(Exception):
@@ -21,13 +35,54 @@ class InputError(EkfSlamError):
         super().__init__(f"{where}: {problem}")
 
 
-class AlignmentError(EkfSlamError):
-    """The map cannot be aligned (for example, fewer than two landmarks in common)."""
+class OutputError(EkfSlamError):
+    """A result cannot be written to the path the user gave; the message names that path.
+
+    Example: ``/proc/fig.png: cannot write here (No such file or directory); choose another
+    path``. Raised before the work when the target is probed (`ekfslam.files.probe_output`), and
+    for any OSError while writing (`ekfslam.files.atomic_write`), never naming a temporary file.
+    """
+
+    def __init__(self, path: object, problem: str) -> None:
+        self.path = str(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")
+
+
+class AlignmentError(EkfSlamError, ValueError):
+    """The map cannot be aligned (fewer than two landmarks in common, all at one point, ...).
+
+    A ValueError too, so ``except ValueError`` around an alignment keeps working.
+    """
 
 
 class ConfigError(EkfSlamError, ValueError):
-    """A setting out of its range: a bad option value or config field (``gate must be > 0``).
+    """A value out of its range: an option, a config field or a function's argument
+    (``gate must be > 0``, ``replay: start_covariance must be a 3x3 matrix, got shape (2, 2)``).
 
     A ValueError too, so callers (and tests) that caught the ValueError the config dataclasses
     raised before this type existed keep working.
     """
+
+
+class WrongTypeError(ConfigError, TypeError):
+    """A function was given an argument of the wrong type; the message names the argument, what
+    it must be and how to make one (``replay: run must be a RunLog, got 'runs/x' (str): read the
+    folder first, ekfslam.read_run(folder)``).
+
+    A TypeError, as Python's own are, and a `ConfigError` (so a ValueError) too: ``except
+    ValueError`` around a call still catches every bad argument, of whichever kind.
+    """
+
+
+class Interrupted(KeyboardInterrupt):
+    """A signal ended a command: Ctrl-C (SIGINT) or SIGTERM. `signum` says which.
+
+    A KeyboardInterrupt, so that nothing catching ``Exception`` swallows it and every
+    ``finally`` (and `ekfslam.files.atomic_write`'s clean-up) runs on the way out. The command
+    line ends with one line and exit status 128 + `signum` (130 for Ctrl-C, 143 for SIGTERM).
+    """
+
+    def __init__(self, signum: int) -> None:
+        self.signum = signum
+        super().__init__(signal.Signals(signum).name)

@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.errors import ConfigError
+from ekfslam.fieldtypes import field_types
 
 Array = NDArray[np.float64]
 
@@ -38,6 +39,7 @@ class Tag:
     normal: Array
 
     def __post_init__(self) -> None:
+        field_types(self)
         object.__setattr__(self, "position", _frozen_array(self.position, (2,), "Tag.position"))
         normal = _frozen_array(self.normal, (2,), "Tag.normal")
         if not np.isclose(np.hypot(*normal), 1.0):
@@ -59,6 +61,7 @@ class Arena:
     nominal_start: Array = field(default_factory=lambda: np.zeros(3))
 
     def __post_init__(self) -> None:
+        field_types(self)
         if not np.isfinite(self.half_size) or self.half_size <= 0:
             raise ConfigError(f"Arena.half_size must be a positive length, got {self.half_size!r}")
         ids = [tag.id for tag in self.tags]

@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.errors import ConfigError
+from ekfslam.fieldtypes import field_types
 
 
 @dataclass(frozen=True)
@@ -46,6 +47,7 @@ class MecanumGeometry:
     ly: float = 0.054
 
     def __post_init__(self) -> None:
+        field_types(self)
         for name in ("wheel_radius", "lx", "ly"):
             value = getattr(self, name)
             if not np.isfinite(value) or value <= 0:

@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.models import observation_noise
 from ekfslam.errors import ConfigError
+from ekfslam.fieldtypes import field_types
 
 Array = NDArray[np.float64]
 
@@ -47,6 +48,7 @@ class NoiseConfig:
     sigma_bearing: float = 0.03
 
     def __post_init__(self) -> None:
+        field_types(self)
         for name in ("sigma_x", "sigma_y", "sigma_theta", "sigma_range", "sigma_bearing"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):

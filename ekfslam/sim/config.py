@@ -28,6 +28,7 @@ from ekfslam.core.camera import (
 )
 from ekfslam.core.kinematics import MecanumGeometry
 from ekfslam.errors import ConfigError
+from ekfslam.fieldtypes import field_types
 
 Array = NDArray[np.float64]
 
@@ -154,6 +155,7 @@ class SimulationConfig:
     camera_yaw_error: float = 0.0
 
     def __post_init__(self) -> None:
+        field_types(self)
         if self.trajectory not in TRAJECTORIES:
             raise ConfigError(f"trajectory must be one of {TRAJECTORIES}, got {self.trajectory!r}")
         for name in ("start_error", "start_error_sigma", "camera_mounting"):  # lists -> tuples
