@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
 from ekfslam.errors import ConfigError
+from ekfslam.fieldtypes import field_types
 
 if TYPE_CHECKING:
     from ekfslam.core.filter.history import Outcome
@@ -90,6 +91,7 @@ class FilterConfig:
     iterations: int = 1
 
     def __post_init__(self) -> None:
+        field_types(self)
         if self.linearization not in LINEARIZATIONS:
             raise ConfigError(
                 f"linearization must be 'standard', 'fej' or 'invariant', "

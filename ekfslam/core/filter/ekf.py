@@ -43,6 +43,7 @@ from ekfslam.core.filter.config import CHI2_2DOF_99 as CHI2_2DOF_99
 from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.filter.history import OBSERVE, PREDICT, Outcome
 from ekfslam.core.filter.state import FilterState
+from ekfslam.core.filter_checks import check_predict, check_predict_many, check_update
 from ekfslam.core.invariant import INVARIANT_NEW_LANDMARK_POSE
 from ekfslam.core.models import (
     MIN_RANGE_SQUARED,
@@ -134,6 +135,7 @@ class EKFSLAM(FilterState):
         Only the pose block and the pose-landmark cross blocks change:
         Σ_rr <- G Σ_rr Gᵀ + R and Σ_rm <- G Σ_rm, which is eq. (9) with its lifts done right.
         """
+        check_predict(u, R, t)
         self._propagate(
             _rows(u, 3), None, _matrix(R), np.array([self._t if t is None else float(t)])
         )
@@ -162,6 +164,7 @@ class EKFSLAM(FilterState):
             heading.
         R : (3, 3), or a fixed state-space R for every step (the seed's way). Give M or R.
         """
+        check_predict_many(us, dts, ts, M, R)
         if (M is None) == (R is None):
             raise ValueError("give exactly one of M (per second) or R (per step)")
         us = _rows(us, 3)
@@ -226,6 +229,7 @@ class EKFSLAM(FilterState):
             singular or not finite: the noise is too small or too large). Each is counted
             (`counts`, under its `Outcome.label`).
         """
+        check_update(landmark_id, z, Q, t)
         if t is not None:
             self._t = t
         z0, z1 = float(z[0]), float(z[1])

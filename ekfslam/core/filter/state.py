@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 from ekfslam.core.filter import kernels
 from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.history import History, Recorder
+from ekfslam.core.filter_checks import check_start
 from ekfslam.core.invariant import from_cartesian, landmark_to_cartesian, to_cartesian
 
 Array = NDArray[np.float64]
@@ -53,6 +54,7 @@ class FilterState:
         config: FilterConfig | None = None,
         record: bool = True,
     ) -> None:
+        check_start(pose, pose_covariance, config, record)
         self.config = config or FilterConfig()
         cap = 3 + 2 * self.config.initial_capacity
         self._mu = np.zeros(cap)
