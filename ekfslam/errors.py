@@ -2,12 +2,15 @@
 
 The hierarchy (``docs/guide/errors.md`` shows each with an example)::
 
-    EkfSlamError                    every error ekfslam raises on purpose
-    ├── InputError                  bad data in a file: names the file, the line, the problem
-    ├── OutputError                 a result cannot be written where the user asked
-    ├── ConfigError (ValueError)    a setting, option or argument with a bad value
-    │   └── WrongTypeError (TypeError too)  an argument of the wrong type (a str for a σ)
-    └── AlignmentError (ValueError) the map cannot be aligned (eq. 17)
+    EkfSlamError                        every error ekfslam raises on purpose
+    ├── InputError (ValueError)         bad data in a file: names the file, the line, the problem
+    ├── OutputError (OSError)           a result cannot be written where the user asked
+    ├── ConfigError (ValueError)        a setting, option or argument with a bad value
+    │   └── WrongTypeError (TypeError)  an argument of the wrong type (a str for a σ)
+    └── AlignmentError (ValueError)     the map cannot be aligned (eq. 17)
+
+So ``except ValueError`` catches every bad input, setting or argument, and ``except OSError``
+every failed write, as for Python's own errors.
 
 `Interrupted` is not an error: a signal (Ctrl-C, SIGTERM) ended a command on the command line.
 """
@@ -21,10 +24,11 @@ class EkfSlamError(Exception):
     """Base class of every error ekfslam raises on purpose."""
 
 
-class InputError(EkfSlamError):
+class InputError(EkfSlamError, ValueError):
     """Bad input data. The message names the file, the line (when there is one) and the problem.
 
-    Example: ``controls.csv:57: time 12.40 s is earlier than the previous row (12.45 s)``.
+    Example: ``controls.csv:57: time 12.40 s is earlier than the previous row (12.45 s)``. A
+    ValueError too (bad data is a bad value), so ``except ValueError`` catches it.
     """
 
     def __init__(self, path: object, line: int | None, problem: str) -> None:
@@ -35,18 +39,22 @@ class InputError(EkfSlamError):
         super().__init__(f"{where}: {problem}")
 
 
-class OutputError(EkfSlamError):
+class OutputError(EkfSlamError, OSError):
     """A result cannot be written to the path the user gave; the message names that path.
 
     Example: ``/proc/fig.png: cannot write here (No such file or directory); choose another
     path``. Raised before the work when the target is probed (`ekfslam.files.probe_output`), and
     for any OSError while writing (`ekfslam.files.atomic_write`), never naming a temporary file.
+    An OSError too, as the failure it reports is.
     """
 
     def __init__(self, path: object, problem: str) -> None:
+        super().__init__(f"{path}: {problem}")
         self.path = str(path)
         self.problem = problem
-        super().__init__(f"{self.path}: {problem}")
+
+    def __str__(self) -> str:  # OSError's own would add nothing, but say it plainly
+        return f"{self.path}: {self.problem}"
 
 
 class AlignmentError(EkfSlamError, ValueError):

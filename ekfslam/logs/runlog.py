@@ -38,7 +38,18 @@ from ekfslam.errors import InputError
 from ekfslam.files import atomic_write_text
 from ekfslam.logs.csvtable import csv_text, read_table
 from ekfslam.logs.runjson import RunMeta, check_meta, check_shape, meta_json, read_meta
-from ekfslam.plausibility import check_clocks
+from ekfslam.plausibility import (
+    MAX_HEADING,
+    MAX_POSITION,
+    MAX_SPEED,
+    MAX_TIME,
+    MAX_TURN_RATE,
+    MAX_WHEEL_SPEED,
+    beyond_map,
+    check_clocks,
+    control_hole,
+    ranges_beyond_map,
+)
 
 RUN_JSON, CONTROLS_CSV = "run.json", "controls.csv"
 DETECTIONS_CSV, GROUNDTRUTH_CSV = "detections.csv", "groundtruth.csv"
@@ -179,6 +190,7 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
         check_time_spans(run, folder, (CONTROLS_CSV, "frames.csv", GROUNDTRUTH_CSV), lines=False)
     else:
         check_time_spans(run, folder)
+    check_across_files(run, folder, lines=not found_in_frames)
     return run
 
 
@@ -215,6 +227,59 @@ def validate_run(run: RunLog, folder: str | os.PathLike | None = None) -> None:
     if run.groundtruth is not None:
         _check_groundtruth(run.groundtruth, base / GROUNDTRUTH_CSV)
     check_time_spans(run, base)
+    check_across_files(run, base)
+
+
+def check_across_files(
+    run: RunLog, folder: Path, names: tuple = (), lines: bool = True, sorted_rows=None
+) -> None:
+    """The rules of `ekfslam.plausibility` that take more than one row or one file; raise
+    `InputError` naming the file and the line of the first row that breaks one.
+
+    A hole in the controls while the robot moves; ranges and true positions too far from the
+    tag map to belong to it (millimetres for metres). `names`: the three files' names (controls,
+    detections, ground truth), the run format's by default; `lines`: whether row i is line
+    i + 2 of its file; `sorted_rows`: per file name, the file's row of each sorted row (a
+    loader that sorted), so the line is still the file's.
+    """
+    c_name, d_name, g_name = names or (CONTROLS_CSV, DETECTIONS_CSV, GROUNDTRUTH_CSV)
+
+    def line(name: str, row: int) -> int | None:
+        if sorted_rows is not None and name in sorted_rows:
+            return sorted_rows[name](row)
+        return row + 2 if lines else None
+
+    hole = control_hole(run.controls.t, run.control_twist())
+    if hole is not None:
+        row, gap = hole
+        before = _num(run.controls.t[row - 1])
+        raise InputError(
+            folder / c_name,
+            line(c_name, row),
+            f"no control row for {gap:.6g} s after the previous one (t {before} s) while the "
+            f"robot is moving: the replay would hold that control for {gap:.6g} s; is a piece "
+            "of the log missing?",
+        )
+    far = ranges_beyond_map(run.detections.range, run.meta.tag_map)
+    if far is not None:
+        row, longest = far
+        raise InputError(
+            folder / d_name,
+            line(d_name, row),
+            f"range {_num(run.detections.range[row])} m is longer than any sighting of the tag map "
+            f"could be ({longest:.4g} m): millimetres for metres?",
+        )
+    if run.groundtruth is not None:
+        far_pose = beyond_map(run.groundtruth.pose[:, :2], run.meta.tag_map)
+        if far_pose is not None:
+            row, distance, reach = far_pose
+            xy = run.groundtruth.pose[row, :2].tolist()
+            raise InputError(
+                folder / g_name,
+                line(g_name, row),
+                f"groundtruth position {xy} is {distance:.4g} m from the tag map, beyond "
+                f"{reach:.4g} m: millimetres for metres, or another map's run?",
+            )
 
 
 def check_time_spans(run: RunLog, folder: Path, names: tuple = (), lines: bool = True) -> None:
@@ -276,7 +341,35 @@ def _check_controls(controls: Controls, path: Path) -> None:
     if len(controls.t) == 0:
         raise InputError(path, 2, "no controls: the file has a header but no rows")
     columns = {"t": controls.t} | {n: controls.values[:, j] for j, n in enumerate(names[1:])}
-    _check_rows(path, controls.t, columns)
+    bounds = {"t": (MAX_TIME, "s", "a time")} | {n: _CONTROL_BOUNDS[n] for n in names[1:]}
+    _check_rows(path, controls.t, columns, _bounded(columns, bounds))
+
+
+#: column -> (the largest plausible |value|, its unit, what it is), for the messages
+_CONTROL_BOUNDS = {
+    **{w: (MAX_WHEEL_SPEED, "rad/s", "a wheel speed") for w in ("w1", "w2", "w3", "w4")},
+    "vx": (MAX_SPEED, "m/s", "a speed"),
+    "vy": (MAX_SPEED, "m/s", "a speed"),
+    "wz": (MAX_TURN_RATE, "rad/s", "a turn rate"),
+}
+
+
+def _bounded(columns: dict[str, Array], bounds: dict[str, tuple[float, str, str]]) -> list:
+    """`_check_rows` rules: each column within its plausible bound (a finite 1e300 is a corrupt
+    cell, not a measurement; in seconds, a time in nanoseconds is beyond `MAX_TIME`)."""
+    rules = []
+    for name, (bound, unit, what) in bounds.items():
+        values = columns[name]
+        hint = " (nanoseconds?)" if name == "t" else ""
+        rules.append(
+            (
+                np.abs(values) > bound,
+                lambda i, n=name, v=values, b=bound, u=unit, w=what, h=hint: (
+                    f"{n} {_num(v[i])} {u} is not plausible as {w} (beyond {b:g} {u}){h}"
+                ),
+            )
+        )
+    return rules
 
 
 def _check_detections(det: Detections, path: Path, tag_map: dict[int, Array] | None) -> None:
@@ -303,7 +396,11 @@ def _check_detections(det: Detections, path: Path, tag_map: dict[int, Array] | N
                 lambda i: f"tag {int(det.tag_id[i])} is not in run.json's tag_map (known: {shown})",
             )
         )
-    _check_rows(path, det.t, {"t": det.t, "range": det.range, "bearing": det.bearing}, extra)
+    columns = {"t": det.t, "range": det.range, "bearing": det.bearing}
+    extra += _bounded(
+        columns, {"t": (MAX_TIME, "s", "a time"), "range": (MAX_POSITION, "m", "a range")}
+    )
+    _check_rows(path, det.t, columns, extra)
 
 
 def _check_groundtruth(gt: GroundTruth, path: Path) -> None:
@@ -312,7 +409,21 @@ def _check_groundtruth(gt: GroundTruth, path: Path) -> None:
     if len(gt.t) == 0:
         raise InputError(path, 2, "no ground-truth rows (delete the file if there is no truth)")
     names = GROUNDTRUTH_COLUMNS[1:]
-    _check_rows(path, gt.t, {"t": gt.t} | {n: gt.pose[:, j] for j, n in enumerate(names)})
+    columns = {"t": gt.t} | {n: gt.pose[:, j] for j, n in enumerate(names)}
+    bounds = {
+        "t": (MAX_TIME, "s", "a time"),
+        "x": (MAX_POSITION, "m", "a position"),
+        "y": (MAX_POSITION, "m", "a position"),
+    }
+    theta = gt.pose[:, 2]
+    degrees = (
+        np.abs(theta) > MAX_HEADING,
+        lambda i: (
+            f"theta {_num(theta[i])} rad is beyond ±2π (degrees by mistake, or a heading never "
+            "wrapped?); give the heading in radians, in [-π, π)"
+        ),
+    )
+    _check_rows(path, gt.t, columns, [*_bounded(columns, bounds), degrees])
 
 
 # ---------------------------------------------------------------------------------------------

@@ -12,6 +12,7 @@ import pytest
 
 from ekfslam.core.kinematics import MecanumGeometry
 from ekfslam.errors import InputError
+from ekfslam.logs.csvtable import csv_text, read_table
 from ekfslam.logs.runlog import (
     Controls,
     Detections,
@@ -180,12 +181,26 @@ def assert_runs_identical(a: RunLog, b: RunLog) -> None:
 
 
 def awkward_floats(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
-    """Random doubles with full 17-digit mantissas, plus values whose text is easy to get wrong."""
-    x = rng.normal(size=shape) * 10.0 ** rng.integers(-8, 8, size=shape)
+    """Random doubles with full 17-digit mantissas, plus values whose text is easy to get wrong.
+
+    Within what a run may hold (below 30 in magnitude: speeds, ranges and positions near the
+    map, headings within ±2π, `ekfslam.plausibility`); the doubles no run holds (1.8e308,
+    2^53 + 2) round-trip in test_csv_text_round_trips_every_double.
+    """
+    x = rng.normal(size=shape) * 10.0 ** rng.integers(-8, 1, size=shape)
     flat = x.reshape(-1)
-    specials = [-0.0, 0.1, 1e-300, 5e-324, 1.7976931348623157e308, 1 / 3, 2.0**53 + 2]
+    specials = [-0.0, 0.1, 1e-300, 5e-324, 1 / 3, 6.283185307179586]
     flat[: len(specials)] = specials[: flat.size]
     return x
+
+
+def test_csv_text_round_trips_every_double(tmp_path: Path) -> None:
+    values = np.array([-0.0, 0.1, 1e-300, 5e-324, 1.7976931348623157e308, 1 / 3, 2.0**53 + 2])
+    path = tmp_path / "rows.csv"
+    path.write_text(csv_text(("t", "x"), [values, -values]))
+    name, (t, x) = read_table(path, {"rows": ("t", "x")})
+    assert name == "rows"
+    assert t.tobytes() == values.tobytes() and x.tobytes() == (-values).tobytes()
 
 
 def random_run(kind: str, *, with_truth: bool, with_map: bool, seed: int = 7) -> RunLog:

@@ -93,4 +93,9 @@ def _raise_first_bad_line(path: Path, names: tuple[str, ...], fallback: str) -> 
 
 
 def raise_at_row(path: Path, row: int, problem: str) -> None:
-    raise InputError(path, _data_lines(path)[row][0], problem)
+    raise InputError(path, data_line(path, row), problem)
+
+
+def data_line(path: Path, row: int) -> int:
+    """The 1-based line of data row `row` (0-based, as `read_table` returns them) of `path`."""
+    return _data_lines(path)[row][0]

@@ -29,6 +29,8 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -43,12 +45,30 @@ from ekfslam.logs.mrclam.checks import (
     swapped_subjects,
     time_offsets,
 )
-from ekfslam.logs.mrclam.dat import raise_at_row, read_table, require_integers
+from ekfslam.logs.mrclam.dat import data_line, raise_at_row, read_table, require_integers
 from ekfslam.logs.mrclam.defaults import NAME as MRCLAM_DEFAULTS
 from ekfslam.logs.mrclam.fetch import mrclam_path
 from ekfslam.logs.mrclam.report import BARCODES, MrclamLoadReport
-from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta, check_time_spans
+from ekfslam.logs.runlog import (
+    Controls,
+    Detections,
+    GroundTruth,
+    RunLog,
+    RunMeta,
+    check_across_files,
+    check_time_spans,
+)
 from ekfslam.places import shared_data_dir
+from ekfslam.plausibility import (
+    BACKWARDS_TOLERANCE_S,
+    MAX_HEADING,
+    MAX_POSITION,
+    MAX_SPEED,
+    MAX_TIME,
+    MAX_TURN_RATE,
+    backwards,
+    first_beyond,
+)
 
 Array = NDArray[np.float64]
 
@@ -133,15 +153,19 @@ def load_mrclam(
     else:
         swap_fixed = False
     tag_map = read_landmarks(folder / LANDMARKS)
-    odometry, odo_unsorted = _sorted_by_time(read_table(paths["Odometry"], _ODOMETRY_COLUMNS))
+    table = read_table(paths["Odometry"], _ODOMETRY_COLUMNS)
+    _check_plausible(paths["Odometry"], table, _ODOMETRY_COLUMNS, _ODOMETRY_BOUNDS)
+    odometry, odo_unsorted, odo_order = _sorted_by_time(table, paths["Odometry"])
     measurements = read_table(paths["Measurement"], _MEASUREMENT_COLUMNS)
+    _check_plausible(paths["Measurement"], measurements, _MEASUREMENT_COLUMNS, _MEASUREMENT_BOUNDS)
     _check_measurements(paths["Measurement"], measurements, barcode_to_subject, tag_map)
-    measurements, meas_unsorted = _sorted_by_time(measurements)
+    measurements, meas_unsorted, meas_order = _sorted_by_time(measurements, paths["Measurement"])
     if has_truth:
         table = read_table(paths["Groundtruth"], _GROUNDTRUTH_COLUMNS)
+        _check_plausible(paths["Groundtruth"], table, _GROUNDTRUTH_COLUMNS, _GROUNDTRUTH_BOUNDS)
     else:
         table = np.empty((0, 4))
-    groundtruth, gt_unsorted = _sorted_by_time(table)
+    groundtruth, gt_unsorted, gt_order = _sorted_by_time(table, paths["Groundtruth"])
 
     controls = Controls(
         t=odometry[:, 0].copy(),
@@ -208,6 +232,13 @@ def load_mrclam(
     # the measurements share the odometry's clock; the Vicon truth's cover is only reported
     names = (paths["Odometry"].name, paths["Measurement"].name, paths["Groundtruth"].name)
     check_time_spans(dataclasses.replace(run, groundtruth=None), folder, names, lines=False)
+    kept_rows = np.flatnonzero(keep)
+    lines: dict[str, Callable[[int], int]] = {
+        names[0]: lambda row: data_line(paths["Odometry"], int(odo_order[row])),
+        names[1]: lambda row: data_line(paths["Measurement"], int(meas_order[kept_rows[row]])),
+        names[2]: lambda row: data_line(paths["Groundtruth"], int(gt_order[row])),
+    }
+    check_across_files(run, folder, names, sorted_rows=lines)
     return run, report
 
 
@@ -295,12 +326,71 @@ def _require_files(folder: Path, robot: int, paths: list[Path]) -> None:
         )
 
 
-def _sorted_by_time(table: Array) -> tuple[Array, int]:
-    """Stable sort on column 0; returns the table and the number of rows earlier than the last."""
-    out_of_order = int(np.count_nonzero(np.diff(table[:, 0]) < 0))
+def _sorted_by_time(table: Array, path: Path) -> tuple[Array, int, np.ndarray]:
+    """Stable sort on column 0: (the table, how many rows were earlier than the row before,
+    each sorted row's row in the file).
+
+    A step back of more than `BACKWARDS_TOLERANCE_S` is refused, naming its line: two logs
+    pasted together (another robot's rows appended), not rows logged out of order. Smaller
+    steps are sorted, counted in the report, and warned about with the first one's line.
+    """
+    back = backwards(table[:, 0])
+    if back is not None:
+        row, seconds = back
+        raise_at_row(
+            path,
+            row,
+            f"time {table[row, 0]!r} s goes back {seconds:.6g} s from the rows before it (more "
+            f"than the {BACKWARDS_TOLERANCE_S:g} s a log may be out of order): two logs pasted "
+            "together, such as another robot's rows?",
+        )
+    steps = np.diff(table[:, 0]) < 0
+    out_of_order = int(np.count_nonzero(steps))
+    order = np.arange(len(table))
     if out_of_order:
-        table = table[np.argsort(table[:, 0], kind="stable")]
-    return table, out_of_order
+        first = int(np.flatnonzero(steps)[0]) + 1
+        warnings.warn(
+            f"{path}:{data_line(path, first)}: {out_of_order} row(s) earlier than the row before "
+            f"them (by at most {float((-np.diff(table[:, 0])).max()):.3g} s): sorted by time",
+            stacklevel=3,
+        )
+        order = np.argsort(table[:, 0], kind="stable")
+        table = table[order]
+    return table, out_of_order, order
+
+
+#: column -> (the largest plausible |value|, unit, what it is) of each file (`ekfslam.plausibility`)
+_ODOMETRY_BOUNDS = {
+    0: (MAX_TIME, "s", "a time"),
+    1: (MAX_SPEED, "m/s", "a speed"),
+    2: (MAX_TURN_RATE, "rad/s", "a turn rate"),
+}
+_MEASUREMENT_BOUNDS = {0: (MAX_TIME, "s", "a time"), 2: (MAX_POSITION, "m", "a range")}
+_GROUNDTRUTH_BOUNDS = {
+    0: (MAX_TIME, "s", "a time"),
+    1: (MAX_POSITION, "m", "a position"),
+    2: (MAX_POSITION, "m", "a position"),
+    3: (MAX_HEADING, "rad", "a heading (degrees by mistake?)"),
+}
+
+
+def _check_plausible(
+    path: Path, table: Array, names: tuple[str, ...], bounds: dict[int, tuple[float, str, str]]
+) -> None:
+    """Refuse the first row with a value beyond its column's plausible bound, naming its line."""
+    first = None
+    for col, (bound, unit, what) in bounds.items():
+        row = first_beyond(table[:, col], bound)
+        if row is not None and (first is None or row < first[0]):
+            first = (row, col, bound, unit, what)
+    if first is not None:
+        row, col, bound, unit, what = first
+        raise_at_row(
+            path,
+            row,
+            f"{names[col]} {table[row, col]!r} {unit} is not plausible as {what} "
+            f"(beyond {bound:g} {unit})",
+        )
 
 
 def _check_measurements(path: Path, table: Array, subjects: dict, tag_map: dict) -> None:
