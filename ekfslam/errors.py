@@ -19,9 +19,23 @@ from __future__ import annotations
 
 import signal
 
+#: The most characters of a problem a message repeats (the file and line come before it).
+MAX_PROBLEM = 400
+#: The most characters of any message of ours.
+MAX_MESSAGE = 600
+
 
 class EkfSlamError(Exception):
-    """Base class of every error ekfslam raises on purpose."""
+    """Base class of every error ekfslam raises on purpose.
+
+    Its message is one line of at most `MAX_MESSAGE` characters (`one_line`), whatever value it
+    repeats: a 5,000-digit number or a whole RunLog's repr is not echoed whole.
+    """
+
+    def __init__(self, *args: object) -> None:
+        if args and isinstance(args[0], str):
+            args = (one_line(args[0], MAX_MESSAGE), *args[1:])
+        super().__init__(*args)
 
 
 class InputError(EkfSlamError, ValueError):
@@ -34,9 +48,9 @@ class InputError(EkfSlamError, ValueError):
     def __init__(self, path: object, line: int | None, problem: str) -> None:
         self.path = str(path)
         self.line = line
-        self.problem = problem
+        self.problem = one_line(problem)
         where = f"{self.path}:{line}" if line is not None else self.path
-        super().__init__(f"{where}: {problem}")
+        super().__init__(f"{where}: {self.problem}")
 
 
 class OutputError(EkfSlamError, OSError):
@@ -51,10 +65,17 @@ class OutputError(EkfSlamError, OSError):
     def __init__(self, path: object, problem: str) -> None:
         super().__init__(f"{path}: {problem}")
         self.path = str(path)
-        self.problem = problem
+        self.problem = one_line(problem)
 
     def __str__(self) -> str:  # OSError's own would add nothing, but say it plainly
         return f"{self.path}: {self.problem}"
+
+
+def one_line(text: str, limit: int = MAX_PROBLEM) -> str:
+    """`text` on one line (runs of white space, newlines too, as one space), clipped to `limit`
+    characters: a library's multi-line message, or a 20 MB cell, is not echoed whole."""
+    text = " ".join(str(text).split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 class AlignmentError(EkfSlamError, ValueError):
