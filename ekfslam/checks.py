@@ -118,10 +118,8 @@ def choice(value: Any, name: str, choices: Collection[Any]) -> Any:
     read as "no alignment".
     """
     listed = ", ".join(repr(c) for c in choices)
-    try:
-        ok = value in choices
-    except TypeError:  # an unhashable value (a list, a dict) in a set of choices
-        ok = False
+    # by type and value: an array compared with a string gives an array, 1 == True
+    ok = any(type(value) is type(c) and value == c for c in choices)
     if not ok:
         kinds = {type(c) for c in choices}
         error = ConfigError if type(value) in kinds else WrongTypeError

@@ -123,7 +123,7 @@ def _matches(value: Any, hint: Any) -> bool:
         return any(_matches(value, arm) for arm in arms)
     origin = typing.get_origin(hint)
     if origin is typing.Literal:
-        return any(value == v and type(value) is type(v) for v in typing.get_args(hint))
+        return any(type(value) is type(v) and value == v for v in typing.get_args(hint))
     if hint is float:
         return is_real(value)
     if hint is int:

@@ -71,6 +71,8 @@ def check_clocks(
     controls: tuple[str, ArrayLike],
     others: Sequence[tuple[str | os.PathLike, ArrayLike, bool]],
     lines: bool = True,
+    margin_s: float = SPAN_MARGIN_S,
+    overlap: bool = True,
 ) -> None:
     """Raise `InputError` unless every file in `others` shares the controls' clock.
 
@@ -79,6 +81,10 @@ def check_clocks(
         least half of the controls' time (ground truth), not only lie within it.
     lines : whether row i of a file is its line i + 2 (False: sorted, filtered, or found in
         camera frames), for the message.
+    margin_s : the least margin, s (a motion-capture system that starts a while before the
+        robot's logs needs more than `SPAN_MARGIN_S`).
+    overlap : whether half of each file's span must lie in the controls' (False: only the
+        margin, for a file that may run on long before or after the controls).
 
     With the controls spanning [c0, c1] and m = max(1 s, 10 % of c1 - c0): every time lies in
     [c0 - m, c1 + m], at least half of each file's own span lies inside [c0, c1], and a file
@@ -86,7 +92,7 @@ def check_clocks(
     """
     c_name, c = controls[0], np.asarray(controls[1], dtype=float)
     c0, c1 = float(c[0]), float(c[-1])
-    margin = max(SPAN_MARGIN_S, SPAN_MARGIN_FRACTION * (c1 - c0))
+    margin = max(margin_s, SPAN_MARGIN_FRACTION * (c1 - c0))
     for path, times, covers in others:
         t = np.asarray(times, dtype=float)
         if not len(t):
@@ -97,7 +103,7 @@ def check_clocks(
         if outside.size:
             problem = f"time {float(t[outside[0]])!r} s is more than {margin:.3g} s outside"
             line = int(outside[0]) + 2 if lines else None
-        elif t1 > t0 and inside < 0.5 * (t1 - t0):
+        elif overlap and t1 > t0 and inside < 0.5 * (t1 - t0):
             problem, line = "less than half of its time span overlaps", None
         elif covers and c1 > c0 and inside < 0.5 * (c1 - c0):
             problem, line = "it covers less than half of", None

@@ -19,7 +19,6 @@ explicitly instead of hoping a generic optimiser gets there.
 
 from __future__ import annotations
 
-import operator
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Any, Literal
@@ -27,11 +26,14 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam import checks
 from ekfslam.analysis._alignment_solver import distances, minimise, weighted_kabsch
 from ekfslam.errors import AlignmentError
 from ekfslam.geometry import compose, rotation, transform_points, wrap_angle
 
 Method = Literal["mean_distance", "least_squares"]
+#: The objectives `align` knows (`Method`).
+METHODS: tuple[str, ...] = ("mean_distance", "least_squares")
 Array = NDArray[np.float64]
 
 
@@ -201,18 +203,17 @@ def align(
         When fewer than two landmarks are in common, or `method` is unknown.
     """
     solvers = {"mean_distance": align_mean_distance, "least_squares": align_least_squares}
-    if method not in solvers:
-        raise AlignmentError(f"unknown alignment method {method!r}; use one of {sorted(solvers)}")
-    est = {_as_id(key): value for key, value in estimated.items()}
-    true = {_as_id(key): value for key, value in truth.items()}
+    checks.choice(method, "align: method", METHODS)
+    est = checks.points_by_id(estimated, "align: estimated")
+    true = checks.points_by_id(truth, "align: truth")
     common = sorted(est.keys() & true.keys())
     if len(common) < 2:
         raise AlignmentError(
             f"map alignment needs at least 2 landmarks in common, found {len(common)}: "
             f"estimated ids {_brief(est)}, true ids {_brief(true)}"
         )
-    X = np.array([np.asarray(est[i], dtype=float).reshape(2) for i in common])
-    Y = np.array([np.asarray(true[i], dtype=float).reshape(2) for i in common])
+    X = np.array([est[i] for i in common])
+    Y = np.array([true[i] for i in common])
     result = solvers[method](X, Y)
     ids = np.array(common, dtype=int)
     ids.setflags(write=False)
@@ -259,7 +260,9 @@ def _points(P: ArrayLike) -> Array:
 
 
 def _check_pair(estimated: ArrayLike, truth: ArrayLike) -> tuple[Array, Array]:
-    X, Y = np.asarray(estimated, dtype=float), np.asarray(truth, dtype=float)
+    what = "landmark positions (x, y) in m"
+    X = checks.array(estimated, "align: estimated", (None, 2), what, finite=False)
+    Y = checks.array(truth, "align: truth", (None, 2), what, finite=False)
     if X.ndim != 2 or X.shape[1:] != (2,) or X.shape != Y.shape:
         raise AlignmentError(
             f"estimated and true landmarks must both have shape (N, 2); got {X.shape} and {Y.shape}"
@@ -268,19 +271,22 @@ def _check_pair(estimated: ArrayLike, truth: ArrayLike) -> tuple[Array, Array]:
         raise AlignmentError(f"map alignment needs at least 2 landmarks, got {len(X)}")
     if not (np.isfinite(X).all() and np.isfinite(Y).all()):
         raise AlignmentError("landmark positions must be finite; found NaN or infinity")
+    for name, P in (("true", Y), ("estimated", X)):
+        if _spread(P) <= ONE_POINT * max(1.0, float(np.abs(P).max())):
+            raise AlignmentError(
+                f"the {len(P)} {name} landmarks all lie at one point {P[0].tolist()}: eq. (17) "
+                "cannot find the map's rotation from them (it is undetermined)"
+            )
     return X, Y
+
+
+#: A map whose points spread less than this (relative to their size) is at one point.
+ONE_POINT = 1e-9
 
 
 def _spread(P: Array) -> float:
     """Size of a map (m): the RMS distance of its points from their centroid."""
     return float(np.sqrt(np.mean(np.sum((P - P.mean(axis=0)) ** 2, axis=1))))
-
-
-def _as_id(key: Any) -> int:
-    try:
-        return operator.index(key)  # ints and numpy ints; not 3.7 or "3"
-    except TypeError:
-        raise AlignmentError(f"landmark ids must be integers; got {key!r}") from None
 
 
 def _brief(mapping: Mapping[int, Any], limit: int = 10) -> str:

@@ -11,6 +11,7 @@ import math
 from pathlib import Path
 
 from ekfslam.cli import args as ca
+from ekfslam.errors import InputError
 from ekfslam.logs.runlog import DETECTIONS_CSV, read_run, write_detections
 from ekfslam.vision.detect import VisionConfig
 from ekfslam.vision.frames_run import detect_run, with_camera, write_frames_run
@@ -77,6 +78,13 @@ def _add_detect(subparsers: argparse._SubParsersAction, name: str, help: str) ->
 
 def cmd_render_frames(args: argparse.Namespace) -> int:
     source = read_run(args.run)
+    if source.groundtruth is None:
+        raise InputError(
+            args.run,
+            None,
+            "has no ground truth (groundtruth.csv): render-frames draws what the camera saw "
+            "from the true poses (a simulated run has them: python -m ekfslam simulate)",
+        )
     kind = "images" if args.images else "video"
     run = with_camera(source, mounting=args.mounting, kind=kind, name=args.name)
     index = write_frames_run(

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam import checks
 from ekfslam.errors import ConfigError
 from ekfslam.fieldtypes import field_types
 
@@ -20,9 +21,7 @@ Array = NDArray[np.float64]
 
 
 def _frozen_array(values: ArrayLike, shape: tuple[int, ...], name: str) -> Array:
-    a = np.array(values, dtype=float)
-    if a.shape != shape or not np.all(np.isfinite(a)):
-        raise ConfigError(f"{name} must be finite with shape {shape}, got {values!r}")
+    a = checks.array(values, name, shape, f"{shape[0]} finite numbers").copy()
     a.flags.writeable = False  # the dataclasses are frozen; their arrays should be too
     return a
 

@@ -56,6 +56,7 @@ def check_predict_many(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> None:
     if (
         R is None
         and type(M) is _ARRAY
+        and M.shape == (3, 3)
         and type(us) is _ARRAY
         and type(dts) is _ARRAY
         and type(ts) is _ARRAY

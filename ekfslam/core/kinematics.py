@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam import checks
 from ekfslam.errors import ConfigError
 from ekfslam.fieldtypes import field_types
 
@@ -95,17 +96,19 @@ def wheels_to_twist(wheels: ArrayLike, geometry: MecanumGeometry) -> NDArray[np.
     array (3,) or (N, 3)
         (vx, vy, ωz) in m/s, m/s, rad/s, in the body frame.
     """
-    w = np.asarray(wheels, dtype=float)
-    if w.shape[-1] != 4:
-        raise ValueError(f"wheel speeds need 4 columns (FL, FR, RL, RR), got shape {w.shape}")
+    w = checks.rows(wheels, "wheels_to_twist: wheels", 4, "wheel speeds (w1, w2, w3, w4) in rad/s")
+    checks.instance(
+        geometry, MecanumGeometry, "wheels_to_twist: geometry", "e.g. MecanumGeometry()"
+    )
     return w @ geometry.wheels_to_twist_matrix.T
 
 
 def twist_to_wheels(twist: ArrayLike, geometry: MecanumGeometry) -> NDArray[np.float64]:
     """Wheel speeds (rad/s; FL, FR, RL, RR) for a body twist (vx, vy, ωz), shape (3,) or (N, 3)."""
-    v = np.asarray(twist, dtype=float)
-    if v.shape[-1] != 3:
-        raise ValueError(f"a body twist has 3 components (vx, vy, wz), got shape {v.shape}")
+    v = checks.rows(twist, "twist_to_wheels: twist", 3, "a body twist (vx, vy, wz)")
+    checks.instance(
+        geometry, MecanumGeometry, "twist_to_wheels: geometry", "e.g. MecanumGeometry()"
+    )
     return v @ geometry.twist_to_wheels_matrix.T
 
 

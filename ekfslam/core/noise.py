@@ -17,8 +17,8 @@ from numpy.typing import NDArray
 
 from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.models import observation_noise
-from ekfslam.errors import ConfigError
-from ekfslam.fieldtypes import field_types
+from ekfslam.errors import ConfigError, WrongTypeError
+from ekfslam.fieldtypes import field_types, shown
 
 Array = NDArray[np.float64]
 
@@ -83,6 +83,7 @@ def default_config(run: Any) -> FilterConfig:
 
     run : a `ekfslam.logs.runlog.RunLog` (anything whose ``meta`` has ``filter_defaults``).
     """
+    _require_run(run, "default_config")
     return run.meta.filter_defaults or FilterConfig()
 
 
@@ -92,4 +93,15 @@ def default_noise(run: Any) -> NoiseConfig:
 
     run : a `ekfslam.logs.runlog.RunLog` (anything whose ``meta`` has ``noise_defaults``).
     """
+    _require_run(run, "default_noise")
     return run.meta.noise_defaults or NoiseConfig()
+
+
+def _require_run(run: Any, function: str) -> None:
+    """A run log (core cannot name `RunLog`: anything whose meta has the defaults)."""
+    meta = getattr(run, "meta", None)
+    if not (hasattr(meta, "noise_defaults") and hasattr(meta, "filter_defaults")):
+        raise WrongTypeError(
+            f"{function}: run must be a RunLog, got {shown(run)}: read a run folder first "
+            "(ekfslam.read_run(folder))"
+        )

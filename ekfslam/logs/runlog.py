@@ -33,9 +33,10 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from ekfslam import checks
 from ekfslam.core.kinematics import MecanumGeometry, wheels_to_twist
 from ekfslam.errors import InputError
-from ekfslam.files import atomic_write_text
+from ekfslam.files import atomic_write_all, new_folder, not_a_file, probe_output
 from ekfslam.logs.csvtable import csv_text, read_table
 from ekfslam.logs.runjson import RunMeta, check_meta, check_shape, meta_json, read_meta
 from ekfslam.plausibility import (
@@ -142,7 +143,9 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
         On the first problem found, naming the file, its 1-based line (header = line 1) and what
         is wrong, e.g. ``controls.csv:57: time 12.4 s is earlier than the previous row (12.45 s)``.
     """
-    folder = Path(folder)
+    folder = checks.path(folder, "read_run: folder")
+    if detections is not None:
+        checks.instance(detections, Detections, "read_run: detections")
     if not folder.is_dir():
         problem = "is not a folder" if folder.exists() else "run folder not found"
         raise InputError(folder, None, f"{problem}; a run is a folder holding {_FILES_HINT}")
@@ -181,7 +184,8 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
 
     groundtruth = None
     path = folder / GROUNDTRUTH_CSV
-    if path.exists():
+    if path.exists() or path.is_symlink():  # a dangling link is a broken truth, not no truth
+        require_file(path, "ground truth is a file (t,x,y,theta); delete it if there is none")
         _, columns = read_table(path, {"groundtruth": GROUNDTRUTH_COLUMNS})
         groundtruth = GroundTruth(t=columns[0], pose=np.column_stack(columns[1:]))
         _check_groundtruth(groundtruth, path)
@@ -195,11 +199,10 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
 
 
 def require_file(path: Path, hint: str) -> None:
-    """Raise `InputError` unless `path` is a file: missing, a folder, a dead link or a loop."""
-    if not path.is_file():  # is_file() follows links: a loop or a dangling link ends here too
-        problem = "is a folder, not a file" if path.is_dir() else "missing file"
-        if path.is_symlink() and not path.is_dir():
-            problem = "is a symbolic link that leads to no file (dangling, or a loop)"
+    """Raise `InputError` unless `path` is a regular file (`ekfslam.files.not_a_file`: missing,
+    a folder, a dangling link or a loop, a FIFO, a device such as a link to /dev/null)."""
+    problem = not_a_file(path)
+    if problem is not None:
         raise InputError(path, None, f"{problem}; {hint}")
 
 
@@ -210,6 +213,45 @@ _FILES_HINT = (
 
 # ---------------------------------------------------------------------------------------------
 # Validation (shared by reader and writer)
+
+
+_RUN_HINT = (
+    "read a run folder first (ekfslam.read_run(folder)) or simulate one (ekfslam.simulate())"
+)
+
+
+def check_replayable(run: RunLog, name: str) -> None:
+    """What a replay reads of `run`, checked before it starts: a `RunLog` (`name` says whose
+    argument) whose controls and detections are finite, in time order and plausible.
+
+    Fast (a few vectorised tests, no row loop): a run built in memory with a NaN wheel speed is
+    caught here, and only then does `validate_run` look for the row to name.
+    """
+    checks.instance(run, RunLog, name, _RUN_HINT)
+    c, d = run.controls, run.detections
+    bound = MAX_WHEEL_SPEED if c.kind == "wheels" else min(MAX_SPEED, MAX_TURN_RATE)
+    try:
+        t, values = np.asarray(c.t, dtype=float), np.asarray(c.values, dtype=float)
+        det = [np.asarray(getattr(d, n)) for n in DETECTION_COLUMNS]
+        ok = (
+            c.kind in CONTROL_COLUMNS
+            and t.ndim == 1
+            and len(t) > 0
+            and values.shape == (len(t), len(CONTROL_COLUMNS[c.kind]) - 1)
+            and bool(np.all(np.abs(t) <= MAX_TIME))
+            and bool(np.all(np.abs(values) <= bound))
+            and not bool(np.any(np.diff(t) < 0))
+            and all(a.shape == det[0].shape and a.ndim == 1 for a in det)
+            and np.issubdtype(det[1].dtype, np.integer)
+            and bool(np.all(np.abs(det[0].astype(float)) <= MAX_TIME))
+            and bool(np.all((det[2] >= 0) & (det[2] <= MAX_POSITION)))
+            and bool(np.all(np.abs(det[3]) <= math.pi))
+            and not bool(np.any(np.diff(det[0]) < 0))
+        )
+    except (TypeError, ValueError, AttributeError):
+        ok = False
+    if not ok:
+        validate_run(run)  # names the file and the row, as the written run would have them
 
 
 def validate_run(run: RunLog, folder: str | os.PathLike | None = None) -> None:
@@ -455,7 +497,12 @@ def write_run(
     those again gives the same bytes. Simulators pass `SIMULATED_DECIMALS`, so that their files
     do not depend on the CPU's vector unit; None writes every float exactly.
     """
-    folder = Path(folder)
+    checks.instance(run, RunLog, "write_run: run", _RUN_HINT)
+    folder = checks.path(folder, "write_run: folder")
+    for name, value in (("overwrite", overwrite), ("with_detections", with_detections)):
+        checks.flag(value, f"write_run: {name}")
+    if decimals is not None:
+        checks.whole(decimals, "write_run: decimals", lo=0, hi=17)
     validate_run(run)
     if not with_detections and run.meta.frames is None:
         raise InputError(folder / RUN_JSON, None, "a run without detections.csv needs frames")
@@ -480,15 +527,20 @@ def write_run(
             "folder exists and is not empty; refusing to overwrite it "
             f"(choose a new folder, or pass {overwrite_hint} to replace its run files)",
         )
-    folder.mkdir(parents=True, exist_ok=True)
-    for name, text in texts.items():
-        # write-then-rename, so an interrupted write never leaves half a file under the real name
-        atomic_write_text(folder / name, text)
-    if g is None:
-        (folder / GROUNDTRUTH_CSV).unlink(missing_ok=True)
-    if not with_detections:
-        (folder / DETECTIONS_CSV).unlink(missing_ok=True)
+    probe_output(folder, folder=True)
+    with new_folder(folder):  # removed again if the writing fails or is interrupted
+        # every file to a temporary one first, then all renamed at once: an interrupted write
+        # leaves the old run or the new one, never half of each
+        atomic_write_all({folder / name: _text_writer(text) for name, text in texts.items()})
+        if g is None:
+            (folder / GROUNDTRUTH_CSV).unlink(missing_ok=True)
+        if not with_detections:
+            (folder / DETECTIONS_CSV).unlink(missing_ok=True)
     return folder
+
+
+def _text_writer(text: str) -> Callable[[Path], object]:
+    return lambda tmp: tmp.write_text(text, encoding="utf-8", newline="\n")
 
 
 def write_detections(
@@ -499,4 +551,4 @@ def write_detections(
     _check_detections(detections, path, tag_map)
     d = detections
     text = csv_text(DETECTION_COLUMNS, [d.t, d.tag_id, d.range, d.bearing])
-    return atomic_write_text(path, text)
+    return atomic_write_all({path: _text_writer(text)})[0]

@@ -183,6 +183,7 @@ class SimulationConfig:
                 lambda v: v >= 0,
                 "zero or positive",
             ),
+            ("seed", lambda v: 0 <= v < 2**63, "a whole number from 0 to 2^63 - 1"),
             ("slip_fraction", lambda v: 0 <= v <= 0.5, "a fraction in [0, 0.5]"),
             ("lens_distortion_ignored", lambda v: 0 <= v <= 1, "a fraction in [0, 1]"),
             ("camera_yaw_error", lambda v: abs(v) < 0.5, "an angle under 0.5 rad"),

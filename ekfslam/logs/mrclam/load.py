@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.errors import InputError
+from ekfslam.files import not_a_file
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.mrclam.checks import (
     DEFAULT_MAX_RANGE,
@@ -67,11 +68,15 @@ from ekfslam.plausibility import (
     MAX_TIME,
     MAX_TURN_RATE,
     backwards,
+    check_clocks,
+    coincident,
     first_beyond,
 )
 
 Array = NDArray[np.float64]
 
+#: s: how long before a robot's odometry its Vicon truth may start (6-9 s in the datasets).
+VICON_LEAD_S = 60.0
 #: The robots' subject numbers; every other subject in Barcodes.dat is a landmark.
 ROBOTS = (1, 2, 3, 4, 5)
 
@@ -142,8 +147,10 @@ def load_mrclam(
     if not folder.is_dir():
         raise InputError(folder, None, "not a folder; expected an MRCLAM_Dataset<N> folder")
     paths = {kind: robot_file(folder, robot, kind) for kind in ROBOT_KINDS}
-    has_truth = paths["Groundtruth"].is_file()
+    truth_path = paths["Groundtruth"]
+    has_truth = truth_path.exists() or truth_path.is_symlink()  # a dangling link is broken
     required = [folder / BARCODES, folder / LANDMARKS, paths["Odometry"], paths["Measurement"]]
+    required += [truth_path] if has_truth else []
     _require_files(folder, robot, required)
     dataset = _dataset_number(folder)
 
@@ -232,6 +239,9 @@ def load_mrclam(
     # the measurements share the odometry's clock; the Vicon truth's cover is only reported
     names = (paths["Odometry"].name, paths["Measurement"].name, paths["Groundtruth"].name)
     check_time_spans(dataclasses.replace(run, groundtruth=None), folder, names, lines=False)
+    if truth is not None:  # on the odometry's clock too, though it need not cover the run
+        others = [(paths["Groundtruth"], truth.t, False)]
+        check_clocks((names[0], controls.t), others, False, margin_s=VICON_LEAD_S, overlap=False)
     kept_rows = np.flatnonzero(keep)
     lines: dict[str, Callable[[int], int]] = {
         names[0]: lambda row: data_line(paths["Odometry"], int(odo_order[row])),
@@ -302,7 +312,23 @@ def read_landmarks(path: str | Path) -> dict[int, Array]:
             raise_at_row(path, row, f"subject {subject} is a robot, not a landmark")
         if subject in tag_map:
             raise_at_row(path, row, f"landmark {subject} is listed twice")
+        if max(abs(x), abs(y)) > MAX_POSITION:
+            raise_at_row(path, row, f"landmark {subject} at ({x!r}, {y!r}) m: not plausible")
         tag_map[subject] = np.array([x, y])
+    at_one, pairs = coincident(tag_map)
+    if at_one:
+        raise InputError(
+            path,
+            None,
+            f"all {len(at_one)} landmarks are at one point {tag_map[at_one[0]].tolist()}: eq. (17) "
+            "cannot find the map's rotation from it",
+        )
+    for a, b in pairs:
+        row = sorted(tag_map).index(b)
+        warnings.warn(
+            f"{path}:{data_line(path, row)}: landmarks {a} and {b} are at the same point",
+            stacklevel=3,
+        )
     return tag_map
 
 
@@ -318,12 +344,16 @@ def _dataset_number(folder: Path) -> str:
 
 
 def _require_files(folder: Path, robot: int, paths: list[Path]) -> None:
-    missing = [p for p in paths if not p.is_file()]
+    missing = [p for p in paths if not p.exists() and not p.is_symlink()]
     if missing:
         names = ", ".join(p.name for p in missing)
         raise InputError(
             missing[0], None, f"file not found: robot {robot} needs {names} in {folder}"
         )
+    for path in paths:  # there, but a folder, a FIFO, a device, a dangling link
+        problem = not_a_file(path)
+        if problem is not None:
+            raise InputError(path, None, f"{problem}; robot {robot} reads it as a table")
 
 
 def _sorted_by_time(table: Array, path: Path) -> tuple[Array, int, np.ndarray]:
