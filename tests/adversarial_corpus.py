@@ -24,6 +24,7 @@ import argparse
 import concurrent.futures
 import contextlib
 import dataclasses
+import io
 import json
 import math
 import os
@@ -86,6 +87,12 @@ class Ran:
     err: str
 
 
+#: Run the command line in this process (the tests: no interpreter start per case) rather than
+#: in a fresh one (the score: every case isolated). Cases that patch ekfslam (`pre`) always
+#: run in a fresh process, and so do the signal cases.
+IN_PROCESS = False
+
+
 def cli(*argv: str, cwd: Path = REPO, timeout: float = 300, pre: str = "") -> Ran:
     """``python -m ekfslam ARGV`` in a fresh process (`pre`: Python run first, e.g. a patch).
 
@@ -94,6 +101,8 @@ def cli(*argv: str, cwd: Path = REPO, timeout: float = 300, pre: str = "") -> Ra
     """
     if argv[:1] == ("bench",) and BENCH_STUB not in pre:
         pre = BENCH_STUB + pre
+    if IN_PROCESS and not pre:
+        return _in_process(argv, cwd)
     code = (
         [
             "-c",
@@ -116,6 +125,23 @@ def cli(*argv: str, cwd: Path = REPO, timeout: float = 300, pre: str = "") -> Ra
     except subprocess.TimeoutExpired:
         return Ran(-1, "", f"timed out after {timeout:g} s")
     return Ran(p.returncode, p.stdout, p.stderr)
+
+
+def _in_process(argv: tuple[str, ...], cwd: Path) -> Ran:
+    """`ekfslam.cli.main.main(argv)` here, its output captured; an exception that escapes it
+    is a traceback, as the user would see one."""
+    from ekfslam.cli.main import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.chdir(cwd), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main(list(argv))
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else 1
+        except Exception:
+            err.write(traceback.format_exc())
+            code = 1
+    return Ran(code, out.getvalue(), err.getvalue())
 
 
 def _lines(text: str) -> list[str]:

@@ -255,7 +255,10 @@ def test_out_of_order_rows_are_sorted_and_duplicates_kept(small: Path) -> None:
     lines.insert(30, lines.pop(19))
     path.write_bytes(b"\r\n".join(lines))
     # the moved line steps back a fraction of a second: sorted, counted, and warned about by line
-    with pytest.warns(UserWarning, match=r"Robot1_Odometry.dat:31: 1 row\(s\) earlier .* 0\.\d+ s"):
+    with pytest.warns(
+        UserWarning,
+        match=r"Robot1_Odometry.dat:31: 1 row\(s\) out of time order \(at most 0\.\d+ s",
+    ):
         run, report = load_mrclam(small, 1)
     assert report.odometry_out_of_order == 1
     assert report.odometry_rows == len(data_rows(path))

@@ -380,8 +380,8 @@ def _sorted_by_time(table: Array, path: Path) -> tuple[Array, int, np.ndarray]:
     if out_of_order:
         first = int(np.flatnonzero(steps)[0]) + 1
         warnings.warn(
-            f"{path}:{data_line(path, first)}: {out_of_order} row(s) earlier than the row before "
-            f"them (by at most {float((-np.diff(table[:, 0])).max()):.3g} s): sorted by time",
+            f"{path}:{data_line(path, first)}: {out_of_order} row(s) out of time order (at most "
+            f"{float((-np.diff(table[:, 0])).max()):.3g} s earlier than the row before): sorted",
             stacklevel=3,
         )
         order = np.argsort(table[:, 0], kind="stable")
