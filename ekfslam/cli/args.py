@@ -329,6 +329,14 @@ def output_folder(text: str) -> Path:
     return path
 
 
+def given_path(text: str) -> Path:
+    """A path to read, as typed (its existence is the reader's to judge); not empty: ``''``
+    would mean the current folder."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"an empty path {text!r}; name a file or folder")
+    return Path(text).expanduser()
+
+
 def input_path(text: str) -> Path:
     """An existing file or folder to read."""
     path = Path(text).expanduser()

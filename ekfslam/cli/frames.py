@@ -25,7 +25,9 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
 
 def _add_render_frames(subparsers: argparse._SubParsersAction, name: str, help: str) -> None:
     p = subparsers.add_parser(name, help=help)
-    p.add_argument("run", type=Path, help="a run folder with ground truth (e.g. from simulate)")
+    p.add_argument(
+        "run", type=ca.given_path, help="a run folder with ground truth (e.g. from simulate)"
+    )
     ca.add_run_folder_arguments(p)
     p.add_argument("--name", type=ca.non_empty, help="the new run's name (default: the run's)")
     p.add_argument(
@@ -52,7 +54,9 @@ def _detect_out(text: str) -> Path:
 
 def _add_detect(subparsers: argparse._SubParsersAction, name: str, help: str) -> None:
     p = subparsers.add_parser(name, help=help)
-    p.add_argument("run", type=Path, help="a run folder with frames (run.json, frames.csv, ...)")
+    p.add_argument(
+        "run", type=ca.given_path, help="a run folder with frames (run.json, frames.csv, ...)"
+    )
     p.add_argument(
         "--out",
         type=_detect_out,
