@@ -19,7 +19,11 @@ Across a file and across files (issue 27), each a decision, refused with the fil
 - ranges, true positions or a start too far from the tag map to belong to it
   (`beyond_map`: millimetres for metres, or another map's file);
 - time that goes back in a recorded log by more than `BACKWARDS_TOLERANCE_S` (two logs pasted
-  together: another robot's measurements appended); less is sorted, counted and warned about.
+  together: another robot's measurements appended); less is sorted, counted and warned about;
+- sightings that do not fit the true poses (`sightings_off_truth`): with ground truth and a tag
+  map, more than `OFF_TRUTH_FRACTION` of the sightings off by more than `OFF_TRUTH_BEARING` rad
+  or `OFF_TRUTH_RANGE` m (MRCLAM's own: at most 0.15 %): another robot's measurements merged in
+  time order, or a map in another frame.
 """
 
 from __future__ import annotations
@@ -52,6 +56,10 @@ HOLE_S, HOLE_FACTOR = 10.0, 100.0
 MAP_REACH_M, MAP_REACH_FACTOR = 100.0, 10.0
 #: A recorded log's time may step back this much (rows logged out of order), s; more is refused.
 BACKWARDS_TOLERANCE_S = 1.0
+#: A sighting is off the truth beyond this bearing error (rad) or range error (m, plus 20 % of
+#: the true range); more than this fraction of them off (and at least `OFF_TRUTH_COUNT`) is
+#: refused.
+OFF_TRUTH_BEARING, OFF_TRUTH_RANGE, OFF_TRUTH_FRACTION, OFF_TRUTH_COUNT = 0.5, 1.5, 0.05, 5
 
 
 def implausible_pose(values: ArrayLike, what: str, pose: bool = True) -> str | None:
@@ -205,3 +213,43 @@ def backwards(t: ArrayLike) -> tuple[int, float] | None:
     back = np.concatenate([[0.0], latest[:-1] - t[1:]])
     hits = np.flatnonzero(back > BACKWARDS_TOLERANCE_S)
     return (int(hits[0]), float(back[hits[0]])) if hits.size else None
+
+
+def sightings_off_truth(
+    t: ArrayLike,
+    tag_id: ArrayLike,
+    ranges: ArrayLike,
+    bearings: ArrayLike,
+    truth: tuple[ArrayLike, ArrayLike],
+    tag_map: dict | None,
+) -> tuple[int, int, int] | None:
+    """(how many sightings are off the truth, how many were compared, the first one's index) when
+    too many are (`OFF_TRUTH_FRACTION`), else None.
+
+    Each sighting of a mapped tag, at a time within the truth's span, is compared with the range
+    and bearing the true pose (interpolated; the heading unwrapped) gives; off is a bearing error
+    beyond `OFF_TRUTH_BEARING` or a range error beyond `OFF_TRUTH_RANGE` + 20 %.
+    """
+    gt_t, pose = (np.asarray(a, dtype=float) for a in truth)
+    t, ids = np.asarray(t, dtype=float), np.asarray(tag_id)
+    if not tag_map or len(gt_t) < 2 or not len(t):
+        return None
+    known = np.array([int(i) in tag_map for i in ids.tolist()], dtype=bool)
+    inside = known & (t >= gt_t[0]) & (t <= gt_t[-1])
+    if np.count_nonzero(inside) < OFF_TRUTH_COUNT:
+        return None
+    rows = np.flatnonzero(inside)
+    heading = np.unwrap(pose[:, 2])
+    x, y = (np.interp(t[rows], gt_t, pose[:, k]) for k in (0, 1))
+    theta = np.interp(t[rows], gt_t, heading)
+    tags = np.array([tag_map[int(i)] for i in ids[rows].tolist()], dtype=float).reshape(-1, 2)
+    dx, dy = tags[:, 0] - x, tags[:, 1] - y
+    r_hat = np.hypot(dx, dy)
+    d_bearing = np.asarray(bearings, dtype=float)[rows] - (np.arctan2(dy, dx) - theta)
+    d_bearing = np.abs((d_bearing + math.pi) % (2 * math.pi) - math.pi)
+    d_range = np.abs(np.asarray(ranges, dtype=float)[rows] - r_hat)
+    off = (d_bearing > OFF_TRUTH_BEARING) | (d_range > OFF_TRUTH_RANGE + 0.2 * r_hat)
+    count = int(np.count_nonzero(off))
+    if count <= OFF_TRUTH_FRACTION * len(rows) or count < OFF_TRUTH_COUNT:
+        return None
+    return count, len(rows), int(rows[np.flatnonzero(off)[0]])

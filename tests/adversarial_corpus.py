@@ -1216,6 +1216,28 @@ def _scaled(name: str, columns: tuple[str, ...], factor: float) -> Callable[[Pat
     return edit
 
 
+def _other_run_mixed(run: Path) -> str:
+    """The detections of a run of another trajectory merged into this run's, in time order."""
+    from ekfslam import SimulationConfig, simulate
+
+    other = simulate(SimulationConfig(trajectory="octagon", laps=1, seed=9)).detections
+    lines = (run / "detections.csv").read_text().splitlines()
+    extra = [
+        f"{t!r},{i},{r!r},{b!r}"
+        for t, i, r, b in zip(
+            other.t.tolist(),
+            other.tag_id.tolist(),
+            other.range.tolist(),
+            other.bearing.tolist(),
+            strict=True,
+        )
+        if t <= float(lines[-1].split(",")[0])
+    ]
+    rows = sorted(lines[1:] + extra, key=lambda ln: float(ln.split(",")[0]))
+    (run / "detections.csv").write_text("\n".join([lines[0], *rows]) + "\n")
+    return str(run / "detections.csv")
+
+
 def _no_truth(folder: Path) -> tuple[list[str], str]:
     run = run_folder(folder)
     (run / "groundtruth.csv").unlink()
@@ -1253,6 +1275,7 @@ PLAUSIBILITY = {
         _refuse("groundtruth"),
     ),
     "render-frames without ground truth": (_no_truth, _refuse("ground truth")),
+    "another run's detections merged in": (_run_with(_other_run_mixed), _refuse("fit")),
     "simulate a start outside the arena": (
         lambda f: (
             [
@@ -1307,6 +1330,18 @@ def _robot2_mixed(ds: Path, folder: Path) -> str:
     extra = [ln for ln in dat_rows(folder / "robot2-measurements.dat") if ln]
     path.write_bytes(b"\r\n".join(lines + extra) + b"\r\n")
     return f"{path}:{n + 1}"
+
+
+def _robot2_merged(ds: Path, folder: Path) -> str:
+    """Robot 2's measurements merged into robot 1's in time order: no step back in time."""
+    path = ds / "Robot1_Measurement.dat"
+    lines = [ln for ln in dat_rows(path) if ln]
+    head = [ln for ln in lines if ln.startswith(b"#")]
+    rows = [ln for ln in lines if not ln.startswith(b"#")]
+    rows += [ln for ln in dat_rows(folder / "robot2-measurements.dat") if ln]
+    rows.sort(key=lambda ln: float(ln.split()[0]))
+    path.write_bytes(b"\r\n".join(head + rows) + b"\r\n")
+    return str(path)
 
 
 def _odometry_back(seconds: float) -> Callable[[Path, Path], str]:
@@ -1373,6 +1408,7 @@ def _mrclam_gt_degrees(ds: Path, folder: Path) -> str:
 
 MRCLAM_PLAUSIBILITY = {
     "MRCLAM: another robot's measurements appended": (_robot2_mixed, _refuse("back")),
+    "MRCLAM: another robot's measurements merged in time order": (_robot2_merged, _refuse("fit")),
     "MRCLAM: odometry jumps back an hour": (_odometry_back(3600.0), _refuse("back")),
     "MRCLAM: odometry goes back 5 s": (_odometry_back(5.0), _refuse("back")),
     "MRCLAM: two odometry rows 20 ms out of order": (_odometry_back(0.02), _warn("order")),

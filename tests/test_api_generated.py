@@ -166,10 +166,28 @@ SPECS = [
         {
             "estimated": lambda: np.array(list(TWO_MAPS[0].values())),
             "truth": lambda: np.array(list(TWO_MAPS[1].values())),
+            "tol": lambda: 1e-12,
+            "max_iterations": lambda: 1000,
         },
         arrays=("estimated", "truth"),
         result=lambda a: _finite(a.transform, a.errors),
         forms=("estimated", "truth"),
+    ),
+    Spec(
+        "Alignment.apply",
+        lambda points: _alignment().apply(points),
+        {"points": lambda: np.array([[0.0, 1.0], [2.0, 3.0]])},
+        arrays=("points",),
+        result=lambda v: _finite(v),
+        forms=("points",),
+    ),
+    Spec(
+        "Alignment.start_pose",
+        lambda nominal_start: _alignment().start_pose(nominal_start),
+        {"nominal_start": lambda: np.array([-0.375, -0.375, 0.0])},
+        arrays=("nominal_start",),
+        result=lambda v: _finite(v),
+        forms=("nominal_start",),
     ),
     Spec(
         "ate_rmse",
@@ -282,6 +300,10 @@ SPECS = [
         forms=("z", "Q"),
     ),
 ]
+
+
+def _alignment() -> ekfslam.Alignment:
+    return ekfslam.align(*TWO_MAPS)
 
 
 def _filter_predict(**kw: Any) -> ekfslam.EKFSLAM:

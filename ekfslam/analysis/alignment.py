@@ -87,7 +87,7 @@ class Alignment:
 
     def apply(self, points: ArrayLike) -> Array:
         """Map points (M, 2) from the estimate's frame to the world: R(θ0) p + (x0, y0)."""
-        return transform_points(self.transform, points)
+        return transform_points(self.transform, checks.rows(points, "Alignment.apply: points", 2))
 
     def apply_pose(self, pose: ArrayLike) -> Array:
         """Map a robot pose (x, y, θ) from the estimate's frame to the world, shape (3,).
@@ -95,7 +95,7 @@ class Alignment:
         The position is rotated by θ0 and translated by (x0, y0); θ0 is added to the heading,
         which is then wrapped to [-π, π).
         """
-        return compose(self.transform, pose)
+        return compose(self.transform, checks.pose(pose, "Alignment.apply_pose: pose"))
 
     def start_pose(self, nominal_start: ArrayLike) -> Array:
         """The robot's true start pose (x, y, θ), shape (3,), given the start it believed in.
@@ -104,7 +104,7 @@ class Alignment:
         same transform that lays the map onto the world carries that pose to where the robot
         really stood.
         """
-        return self.apply_pose(nominal_start)
+        return compose(self.transform, checks.pose(nominal_start, "Alignment.start_pose: pose"))
 
 
 def mean_distance_objective(params: ArrayLike, X: ArrayLike, Y: ArrayLike) -> float:
@@ -173,6 +173,8 @@ def align_mean_distance(
         between them is equally good); we return the least-squares one, which is among them.
     """
     X, Y = _check_pair(estimated, truth)
+    checks.real(tol, "align_mean_distance: tol", lo=0.0)
+    checks.whole(max_iterations, "align_mean_distance: max_iterations", lo=1)
     x_bar, y_bar = X.mean(axis=0), Y.mean(axis=0)
     size = _spread(Y) or _spread(X) or 1.0
     tol = max(tol, 1e-15)  # it is also the IRLS weight cap, 1/tol: it must stay finite

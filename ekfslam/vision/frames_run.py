@@ -30,7 +30,7 @@ from ekfslam import checks
 from ekfslam.core.arena import SEED_ARENA, Arena
 from ekfslam.core.camera import TAG_SIZE, Camera, TagSpec, pinhole_camera
 from ekfslam.errors import ConfigError, InputError
-from ekfslam.files import new_folder
+from ekfslam.files import new_folder, probe_output
 from ekfslam.logs.frames import (
     IMAGE_PATTERN,
     VIDEO_FILE,
@@ -259,6 +259,7 @@ def detect_run(
         raise InputError(target, None, "folder exists and is not empty; pass --overwrite")
     if path.exists() and not overwrite:
         raise InputError(path, None, "exists; pass --overwrite to replace it")
+    probe_output(path)  # before the frames are read: a target that cannot be written says so now
     detections, counts = detect_frames(folder, meta, config)
     with new_folder(target if target != path else path.parent):  # removed if interrupted
         if target != path:  # a new run folder: the run's own files, then its detections
