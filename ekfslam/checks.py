@@ -12,9 +12,10 @@ deep inside. Each validator raises
 
 and returns the value as checked (a float, a float array, a `Path`), so the caller goes on with
 exactly what was checked. `name` is how the message names the argument, with its function:
-``"replay: start_covariance"`` gives ``replay: start_covariance must be a 3x3 matrix, got shape
-(2, 2)``. `field_types` (`ekfslam.fieldtypes`, numpy-free so that a config is) checks a
-dataclass's fields against their annotations: one line in a config's ``__post_init__``.
+``"replay: start_covariance"`` gives ``replay: start_covariance must be a 3x3 covariance matrix
+of shape (3, 3), got shape (2, 2)``. `field_types` (`ekfslam.fieldtypes`, numpy-free so that a
+config is) checks a dataclass's fields against their annotations: one line in a config's
+``__post_init__``.
 """
 
 from __future__ import annotations
@@ -29,15 +30,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ekfslam.errors import ConfigError, WrongTypeError
-from ekfslam.fieldtypes import field_types, is_real, is_whole, shown
+from ekfslam.fieldtypes import field_types as field_types  # one layer: checks.field_types too
+from ekfslam.fieldtypes import is_real, is_whole, shown
 from ekfslam.plausibility import implausible_pose
 
 Array = NDArray[np.float64]
 
 #: numpy dtype kinds that are numbers (bool is not: True is no length)
 _NUMBER_KINDS = "iuf"
-
-__all__ = ["field_types", "is_real", "is_whole", "shown"]  # from `ekfslam.fieldtypes`, as one layer
 
 
 # --------------------------------------------------------------------------------- scalars

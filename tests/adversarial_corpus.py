@@ -1199,6 +1199,14 @@ def _tags(points: list[tuple[float, float]] | None) -> Callable[[Path], str]:
     return edit
 
 
+def _tag_copied(run: Path) -> str:
+    """A tag the run never sees, added to tag_map where tag 0 is (a copy and paste)."""
+    doc = json.loads((run / "run.json").read_text())
+    doc["tag_map"]["99"] = doc["tag_map"]["0"]
+    (run / "run.json").write_text(json.dumps(doc, indent=2))
+    return str(run / "run.json")
+
+
 def _column_value(name: str, column: str, row: int, value: str) -> Callable[[Path], str]:
     def edit(run: Path) -> str:
         edit_column(run / name, column, lambda i, v: value if i == row else v)
@@ -1249,7 +1257,7 @@ PLAUSIBILITY = {
     "an hour without controls while moving": (_run_with(_hole(True)), _refuse("3600")),
     "an hour without controls at rest": (_run_with(_hole(False)), lambda r, w: accepted(r)),
     "every tag at one point": (_run_with(_tags(None)), _refuse("one point")),
-    "two tags at one point": (_run_with(_tags([(0.5, 0.5), (0.5, 0.5)])), _warn("same point")),
+    "two tags at one point": (_run_with(_tag_copied), _warn("same point")),
     "a wheel speed of 1e300": (
         _run_with(_column_value("controls.csv", "w1", 40, "1e300")),
         _refuse("w1"),

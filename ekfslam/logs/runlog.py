@@ -313,19 +313,6 @@ def check_across_files(
             f"could be ({longest:.4g} m): millimetres for metres?",
         )
     if run.groundtruth is not None:
-        d, g = run.detections, run.groundtruth
-        off = sightings_off_truth(
-            d.t, d.tag_id, d.range, d.bearing, (g.t, g.pose), run.meta.tag_map
-        )
-        if off is not None:
-            count, compared, row = off
-            raise InputError(
-                folder / d_name,
-                line(d_name, row),
-                f"{count} of {compared} sightings do not fit the true poses of {g_name} and the "
-                f"tag map (this one: range {_num(d.range[row])} m, bearing {_num(d.bearing[row])} "
-                "rad): another robot's measurements mixed in, or a map in another frame?",
-            )
         far_pose = beyond_map(run.groundtruth.pose[:, :2], run.meta.tag_map)
         if far_pose is not None:
             row, distance, reach = far_pose
@@ -335,6 +322,18 @@ def check_across_files(
                 line(g_name, row),
                 f"groundtruth position {xy} is {distance:.4g} m from the tag map, beyond "
                 f"{reach:.4g} m: millimetres for metres, or another map's run?",
+            )
+        d, g = run.detections, run.groundtruth
+        truth = (g.t, g.pose)
+        off = sightings_off_truth(d.t, d.tag_id, d.range, d.bearing, truth, run.meta.tag_map)
+        if off is not None:
+            count, compared, row = off
+            raise InputError(
+                folder / d_name,
+                line(d_name, row),
+                f"{count} of {compared} sightings do not fit the true poses of {g_name} and the "
+                f"tag map (this one: range {_num(d.range[row])} m, bearing {_num(d.bearing[row])} "
+                "rad): another robot's measurements mixed in, or a map in another frame?",
             )
 
 
