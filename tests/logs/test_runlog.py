@@ -228,15 +228,18 @@ def random_run(kind: str, *, with_truth: bool, with_map: bool, seed: int = 7) ->
     controls = Controls(
         t=t, kind=kind, values=awkward_floats(rng, (n, 4 if kind == "wheels" else 3))
     )
+    # on the controls' clock; before the truth begins, so that random sightings are not held to
+    # fit the random true poses (`ekfslam.plausibility.sightings_off_truth`)
     detections = Detections(
-        t=np.sort(rng.uniform(t[0], t[-1], size=m)),  # on the controls' clock
+        t=np.sort(rng.uniform(t[0], t[0] + 0.4 * (t[-1] - t[0]), size=m)),
         tag_id=ids.astype(np.int64),
         range=np.abs(awkward_floats(rng, (m,))),
         bearing=np.concatenate([[-math.pi, math.pi, -0.0], rng.uniform(-math.pi, math.pi, m - 3)]),
     )
     truth = None
     if with_truth:
-        truth = GroundTruth(t=np.linspace(t[0], t[-1], k), pose=awkward_floats(rng, (k, 3)))
+        start = t[0] + 0.45 * (t[-1] - t[0])
+        truth = GroundTruth(t=np.linspace(start, t[-1], k), pose=awkward_floats(rng, (k, 3)))
     return RunLog(meta=meta, controls=controls, detections=detections, groundtruth=truth)
 
 
