@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 from ekfslam.errors import ConfigError, WrongTypeError
 from ekfslam.fieldtypes import field_types as field_types  # one layer: checks.field_types too
 from ekfslam.fieldtypes import is_real, is_whole, shown
+from ekfslam.files import user_path
 from ekfslam.plausibility import implausible_pose
 
 Array = NDArray[np.float64]
@@ -72,7 +73,10 @@ def real(
     """
     if not is_real(value):
         raise WrongTypeError(f"{name} must be a number{_unit(unit)}, got {shown(value)}")
-    x = float(value)
+    try:
+        x = float(value)
+    except OverflowError:  # an integer of hundreds of digits
+        raise ConfigError(f"{name} is a number too large for a float{_unit(unit)}") from None
     if not math.isfinite(x):
         raise ConfigError(f"{name} must be a finite number{_unit(unit)}, got {x!r}")
     if lo is not None and (x <= lo if lo_open else x < lo):
@@ -145,18 +149,26 @@ def path(value: Any, name: str) -> Path:
         raise ConfigError(f"{name} is an empty path {text!r}; name a file or folder")
     if "\0" in text:
         raise ConfigError(f"{name} holds a NUL character, which no path can: {text!r}")
-    return Path(text).expanduser()
+    return user_path(text)
 
 
 # ---------------------------------------------------------------------------------- arrays
 def array(
-    value: Any, name: str, shape: tuple[int | None, ...], what: str = "", *, finite: bool = True
+    value: Any,
+    name: str,
+    shape: tuple[int | None, ...],
+    what: str = "",
+    *,
+    finite: bool = True,
+    bound: float | None = None,
 ) -> Array:
     """`value` as a float array of `shape` (None: any length), finite unless told otherwise.
 
     what : what the array is, for the message (``"a pose (x, y, theta)"``).
-    Strings, None, dicts and mixed objects are a `WrongTypeError`; a wrong shape, a ragged list
-    or NaN/inf a `ConfigError`.
+    bound : the largest plausible magnitude of an entry (a position of 1e300 m is finite, but
+        every product of it overflows).
+    Strings, None, dicts and mixed objects are a `WrongTypeError`; a wrong shape, a ragged list,
+    NaN/inf or an entry beyond `bound` a `ConfigError`.
     """
     try:
         a = np.asarray(value)
@@ -167,7 +179,10 @@ def array(
         ) from None
     if a.dtype.kind not in _NUMBER_KINDS:
         if a.dtype.kind == "O" and a.size and all(map(is_real, a.flat)):
-            a = a.astype(np.float64)
+            try:
+                a = a.astype(np.float64)
+            except OverflowError:  # an integer of hundreds of digits
+                raise ConfigError(f"{name} holds a number too large for a float") from None
         else:
             raise WrongTypeError(f"{name} must be {what or 'numbers'}, got {shown(value)}")
     if a.ndim != len(shape) or any(
@@ -180,6 +195,13 @@ def array(
         at = f" at index {where[0] if len(where) == 1 else where}" if where else ""
         bad = out[where] if where else out
         raise ConfigError(f"{name} must be finite numbers, got a non-finite {float(bad)!r}{at}")
+    if bound is not None and out.size and float(np.abs(out).max()) > bound:
+        where = tuple(int(i) for i in np.argwhere(np.abs(out) > bound)[0])
+        at = f" at index {where[0] if len(where) == 1 else where}" if where else ""
+        raise ConfigError(
+            f"{name}: {float(out[where] if where else out)!r}{at} is not plausible (beyond "
+            f"±{bound:g})"
+        )
     return out
 
 
@@ -206,14 +228,14 @@ def point(value: Any, name: str) -> Array:
     return p
 
 
-def rows(value: Any, name: str, width: int, what: str = "") -> Array:
-    """Rows of `width` finite numbers: (width,) or (N, width) (`array`)."""
+def rows(value: Any, name: str, width: int, what: str = "", bound: float | None = None) -> Array:
+    """Rows of `width` finite numbers: (width,) or (N, width) (`array`), within ±`bound`."""
     try:
         ndim = np.ndim(value)
     except (ValueError, TypeError):  # ragged: `array` says so
         ndim = 2
     shape: tuple[int | None, ...] = (width,) if ndim == 1 else (None, width)
-    return array(value, name, shape, what or f"rows of {width} numbers")
+    return array(value, name, shape, what or f"rows of {width} numbers", bound=bound)
 
 
 def covariance(value: Any, name: str, n: int, *, definite: bool = False, what: str = "") -> Array:
@@ -256,7 +278,7 @@ def points_by_id(value: Any, name: str) -> dict[int, Array]:
     for key, xy in value.items():
         if not is_whole(key):
             raise ConfigError(f"{name}: landmark ids must be integers, got {shown(key)}")
-        out[int(key)] = vector(xy, f"{name}[{key}]", 2, "a point (x, y) in m")
+        out[int(key)] = point(xy, f"{name}[{key}]")
     return out
 
 

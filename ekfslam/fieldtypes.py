@@ -9,6 +9,7 @@ apart through the `numbers` ABCs they register with (np.float32 is a `numbers.Re
 from __future__ import annotations
 
 import dataclasses
+import math
 import numbers
 import sys
 import types
@@ -39,6 +40,14 @@ def is_real(value: object) -> bool:
 def is_whole(value: object) -> bool:
     """Whether `value` is an int or a numpy integer (not a bool, not a float like 3.0)."""
     return isinstance(value, numbers.Integral) and not _is_bool(value)
+
+
+def finite(value: object) -> bool:
+    """Whether the real number `value` is finite as a float (an int of 400 digits is not)."""
+    try:
+        return math.isfinite(float(value))  # type: ignore[arg-type]
+    except (OverflowError, TypeError, ValueError):
+        return False
 
 
 def _is_bool(value: object) -> bool:

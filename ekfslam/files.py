@@ -42,6 +42,16 @@ _TEMP_STEM = 100
 _NAME_MAX, _PATH_MAX = 255, 4096
 
 
+def user_path(text: str | os.PathLike) -> Path:
+    """`text` as a Path, ``~`` and ``~user`` expanded where they can be (``~nobody-here/x`` is
+    left as typed: pathlib would raise RuntimeError, and the path then is simply not found)."""
+    path = Path(text)
+    try:
+        return path.expanduser()
+    except RuntimeError:
+        return path
+
+
 # ------------------------------------------------------------------------------- probing
 def output_problem(path: str | os.PathLike, *, folder: bool = False) -> str | None:
     """Why `path` cannot be written (as a file, or with `folder` as a folder to fill), or None.

@@ -38,6 +38,9 @@ from ekfslam.plausibility import MAX_HEADING, MAX_POSITION
 
 Array = NDArray[np.float64]
 
+#: The most keyframes `replay` keeps: each is a copy of the whole state (μ and Σ).
+MAX_KEYFRAMES = 100_000
+
 
 @dataclass(frozen=True, eq=False)
 class ReplayResult:
@@ -135,8 +138,11 @@ def replay(
     if start_covariance is not None:
         checks.covariance(start_covariance, "replay: start_covariance", 3)
     whole = isinstance(keyframes, int | np.integer) and not isinstance(keyframes, bool)
-    if keyframes is not None and not (whole and keyframes >= 2):
-        raise ConfigError(f"keyframes must be a whole number >= 2, got {keyframes!r}")
+    if keyframes is not None and not (whole and 2 <= keyframes <= MAX_KEYFRAMES):
+        raise ConfigError(
+            f"keyframes must be a whole number from 2 to {MAX_KEYFRAMES} (each is a copy of the "
+            f"whole state), got {checks.shown(keyframes)}"
+        )
     noise = noise or default_noise(run)
     config = config or default_config(run)
     pose0 = run.meta.nominal_start if start_pose is None else start_pose

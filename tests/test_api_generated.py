@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -64,6 +65,16 @@ class _Inputs:
 
 INPUTS: list[_Inputs] = []
 _ROOT = tempfile.TemporaryDirectory(prefix="ekfslam-api-")  # removed when the process ends
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _in_a_scratch_folder():
+    """Generated paths are often relative ("1.5", "false"): written where the test runs, they
+    would litter the checkout. The module runs inside its own temporary folder."""
+    here = Path.cwd()
+    os.chdir(_ROOT.name)
+    yield
+    os.chdir(here)
 
 
 def _in() -> _Inputs:

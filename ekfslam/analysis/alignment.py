@@ -30,6 +30,7 @@ from ekfslam import checks
 from ekfslam.analysis._alignment_solver import distances, minimise, weighted_kabsch
 from ekfslam.errors import AlignmentError
 from ekfslam.geometry import compose, rotation, transform_points, wrap_angle
+from ekfslam.plausibility import MAX_POSITION
 
 Method = Literal["mean_distance", "least_squares"]
 #: The objectives `align` knows (`Method`).
@@ -87,7 +88,8 @@ class Alignment:
 
     def apply(self, points: ArrayLike) -> Array:
         """Map points (M, 2) from the estimate's frame to the world: R(θ0) p + (x0, y0)."""
-        return transform_points(self.transform, checks.rows(points, "Alignment.apply: points", 2))
+        points = checks.rows(points, "Alignment.apply: points", 2, bound=MAX_POSITION)
+        return transform_points(self.transform, points)
 
     def apply_pose(self, pose: ArrayLike) -> Array:
         """Map a robot pose (x, y, θ) from the estimate's frame to the world, shape (3,).
@@ -263,8 +265,10 @@ def _points(P: ArrayLike) -> Array:
 
 def _check_pair(estimated: ArrayLike, truth: ArrayLike) -> tuple[Array, Array]:
     what = "landmark positions (x, y) in m"
-    X = checks.array(estimated, "align: estimated", (None, 2), what, finite=False)
-    Y = checks.array(truth, "align: truth", (None, 2), what, finite=False)
+    X = checks.array(
+        estimated, "align: estimated", (None, 2), what, finite=False, bound=MAX_POSITION
+    )
+    Y = checks.array(truth, "align: truth", (None, 2), what, finite=False, bound=MAX_POSITION)
     if X.ndim != 2 or X.shape[1:] != (2,) or X.shape != Y.shape:
         raise AlignmentError(
             f"estimated and true landmarks must both have shape (N, 2); got {X.shape} and {Y.shape}"

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from ekfslam.core.filter.config import CHI2_2DOF_99, LINEARIZATIONS
-from ekfslam.files import output_problem
+from ekfslam.files import not_a_file, output_problem, user_path
 
 #: What ``--plot`` writes (matplotlib infers the format from the suffix; these need no extras).
 PLOT_FORMATS: tuple[str, ...] = (".png", ".pdf", ".svg")
@@ -305,7 +305,7 @@ def output_file(suffixes: Iterable[str] | None = None) -> Callable[[str], Path]:
     def parse(text: str) -> Path:
         if not text.strip():
             raise argparse.ArgumentTypeError(f"an empty path {text!r}; name a file")
-        path = Path(text).expanduser()
+        path = user_path(text)
         if allowed is not None and path.suffix.lower() not in allowed:
             listed = ", ".join(allowed)
             got = f"{path.suffix!r} in {text!r}" if path.suffix else f"no extension in {text!r}"
@@ -322,7 +322,7 @@ def output_folder(text: str) -> Path:
     """A folder to write into (created if missing)."""
     if not text.strip():
         raise argparse.ArgumentTypeError(f"an empty path {text!r}; name a folder")
-    path = Path(text).expanduser()
+    path = user_path(text)
     problem = check_output_path(path, folder=True)
     if problem is not None:
         raise argparse.ArgumentTypeError(problem)
@@ -334,14 +334,16 @@ def given_path(text: str) -> Path:
     would mean the current folder."""
     if not text.strip():
         raise argparse.ArgumentTypeError(f"an empty path {text!r}; name a file or folder")
-    return Path(text).expanduser()
+    return user_path(text)
 
 
 def input_path(text: str) -> Path:
     """An existing file or folder to read."""
-    path = Path(text).expanduser()
+    path = user_path(text)
     if not path.exists():
         raise argparse.ArgumentTypeError(f"{text} does not exist")
+    if not path.is_dir() and not_a_file(path) is not None:  # a FIFO would block the reader
+        raise argparse.ArgumentTypeError(f"{text} {not_a_file(path)}")
     return path
 
 
@@ -372,7 +374,7 @@ def mrclam_dataset(text: str) -> Path | int:
     A number is returned as an int, found later by `ekfslam.logs.mrclam.load.find_dataset`
     (the shared data, then the download cache), so parsing stays free of numpy.
     """
-    path = Path(text).expanduser()
+    path = user_path(text)
     if path.is_dir():
         return path
     if text.strip().isdigit():

@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam import checks
 from ekfslam.errors import ConfigError
-from ekfslam.fieldtypes import field_types
+from ekfslam.fieldtypes import field_types, finite
 
 Array = NDArray[np.float64]
 
@@ -61,7 +61,7 @@ class Arena:
 
     def __post_init__(self) -> None:
         field_types(self)
-        if not np.isfinite(self.half_size) or self.half_size <= 0:
+        if not finite(self.half_size) or self.half_size <= 0:
             raise ConfigError(f"Arena.half_size must be a positive length, got {self.half_size!r}")
         ids = [tag.id for tag in self.tags]
         if len(set(ids)) != len(ids):

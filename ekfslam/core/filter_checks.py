@@ -20,6 +20,7 @@ import numpy as np
 from ekfslam import checks
 from ekfslam.core.filter.config import FilterConfig
 from ekfslam.errors import ConfigError, WrongTypeError
+from ekfslam.plausibility import MAX_POSITION, MAX_TIME
 
 #: the last noise matrices found good, by their bytes: a replay passes one M (or R) and one Q
 _GOOD_NOISE: dict[tuple[str, int], bytes] = {}
@@ -44,10 +45,11 @@ def check_start(pose: Any, pose_covariance: Any, config: Any, record: Any) -> No
 
 def check_predict(u: Any, R: Any, t: Any) -> None:
     """`EKFSLAM.predict(u, R, t)`: u (3,) finite, R a 3x3 covariance, t a finite time or None."""
-    checks.vector(u, "EKFSLAM.predict: u", 3, "an increment (dx, dy, dtheta) in m, m, rad")
+    what = "an increment (dx, dy, dtheta) in m, m, rad"
+    checks.array(u, "EKFSLAM.predict: u", (3,), what, bound=MAX_POSITION)
     _noise(R, "EKFSLAM.predict: R", 3)
     if t is not None:
-        checks.real(t, "EKFSLAM.predict: t", unit="s")
+        checks.real(t, "EKFSLAM.predict: t", lo=-MAX_TIME, hi=MAX_TIME, unit="s")
 
 
 def check_predict_many(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> None:
@@ -70,27 +72,31 @@ def check_predict_many(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> None:
         and us.size <= _FAST_SIZE
         and _GOOD_NOISE.get(_M_KEY) == M.tobytes()
     ):  # what the replay passes, event after event: Python floats, no numpy reduction
-        d = dts.tolist()
-        if math.isfinite(sum(us.ravel().tolist()) + sum(d) + sum(ts.tolist())) and (
-            not d or min(d) >= 0.0
+        u, d, t = us.ravel().tolist(), dts.tolist(), ts.tolist()
+        if (
+            math.isfinite(sum(u) + sum(d) + sum(t))
+            and (not d or (min(d) >= 0.0 and max(d) <= MAX_TIME))
+            and (not u or -MAX_POSITION <= min(u) <= max(u) <= MAX_POSITION)
+            and (not t or -MAX_TIME <= min(t) <= max(t) <= MAX_TIME)
         ):
             return
     name = "EKFSLAM.predict_many"
     if (M is None) == (R is None):
         raise ConfigError(f"{name}: give exactly one of M (per second) or R (per step)")
     _noise(M if M is not None else R, f"{name}: {'M' if M is not None else 'R'}", 3)
-    k, _ = _rows(us, f"{name}: us", 3)
-    _rows(ts, f"{name}: ts", None, k)
+    k, _ = _rows(us, f"{name}: us", 3, bound=MAX_POSITION)
+    _rows(ts, f"{name}: ts", None, k, bound=MAX_TIME)
     if M is not None:
-        _, smallest = _rows(dts, f"{name}: dts", None, k)
+        _, smallest = _rows(dts, f"{name}: dts", None, k, bound=MAX_TIME)
         if smallest < 0.0:
             raise ConfigError(f"{name}: dts must be durations >= 0 s, got {smallest!r}")
 
 
 def check_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> None:
-    """`EKFSLAM.update(landmark_id, z, Q, t)`: a whole-number id, z = (r >= 0, φ) finite, Q a
-    2x2 positive-definite covariance, t a finite time or None. (A negative range is the
-    sensor's business, refused by the readers; the filter's algebra takes it.)"""
+    """`EKFSLAM.update(landmark_id, z, Q, t)`: a whole-number id, z = (r, φ) finite (|r| within
+    the plausible 1e7 m), Q a 2x2 positive-definite covariance, t a plausible time or None. (A
+    negative range is the sensor's business, refused by the readers; the filter's algebra takes
+    it.)"""
     if (
         type(landmark_id) is int
         and type(z) is list
@@ -105,24 +111,21 @@ def check_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> None:
         if (
             type(r) is float
             and type(phi) is float
-            and 0.0 <= r < math.inf
+            and -MAX_POSITION <= r <= MAX_POSITION
             and -math.inf < phi < math.inf
-            and t - t == 0.0
+            and -MAX_TIME <= t <= MAX_TIME
         ):
             return
-    if type(landmark_id) is not int and not checks.is_whole(landmark_id):
+    if not checks.is_whole(landmark_id) or not -(2**63) <= int(landmark_id) < 2**63:
         raise WrongTypeError(
-            f"EKFSLAM.update: landmark_id must be a whole number, got {checks.shown(landmark_id)}"
+            "EKFSLAM.update: landmark_id must be a whole number within 64 bits, got "
+            f"{checks.shown(landmark_id)}"
         )
-    if type(z) in (list, tuple) and len(z) == 2 and type(z[0]) is float and type(z[1]) is float:
-        r, phi = z  # the replay's own rows: no numpy call
-    else:
-        r, phi = checks.vector(z, "EKFSLAM.update: z", 2, "an observation (range, bearing)")
-    if not (math.isfinite(r) and math.isfinite(phi)):
-        raise ConfigError(f"EKFSLAM.update: z must be finite numbers, got non-finite {[r, phi]!r}")
+    what = "an observation (range, bearing)"
+    checks.array(z, "EKFSLAM.update: z", (2,), what, bound=MAX_POSITION)
     _noise(Q, "EKFSLAM.update: Q", 2, definite=True)
-    if t is not None and not (type(t) is float and math.isfinite(t)):
-        checks.real(t, "EKFSLAM.update: t", unit="s")
+    if t is not None:
+        checks.real(t, "EKFSLAM.update: t", lo=-MAX_TIME, hi=MAX_TIME, unit="s")
 
 
 def _noise(value: Any, name: str, n: int, definite: bool = False) -> None:
@@ -138,7 +141,9 @@ def _noise(value: Any, name: str, n: int, definite: bool = False) -> None:
     checks.covariance(value, name, n, definite=definite)
 
 
-def _rows(value: Any, name: str, width: int | None, length: int | None = None) -> tuple[int, float]:
+def _rows(
+    value: Any, name: str, width: int | None, length: int | None = None, bound: float = math.inf
+) -> tuple[int, float]:
     """Check rows of `width` finite numbers ((width,) is one row), or (N,) values when `width`
     is None, `length` of them when given; returns (how many, the smallest value).
 
@@ -155,15 +160,22 @@ def _rows(value: Any, name: str, width: int | None, length: int | None = None) -
     )
     if fast and value.size <= _FAST_SIZE:
         flat = value.ravel().tolist()
-        if not math.isfinite(sum(flat)):
-            checks.array(value, name, shape)  # says which one (or lets an overflowed sum pass)
+        if not math.isfinite(sum(flat)) or (flat and max(map(abs, flat)) > bound):
+            checks.array(value, name, shape, bound=bound)  # says which (or lets it pass)
         count, smallest = len(value), min(flat, default=0.0)
     else:
-        if not fast and width is not None and np.ndim(value) == 1:
+        if not fast and width is not None and _ndim(value) == 1:
             shape = (width,)
-        a = checks.array(value, name, shape)
+        a = checks.array(value, name, shape, bound=bound)
         count = 1 if a.ndim == 1 and width is not None else len(a)
         smallest = float(a.min()) if a.size else 0.0
     if length is not None and count != length:
         raise ConfigError(f"{name}: {length} increments need as many values, got {count}")
     return count, smallest
+
+
+def _ndim(value: Any) -> int:
+    try:
+        return np.ndim(value)
+    except (ValueError, TypeError):  # ragged: `checks.array` says so
+        return 2

@@ -33,7 +33,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam import checks
 from ekfslam.errors import ConfigError
-from ekfslam.fieldtypes import field_types
+from ekfslam.fieldtypes import field_types, finite
+from ekfslam.plausibility import MAX_SPEED, MAX_TURN_RATE, MAX_WHEEL_SPEED
 
 
 @dataclass(frozen=True)
@@ -51,7 +52,7 @@ class MecanumGeometry:
         field_types(self)
         for name in ("wheel_radius", "lx", "ly"):
             value = getattr(self, name)
-            if not np.isfinite(value) or value <= 0:
+            if not finite(value) or value <= 0:
                 raise ConfigError(
                     f"MecanumGeometry.{name} must be a positive length, got {value!r}"
                 )
@@ -96,7 +97,8 @@ def wheels_to_twist(wheels: ArrayLike, geometry: MecanumGeometry) -> NDArray[np.
     array (3,) or (N, 3)
         (vx, vy, ωz) in m/s, m/s, rad/s, in the body frame.
     """
-    w = checks.rows(wheels, "wheels_to_twist: wheels", 4, "wheel speeds (w1, w2, w3, w4) in rad/s")
+    what = "wheel speeds (w1, w2, w3, w4) in rad/s"
+    w = checks.rows(wheels, "wheels_to_twist: wheels", 4, what, bound=MAX_WHEEL_SPEED)
     checks.instance(
         geometry, MecanumGeometry, "wheels_to_twist: geometry", "e.g. MecanumGeometry()"
     )
@@ -105,7 +107,8 @@ def wheels_to_twist(wheels: ArrayLike, geometry: MecanumGeometry) -> NDArray[np.
 
 def twist_to_wheels(twist: ArrayLike, geometry: MecanumGeometry) -> NDArray[np.float64]:
     """Wheel speeds (rad/s; FL, FR, RL, RR) for a body twist (vx, vy, ωz), shape (3,) or (N, 3)."""
-    v = checks.rows(twist, "twist_to_wheels: twist", 3, "a body twist (vx, vy, wz)")
+    what = "a body twist (vx, vy, wz) in m/s, m/s, rad/s"
+    v = checks.rows(twist, "twist_to_wheels: twist", 3, what, bound=max(MAX_SPEED, MAX_TURN_RATE))
     checks.instance(
         geometry, MecanumGeometry, "twist_to_wheels: geometry", "e.g. MecanumGeometry()"
     )

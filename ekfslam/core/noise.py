@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.models import observation_noise
 from ekfslam.errors import ConfigError, WrongTypeError
-from ekfslam.fieldtypes import field_types, shown
+from ekfslam.fieldtypes import field_types, finite, shown
 
 Array = NDArray[np.float64]
 
@@ -51,7 +51,7 @@ class NoiseConfig:
         field_types(self)
         for name in ("sigma_x", "sigma_y", "sigma_theta", "sigma_range", "sigma_bearing"):
             value = getattr(self, name)
-            if not (np.isfinite(value) and value >= 0):
+            if not (finite(value) and value >= 0):
                 raise ConfigError(f"NoiseConfig.{name} must be a finite non-negative number")
             if not math.isfinite(value * value):
                 raise ConfigError(f"NoiseConfig.{name} = {value!r}: its square overflows")

@@ -30,7 +30,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.filter.history import History
 from ekfslam.errors import InputError
-from ekfslam.files import atomic_write_all, atomic_write_text, new_folder, probe_output
+from ekfslam.files import (
+    atomic_write_all,
+    atomic_write_text,
+    new_folder,
+    not_a_file,
+    probe_output,
+)
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runlog import GroundTruth, RunLog
 
@@ -127,10 +133,15 @@ def read_tum(path: str | os.PathLike) -> tuple[Array, Array]:
     z (|qx|, |qy| or |z| above 1e-6 after normalising), raises `InputError` naming the line.
     """
     path = Path(path)
+    problem = not_a_file(path)  # before reading: a FIFO would block for ever
+    if problem is not None:
+        raise InputError(path, None, problem)
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise InputError(path, None, f"cannot read the file: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(path, None, f"not UTF-8 text (byte {exc.start}); save as UTF-8") from None
     rows = []
     for number, line in enumerate(text.splitlines(), start=1):
         fields = line.split("#", 1)[0].split()
