@@ -63,7 +63,7 @@ MAY_IMPORT = {  # besides its own floor
 VIZ_TYPES_FROM = _BELOW_ANALYSIS - {"teaching"} | {"analysis"}
 NO_FILTER_FLOORS = {"core", "logs", "sim", "vision", "teaching"}  # core: outside core.filter
 # the filter proper (numba): its config and history are plain data anyone below may use
-FILTER_MODULES = ("core.filter.ekf", "core.filter.state", "core.filter.kernels")
+FILTER_MODULES = ("core.filter.ekf", "core.filter.state", "core.filter.compile")
 MATPLOTLIB_FLOORS = {"viz", "ui"}
 # optional or heavy dependencies a function may import late, with a `# lazy: why` comment
 LAZY_OK = {

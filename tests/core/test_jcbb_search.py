@@ -1,4 +1,5 @@
-"""The compiled JCBB decides as the readable reference (`ekfslam.core.association.jcbb`)."""
+"""The filter's JCBB (`ekfslam.core.filter.jcbb_search`, as Python and compiled) decides as the
+readable reference (`ekfslam.core.association.jcbb`), over the filter's predictions."""
 
 from __future__ import annotations
 
@@ -7,22 +8,16 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ekfslam.core import models
 from ekfslam.core.association import AssociationConfig, individual_nis, jcbb
-from ekfslam.core.filter import jcbb_kernels
 from ekfslam.core.filter.associating import AssociatingFilter, free_nis
-from ekfslam.core.filter.ekf import EKFSLAM
+from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.models import observation, observation_noise
 
 
-def test_the_range_floor_is_the_models():
-    assert jcbb_kernels.MIN_RANGE_SQUARED == models.MIN_RANGE_SQUARED
-
-
-def random_case(seed: int, budget: int = 10_000):
+def random_case(seed: int, budget: int = 10_000, backend: str = "python"):
     """A map of close pairs and lone tags, a drifted pose, sightings of some, and strays."""
     rng = np.random.default_rng(seed)
-    ekf = EKFSLAM(np.zeros(3), np.diag([0.04, 0.04, 0.01]))
+    ekf = EKFSLAM(np.zeros(3), np.diag([0.04, 0.04, 0.01]), FilterConfig(backend=backend))
     lone = rng.uniform(-4.0, 4.0, size=(6, 2))
     pairs = rng.uniform(-4.0, 4.0, size=(3, 2))
     marks = np.vstack([lone, pairs, pairs + rng.normal(0.0, 0.2, pairs.shape)])
@@ -38,11 +33,12 @@ def random_case(seed: int, budget: int = 10_000):
     return f, zs, Q
 
 
+@pytest.mark.parametrize("backend", ["python", "numba"])
 @pytest.mark.parametrize("budget", [10_000, 5])
-def test_compiled_jcbb_decides_as_the_reference(budget):
+def test_the_filters_jcbb_decides_as_the_reference(budget, backend):
     hits = 0
     for seed in range(40):
-        f, zs, Q = random_case(seed, budget)
+        f, zs, Q = random_case(seed, budget, backend)
         nu, P = f.predicted(zs)
         Qs = np.broadcast_to(Q, (len(zs), 2, 2))
         want = jcbb(nu, P, Qs, f.config.gate, f.config.joint_probability, budget)
@@ -64,15 +60,10 @@ def test_compiled_jcbb_decides_as_the_reference(budget):
     assert (hits > 0) == (budget == 5)  # the small budget is reached, the default not
 
 
-def test_compiled_predictions_are_h_sigma_ht():
-    f, zs, Q = random_case(7)
+@pytest.mark.parametrize("backend", ["python", "numba"])
+def test_the_filters_predictions_are_h_sigma_ht(backend):
+    f, zs, Q = random_case(7, backend=backend)
     nu, P = f.predicted(zs)
-    m, n = nu.shape[:2]
-    got_nu, got_P, nis = np.empty((m, n, 2)), np.empty((2 * n, 2 * n)), np.empty((m, n))
-    e = f.ekf
-    q00, q01, q11 = Q[0, 0], Q[0, 1], Q[1, 1]
-    jcbb_kernels.predict_all(
-        e._mu, e._Sigma, e._dim, zs, q00, q01, q11, False, 0.0, 0.0, 0.0, 0.0, got_nu, got_P, nis
-    )
-    np.testing.assert_allclose(got_nu, nu, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(got_P, P, rtol=1e-9, atol=1e-15)
+    got = f.ekf.predictions(zs, Q)
+    np.testing.assert_allclose(got.nu, nu, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(got.P, P, rtol=1e-9, atol=1e-15)
