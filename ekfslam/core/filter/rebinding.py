@@ -66,6 +66,9 @@ def closure(
                 todo += list(_model_functions(value).values())
             elif _ours(value, modules, primitives):
                 todo.append(value)
+        for cell in fn.__closure__ or ():  # a factory's helpers, closed over like its parameters
+            if _ours(cell.cell_contents, modules, primitives):
+                todo.append(cell.cell_contents)
     return list(seen)
 
 
@@ -93,7 +96,8 @@ def rebind(
             elif _ours(value, modules, primitives):
                 env[name] = make(value)
         for name, cell in zip(fn.__code__.co_freevars, fn.__closure__ or (), strict=True):
-            env[name] = cell.cell_contents  # a model's parameters, as its factory closed over them
+            value = cell.cell_contents  # a model's parameters (or helpers), as its factory made them
+            env[name] = make(value) if _ours(value, modules, primitives) else value
         made[fn] = build(fn, env)
         return made[fn]
 
