@@ -18,10 +18,12 @@ import ast
 import re
 import subprocess
 import sys
+import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from setuptools import find_packages
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -451,6 +453,15 @@ def test_the_folders_beside_the_package_import_it_never_each_other() -> None:
                 elif imp.function and not imp.string and not imp.lazy_comment:
                     found.add(f"lazy-without-reason: {module}.{imp.function} -> {imp.target}")
     assert not found, "\n".join(sorted(found))
+
+
+def test_the_wheel_holds_the_package_and_not_the_folders_beside_it() -> None:
+    config = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))
+    found = find_packages(REPO, **config["tool"]["setuptools"]["packages"]["find"])
+    assert "ekfslam" in found and "ekfslam.core.filter" in found
+    assert not [p for p in found if p.split(".")[0] != "ekfslam"], found
+    testpaths = config["tool"]["pytest"]["ini_options"]["testpaths"]
+    assert testpaths == ["tests", *(f"{name}/tests" for name in OUTSIDE)]
 
 
 def test_the_allow_list_can_only_shrink() -> None:

@@ -36,7 +36,7 @@ from ekfslam.analysis.mrclam_consistency import (
     table,
 )
 from ekfslam.cli import args as ca
-from ekfslam.cli.common import add_parallel_arguments, mrclam_folder
+from ekfslam.cli.common import mrclam_folder
 from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig, FilterCounts
 from ekfslam.core.filter.config import LINEARIZATIONS as ALL_LINEARIZATIONS
 from ekfslam.files import save_figure
@@ -46,6 +46,7 @@ from ekfslam.sim.scenarios import SCENARIOS
 from ekfslam.viz.association import plot_wrong_associations
 from ekfslam.viz.consistency import plot_consistency, plot_mrclam_nees
 from studies import robustness
+from studies.cli.common import add_parallel_arguments
 
 
 def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) -> None:

@@ -17,9 +17,10 @@ import json
 import numpy as np
 
 from ekfslam.cli import args as ca
-from ekfslam.cli.common import add_parallel_arguments, mrclam_folder
+from ekfslam.cli.common import mrclam_folder
 from ekfslam.errors import ConfigError
 from ekfslam.files import atomic_write_text
+from studies.cli.common import add_parallel_arguments
 from studies.mrclam_crossval import (
     DATASETS,
     measure_grid,
