@@ -7,7 +7,7 @@ The package is a house with floors (ARCHITECTURE.md); each subpackage is one:
 - `ekfslam.teaching`   sympy derivations, the literal F_x reference, the notebooks' helpers
 - `ekfslam.logs`, `ekfslam.sim`, `ekfslam.vision`  data sources: logs, the simulator, cameras
 - `ekfslam.pipeline`   a log source joined to the filter (`replay`)
-- `ekfslam.analysis`   alignment (eq. 17), scores, consistency, robustness, benchmarks
+- `ekfslam.analysis`   alignment (eq. 17), scores, consistency: what the notebooks compute
 - `ekfslam.viz`, `ekfslam.ui`, `ekfslam.cli`  figures, the live tuner, the command line
 
 The names below are the public API the notebooks use. They are loaded on first use (PEP 562), so
