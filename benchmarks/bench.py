@@ -59,7 +59,10 @@ LITERAL_MAX_STEP_S = 2.0
 RUNS = {"octagon": "octagon-2laps", "square": "square-2laps"}
 MRCLAM_ROBOT = 1
 #: the iterated update measured against the plain invariant EKF (`FilterConfig.iterations`)
-ITERATED = FilterConfig(linearization="invariant", iterations=3)
+#: The replays and steps measured run compiled (`FilterConfig.backend`); the octagon is also
+#: replayed with the steps as Python, what a short run gets by default.
+COMPILED = FilterConfig(backend="numba")
+ITERATED = FilterConfig(linearization="invariant", iterations=3, backend="numba")
 
 
 #: The repeat counts of `BenchConfig` (``--repeats`` sets them all).
@@ -144,10 +147,11 @@ def bench_replays(config: BenchConfig) -> dict:
         out["iterated_vs_invariant"]["replay_octagon"] = None
         return out
     runs = {key: read_run(folder / name) for key, name in RUNS.items()}
-    cases = {key: (run, None) for key, run in runs.items()}
+    cases = {key: (run, COMPILED) for key, run in runs.items()}
     for lin in ("fej", "invariant"):
-        cases[lin] = (runs["octagon"], FilterConfig(linearization=lin))
+        cases[lin] = (runs["octagon"], replace(COMPILED, linearization=lin))
     cases["iterated"] = (runs["octagon"], ITERATED)
+    cases["python"] = (runs["octagon"], replace(COMPILED, backend="python"))
     events = {key: len(replay(run, config=c).history.t) for key, (run, c) in cases.items()}
     times: dict[str, list[float]] = {key: [] for key in cases}
     for _ in range(config.replay_repeats):  # interleaved: a busy spell hits every case alike
@@ -167,6 +171,7 @@ def bench_replays(config: BenchConfig) -> dict:
     out["iterated_vs_invariant"]["replay_octagon"] = statistics.median(
         times["iterated"]
     ) / statistics.median(times["invariant"])
+    out["python_octagon_ms"] = 1e3 * statistics.median(times["python"])
     return out
 
 
@@ -206,7 +211,7 @@ def map_of(n: int, config: FilterConfig | None = None, record: bool = False, see
     filter's pose, so every update is accepted and leaves the geometry alone.
     """
     rng = np.random.default_rng(seed)
-    config = config or FilterConfig(gate=None)
+    config = config or FilterConfig(gate=None, backend="numba")
     f = EKFSLAM([0.0, 0.0, 0.0], np.diag([1e-4, 1e-4, 1e-5]), config, record=record)
     zs = [(j, (rng.uniform(1.0, 5.0), rng.uniform(-math.pi, math.pi))) for j in range(n)]
     for j, z in zs:
@@ -216,18 +221,9 @@ def map_of(n: int, config: FilterConfig | None = None, record: bool = False, see
 
 
 def literal_twin(f: EKFSLAM) -> LiteralEKFSLAM:
-    """The literal reference in the same state as `f`.
-
-    Set directly: growing it one landmark at a time is itself O(n^3). Its per-landmark
-    bookkeeping (sightings, first estimates) has no public setter, so it is filled here.
-    """
-    lit = LiteralEKFSLAM(f.pose, f.pose_covariance, f.config)
+    """The literal reference in the same state as `f` (`LiteralEKFSLAM.from_state`)."""
     own = f.invariant_covariance if f.config.linearization == "invariant" else f.Sigma.copy()
-    lit.mu, lit.Sigma, lit.slot = f.mu.copy(), own, dict(f.slot)
-    lit._sightings = [2] * f.n_landmarks
-    lit._first = [f.mu[3 + 2 * j : 5 + 2 * j].copy() for j in range(f.n_landmarks)]
-    lit._rejected = [[] for _ in range(f.n_landmarks)]
-    return lit
+    return LiteralEKFSLAM.from_state(f.mu, own, f.landmark_ids, f.config)
 
 
 def _step_costs(filters: list, zs, repeats: int) -> list[tuple[float, float]]:
@@ -261,8 +257,8 @@ def bench_sizes(config: BenchConfig) -> dict:
     for n in config.sizes:
         f, zs = map_of(n)
         if n == lo:
-            g, _ = map_of(n, FilterConfig(gate=None, linearization="fej"))
-            h, _ = map_of(n, FilterConfig(gate=None, linearization="invariant"))
+            g, _ = map_of(n, replace(COMPILED, gate=None, linearization="fej"))
+            h, _ = map_of(n, replace(COMPILED, gate=None, linearization="invariant"))
             k, _ = map_of(n, replace(ITERATED, gate=None))
             (p, u), (pg, ug), (ph, uh), (pk, uk) = _step_costs(
                 [f, g, h, k], zs, config.step_repeats

@@ -27,7 +27,7 @@ def markdown_table(r: dict) -> str:
         f"ekfslam benchmark, {r['date']}, {m['cores']} cores (load {_fmt(m['load_average_1min'])}),"
         f" Python {m['python']}, numpy {m['numpy']}. Command: `{r['command']}`. Medians.",
         "",
-        "| replay | median | events | events/s |",
+        "| replay (compiled steps) | median | events | events/s |",
         "|---|---:|---:|---:|",
     ]
     for key, name in RUNS.items():
@@ -35,6 +35,11 @@ def markdown_table(r: dict) -> str:
         events = r.get("replay_events", {}).get(key)
         lines.append(
             f"| {name} | {_fmt(ms)} ms | {_fmt(events, digits=0)} | {_fmt(eps, digits=0)} |"
+        )
+    if r.get("python_octagon_ms") is not None:
+        lines.append(
+            f"| {RUNS['octagon']}, the steps as Python (a short run's default) | "
+            f"{_fmt(r['python_octagon_ms'])} ms | | |"
         )
     note = r.get("mrclam_note")
     lines.append(

@@ -129,7 +129,7 @@ def pose_error(truth: ArrayLike, estimate: ArrayLike) -> Array:
     """
     p = np.asarray(truth, dtype=np.float64).reshape(-1, 3)
     q = np.asarray(estimate, dtype=np.float64).reshape(-1, 3)
-    w = (p[:, 2] - q[:, 2] + math.pi) % (2.0 * math.pi) - math.pi
+    w = wrap_angle(p[:, 2] - q[:, 2])
     c, s = np.cos(w), np.sin(w)
     dx = p[:, 0] - (c * q[:, 0] - s * q[:, 1])
     dy = p[:, 1] - (s * q[:, 0] + c * q[:, 1])

@@ -61,6 +61,22 @@ class LiteralEKFSLAM:
         self._rejected: list[list[np.ndarray]] = []  # per slot: rejected sightings' positions
         self._counts = dict.fromkeys((f.name for f in fields(FilterCounts)), 0)
 
+    @classmethod
+    def from_state(
+        cls, mu: ArrayLike, Sigma: ArrayLike, ids: list[int], config: FilterConfig | None = None
+    ) -> LiteralEKFSLAM:
+        """The reference holding a given state: mean (d,), covariance (d, d) (of ξ for the
+        invariant filter) and the landmarks' ids in slot order, each seen once, its first
+        estimate its mean. Growing one landmark at a time is itself O(n³) here."""
+        mu = np.array(mu, dtype=float)
+        lit = cls(mu[:3], None, config)
+        lit.mu, lit.Sigma = mu, np.array(Sigma, dtype=float)
+        lit.slot = {i: j for j, i in enumerate(ids)}
+        lit._sightings = [1] * len(ids)
+        lit._first = [mu[3 + 2 * j : 5 + 2 * j].copy() for j in range(len(ids))]
+        lit._rejected = [[] for _ in ids]
+        return lit
+
     @property
     def n_landmarks(self) -> int:
         return len(self.slot)

@@ -102,7 +102,8 @@ class TunerSettings:
 
     run: str
     noise: NoiseConfig = field(default_factory=NoiseConfig)
-    config: FilterConfig = field(default_factory=FilterConfig)
+    # compiled: a slider's move replays the run, and the panel answers within tens of ms
+    config: FilterConfig = field(default_factory=lambda: FilterConfig(backend="numba"))
 
 
 def apply_changes(settings: TunerSettings, changes: Mapping[str, object]) -> TunerSettings:

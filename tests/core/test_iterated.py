@@ -110,9 +110,9 @@ def test_the_gate_decides_on_the_first_linearisation():
 @pytest.mark.parametrize("linearization", ["standard", "invariant"])
 def test_the_iterated_filter_replays_a_seed_run_as_the_literal_reference(linearization):
     run = read_run(seed_runs_dir() / "octagon-2laps")
-    upto, us, dts, ends, M, R_fixed, ids, times, zs, Q_run = pipeline._schedule(
-        run, default_noise(run)
-    )
+    s = pipeline.schedule(run, default_noise(run))
+    upto, us, dts, ends, M, R_fixed = s.upto, s.u, s.dt, s.t, s.M, s.R
+    ids, times, zs, Q_run = s.ids, s.times, s.z, s.Q
     config = FilterConfig(linearization=linearization, iterations=3)
     start = run.meta.nominal_start
     fast, slow = EKFSLAM(start, None, config), LiteralEKFSLAM(start, None, config)

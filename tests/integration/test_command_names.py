@@ -43,16 +43,7 @@ def _texts() -> dict[str, str]:
 TEXTS = _texts()
 #: Texts that still name a command that moved, each with why it is not fixed here; an entry whose
 #: text no longer names it fails, so the list can only shrink.
-KNOWN_STALE = {
-    "ekfslam/core/filter/ekf.py": (
-        "python -m ekfslam bench",
-        "the filter's internals are being rewritten by the lead (issue 24, items 1-4)",
-    ),
-    "ekfslam/core/filter/kernels.py": (
-        "python -m ekfslam bench",
-        "the filter's internals are being rewritten by the lead (issue 24, items 1-4)",
-    ),
-}
+KNOWN_STALE: dict[str, tuple[str, str]] = {}
 
 
 @pytest.mark.parametrize("name", sorted(TEXTS))

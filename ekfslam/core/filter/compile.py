@@ -104,7 +104,7 @@ def _dot(A, B):
     return total
 
 
-@overload(symmetric.subtract_products, jit_options=OPTIONS)
+@overload(symmetric.subtract_products, jit_options=OPTIONS, inline="always")
 def _subtract_products(Sigma, d, A, B):
     def one_pass(Sigma, d, A, B):  # Σ[i, k] -= Σ_a A[a, i] B[a, k] for k <= i
         for i in range(d):
@@ -152,6 +152,8 @@ def compiled(roots: dict[str, Callable], models: dict[str, object]) -> types.Sim
     functions = closure(roots.values(), models, primitives=PRIMITIVES)
     tag = _digest(functions, models)
 
+    outermost = set(roots.values())
+
     def build(fn: Callable, env: dict) -> Callable:
         env["small_matmul"] = small_matmul
         tree = ast.parse(textwrap.dedent(inspect.getsource(fn)))
@@ -161,6 +163,9 @@ def compiled(roots: dict[str, Callable], models: dict[str, object]) -> types.Sim
         source = env[fn.__name__]
         source.__qualname__ = f"{fn.__qualname__}_{tag}"
         source.__module__ = fn.__module__
-        return njit(**OPTIONS)(source)
+        if fn in outermost:
+            return njit(**OPTIONS)(source)
+        # inlined where it is called: one machine-code library per root to cache and load
+        return njit(inline="always", error_model="numpy")(source)
 
     return rebind(roots, models, build, primitives=PRIMITIVES)

@@ -15,7 +15,7 @@ is that literal form, kept as the test oracle.
 
 Cost per step with n landmarks: prediction O(n) (only the pose rows and columns change), update
 O(n²) (one symmetric low-rank correction of the lower triangle), landmark initialisation O(n).
-`python -m benchmarks` measures it.
+`python -m benchmarks bench` measures it.
 
 With `FilterConfig(linearization="invariant")` (Barrau & Bonnabel 2015) the storage holds the
 covariance P of the right-invariant error ξ (`ekfslam.core.invariant`) instead of Σ: the mean is
@@ -202,7 +202,8 @@ class EKFSLAM(FilterState):
         if rec is None:
             return self._scratch
         rec.reserve(OBSERVE, 1)
-        return rec.obs[rec.reserve_observation()]
+        m = rec.reserve_observation()  # may grow rec.obs: index the array it leaves
+        return rec.obs[m]
 
     def _point(self, l: int) -> Array:
         """Where H is evaluated: the pose and the landmark as estimated, or FEJ's first

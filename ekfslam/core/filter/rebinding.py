@@ -96,7 +96,9 @@ def rebind(
             elif _ours(value, modules, primitives):
                 env[name] = make(value)
         for name, cell in zip(fn.__code__.co_freevars, fn.__closure__ or (), strict=True):
-            value = cell.cell_contents  # a model's parameters (or helpers), as its factory made them
+            value = (
+                cell.cell_contents
+            )  # a model's parameters (or helpers), as its factory made them
             env[name] = make(value) if _ours(value, modules, primitives) else value
         made[fn] = build(fn, env)
         return made[fn]
