@@ -109,13 +109,13 @@ def grade_exercise(number: str, fn: object, key: str | os.PathLike) -> Verdict:
     return run_exercise(EXERCISES[number], fn, read_key(str(key))[number])
 
 
-def grade(number: str, fn: object) -> float:
+def grade(number: str, fn: object) -> float | None:
     """The hidden test of exercise `number`: `fn` on the graded cases of ``$EKFSLAM_LAB_KEY``;
-    prints the verdict and returns the score, 0 to 1 (0 outside grading: there is no key)."""
+    prints the verdict and returns the score, 0 to 1. Outside grading (no key: the instructor
+    runs the source notebook) it does nothing and returns None."""
     key = os.environ.get(KEY_ENV)
     if not key:
-        print(f"Exercise {number}: graded only by `python -m ekfslam lab grade`.")
-        return 0.0
+        return None
     verdict = grade_exercise(number, fn, key)
     print(f"Graded on {verdict.total} cases you have not seen: {verdict.line}")
     return round(verdict.score, 4)

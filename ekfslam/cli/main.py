@@ -65,6 +65,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     ),
     "bench": ("ekfslam.cli.bench", "time replays and per-step costs against map size"),
     "tune": ("ekfslam.cli.tune", "time the live tuning panel's change-to-figure latency"),
+    "lab": (
+        "ekfslam.cli.lab",
+        "the lab for a course: release the students' copy; grade submissions into a CSV",
+    ),
 }
 
 
