@@ -68,7 +68,9 @@ def generate_course(course: Path, sources: list[Path], *, database: bool = True)
     try:
         converter.start()
     except NbGraderException as error:
-        raise InputError(str(source), None, f"nbgrader could not generate the lab: {error}")
+        raise InputError(
+            str(source), None, f"nbgrader could not generate the lab: {error}"
+        ) from None
     return course / "release" / ASSIGNMENT
 
 
