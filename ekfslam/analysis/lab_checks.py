@@ -162,25 +162,24 @@ def _judge_alignment(call: Callable, case: dict) -> None:
     X, Y, params = case["X"], case["Y"], case["want"]
     got = as_array(call(("X", X), ("Y", Y)), (3,), "your (x0, y0, θ0)")
     got[2] = wrap_angle(float(got[2]))
-    if close(got, params, atol=1e-6):
+    moved = X @ rotation(got[2]).T + got[:2]
+    mine = float(np.mean(np.hypot(*(moved - Y).T)))
+    # eq. (17)'s minimum is flat (a mean of distances): any transform within 1 nm of it is right
+    if close(got, params, atol=1e-6) or mine <= case["mean_error"] + 1e-9:
         return
-    if close(got, _inverse(params), atol=1e-6):
+    if np.allclose(got, _inverse(params), rtol=0, atol=1e-4):
         raise Wrong(
             "your transform lays the true map onto the estimate (Y onto X); eq. (17) lays the "
             "estimate onto the true map: world = R(θ0) X + (x0, y0)."
         )
-    if close(got[2], -params[2], atol=1e-6):
+    if abs(got[2] + params[2]) < 1e-4 and abs(params[2]) > 1e-3:
         raise Wrong("θ0 has the wrong sign: the true map is R(θ0) X + (x0, y0).")
-    if close(got, case["least_squares"], atol=1e-6):
+    if np.allclose(got, case["least_squares"], rtol=0, atol=1e-5):
         raise Wrong(
             "you minimised the squared distances (least squares), not eq. (17)'s mean "
             "distance: they part when one tag is far off."
         )
-    moved = X @ rotation(got[2]).T + got[:2]
-    mine = float(np.mean(np.hypot(*(moved - Y).T)))
-    if mine > case["mean_error"] + 1e-9:
-        raise Wrong("your transform leaves a larger mean distance than eq. (17)'s minimum.")
-    raise Wrong("your transform is not the one of eq. (17): world = R(θ0) X + (x0, y0).")
+    raise Wrong("your transform leaves a larger mean distance than eq. (17)'s minimum.")
 
 
 ALIGNMENT_EXERCISE = Exercise(

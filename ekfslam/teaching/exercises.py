@@ -394,6 +394,18 @@ def _students_G(got: Array, before: Array) -> Array | None:
     return G if close(G @ before[r, m], got[r, m]) else None
 
 
+def _one_entry_off(got_rr: Array, before_rr: Array, G: Array, R: Array) -> Array | None:
+    """The G with one entry negated or left out that gives the student's Σ[r, r], or None."""
+    for i in range(3):
+        for j in range(3):
+            for value in (-G[i, j], 0.0, 1.0 - G[i, j] if i == j else G[i, j]):
+                other = G.copy()
+                other[i, j] = value
+                if not close(other, G) and close(got_rr, other @ before_rr @ other.T + R):
+                    return other
+    return None
+
+
 def _check_predicted_covariance(
     got: Array, want: Array, before: Array, mu: Array, u: Array, R: Array
 ) -> None:
@@ -412,6 +424,8 @@ def _check_predicted_covariance(
         if close(got[r, r], G.T @ before[r, r] @ G + R):
             raise Wrong("Σ[r, r] has G and Gᵀ the wrong way round.")
         mine = _students_G(got, before)
+        if mine is None:
+            mine = _one_entry_off(got[r, r], before[r, r], G, R)
         if mine is not None and close(got[r, r], mine @ before[r, r] @ mine.T + R):
             entry_verdict(mine, G, "G", POSE_NAMES, POSE_NAMES)
         raise Wrong("Σ[r, r] is wrong.")

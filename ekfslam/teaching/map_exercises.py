@@ -41,9 +41,18 @@ def _observation_cases(rng: np.random.Generator) -> list[dict]:
         np.array([rng.uniform(-0.75, -0.5), rng.uniform(0.2, 0.5)]),
     )
     ahead = (np.array([*rng.uniform(-0.4, -0.3, 2), 0.0]), rng.uniform(0.3, 0.75, 2))
-    pairs = [behind, ahead] + [
+    # a landmark behind-left of a robot heading behind-right: atan2 - θ lies beyond π, so an
+    # unwrapped bearing shows
+    heading = -rng.uniform(2.5, 3.0)
+    direction = rng.uniform(2.0, 2.8)
+    start = rng.uniform(-0.2, 0.2, 2)
+    across = (
+        np.array([*start, heading]),
+        start + rng.uniform(0.5, 1.0) * np.array([np.cos(direction), np.sin(direction)]),
+    )
+    pairs = [behind, ahead, across] + [
         (rng.uniform([-0.5, -0.5, -np.pi], [0.5, 0.5, np.pi]), rng.uniform(-0.75, 0.75, 2))
-        for _ in range(4)
+        for _ in range(3)
     ]
     cases = []
     for pose, landmark in pairs:
@@ -301,7 +310,8 @@ def _update_cases(rng: np.random.Generator) -> list[dict]:
         z[1] = wrap_angle(float(z[1]))
         cases.append([mu, Sigma, j, z])
     mu, _, _, _ = cases[0]
-    mu[:3], mu[3:5] = [*rng.uniform(-0.05, 0.05, 2), 0.0], [-1.0, rng.uniform(0.001, 0.003)]
+    mu[:3] = [*rng.uniform(-0.05, 0.05, 2), 0.0]
+    mu[3:5] = mu[:2] + [-1.0, rng.uniform(0.001, 0.003)]  # bearing just below π
     cases[0][3] = np.array([1.02, wrap_angle(np.pi + rng.uniform(0.003, 0.006))])
     mu, Sigma, j, z = cases[-1]
     mu[2] = np.pi - 1e-3

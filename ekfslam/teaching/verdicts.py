@@ -165,6 +165,13 @@ def _constant(results: list) -> bool:
         return False
 
 
+def _zeros(result: object) -> bool:
+    try:
+        return all(not np.any(np.asarray(r, dtype=float)) for r in _flat(result))
+    except (TypeError, ValueError):
+        return False
+
+
 def _flat(result: object) -> list:
     return list(result) if isinstance(result, tuple) else [result]
 
@@ -217,14 +224,16 @@ def run_exercise(exercise: Exercise, fn: Callable, cases: list[dict]) -> Verdict
             f"Exercise {n}: not yet: your matrices are typed in, not derived: let sympy "
             "differentiate the model (its .jacobian([...]) or sp.diff).",
         )
-    if exercise.numeric and total > 1 and len(calls.results) == total and _constant(calls.results):
+    if exercise.numeric and len(calls.results) > 1 and _constant(calls.results):
+        zeros = _zeros(calls.results[0])
+        what = "zeros" if zeros else "the same answer"
         return Verdict(
             n,
             0.0,
             0,
             total,
-            f"Exercise {n}: not yet: your function returns the same answer whatever its "
-            "inputs: compute it from them.",
+            f"Exercise {n}: not yet: your function returns {what} whatever its inputs: compute "
+            "the answer from them.",
         )
     if crashed and not passed and not wrong:
         return Verdict(n, 0.0, 0, total, f"Exercise {n}: your function raised {crashed[0]}")
