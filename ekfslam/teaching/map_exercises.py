@@ -311,7 +311,7 @@ def _update_cases(rng: np.random.Generator) -> list[dict]:
         cases.append([mu, Sigma, j, z])
     mu, _, _, _ = cases[0]
     mu[:3] = [*rng.uniform(-0.05, 0.05, 2), 0.0]
-    mu[3:5] = mu[:2] + [-1.0, rng.uniform(0.001, 0.003)]  # bearing just below π
+    mu[3:5] = mu[:2] + np.array([-1.0, rng.uniform(0.001, 0.003)])  # bearing just below π
     cases[0][3] = np.array([1.02, wrap_angle(np.pi + rng.uniform(0.003, 0.006))])
     mu, Sigma, j, z = cases[-1]
     mu[2] = np.pi - 1e-3
