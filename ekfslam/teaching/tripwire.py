@@ -36,10 +36,10 @@ def in_package(filename: str) -> bool:
     return filename.startswith(PACKAGE)
 
 
-def code_objects(allowed: Iterable[object]) -> frozenset[types.CodeType]:
-    """The code objects of functions, methods, properties, numba dispatchers, classes (all
-    their methods, their bases' too) and modules (every function defined in them)."""
-    found: set[types.CodeType] = set()
+def code_objects(allowed: Iterable[object]) -> frozenset[types.CodeType | str]:
+    """The code objects of functions, methods, properties, numba dispatchers and classes (all
+    their methods, their bases' too); for a module, its file (every function defined in it)."""
+    found: set[types.CodeType | str] = set()
 
     def add(thing: object) -> None:
         if isinstance(thing, types.FunctionType):
@@ -53,10 +53,8 @@ def code_objects(allowed: Iterable[object]) -> frozenset[types.CodeType]:
             for klass in thing.__mro__:
                 for value in vars(klass).values():
                     add(value)
-        elif isinstance(thing, types.ModuleType):
-            for value in vars(thing).values():
-                if getattr(value, "__module__", None) == thing.__name__:
-                    add(value)
+        elif isinstance(thing, types.ModuleType) and getattr(thing, "__file__", None):
+            found.add(str(Path(thing.__file__).resolve()))
         elif hasattr(thing, "py_func"):  # a numba dispatcher: its Python function
             add(thing.py_func)
         elif isinstance(thing, types.MethodType):
@@ -79,7 +77,7 @@ class Watch:
     """What the hook saw: the package's code the student's function called without leave (the
     first one's name is the verdict), and whether sympy differentiated."""
 
-    allowed: frozenset[types.CodeType]
+    allowed: frozenset[types.CodeType | str]
     entry: types.FrameType | None = None
     forbidden: list[str] = field(default_factory=list)
     differentiated: bool = False
@@ -99,7 +97,9 @@ class Watch:
         code = frame.f_code
         if code.co_name in SYMPY_DIFFERENTIATION and "sympy" in code.co_filename:
             self.differentiated = True
-        if not in_package(code.co_filename) or code in self.allowed or _is_import(code):
+        if not in_package(code.co_filename) or _is_import(code):
+            return
+        if code in self.allowed or code.co_filename in self.allowed:
             return
         # a numba-compiled function's frame is made for the profiler, unlinked: its caller is the
         # frame running when the hook is called
@@ -109,10 +109,24 @@ class Watch:
         self.forbidden.append(getattr(code, "co_qualname", code.co_name))
 
 
+def clear_package_caches() -> None:
+    """Empty every `functools.cache` of the package: a cached call runs no Python code, so the
+    hook would not see the student's call of a function the package had called before."""
+    for name, module in list(sys.modules.items()):
+        if not name.startswith("ekfslam") or module is None:
+            continue
+        for value in list(vars(module).values()):
+            wrapped = getattr(value, "__wrapped__", None)
+            code = getattr(wrapped, "__code__", None)
+            if code is not None and hasattr(value, "cache_clear") and in_package(code.co_filename):
+                value.cache_clear()
+
+
 def call_watched(
-    fn: Callable, args: tuple, allowed: frozenset[types.CodeType]
+    fn: Callable, args: tuple, allowed: frozenset[types.CodeType | str]
 ) -> tuple[object, Watch]:
     """`fn(*args)` with the tripwire on; (its result, what the hook saw). Exceptions pass."""
+    clear_package_caches()
     watch = Watch(allowed, entry=sys._getframe())  # this frame marks the student's side
     previous = sys.getprofile()
     sys.setprofile(watch.profile)
