@@ -39,8 +39,6 @@ from ekfslam.errors import InputError
 from ekfslam.places import seed_run
 from ekfslam.teaching.make_lab import ASSIGNMENT, SOLUTIONS, generate_course
 
-#: The CSV's score columns: the exercises, then the graded predictions (grade ids in the notebooks)
-COLUMNS = (*EXERCISES, "predict-02", "predict-06", "predict-07")
 KEY = "key.pkl"
 DEFAULT_COURSE = Path("lab-course")
 NOTEBOOK_TIMEOUT_S = 300.0
@@ -86,6 +84,12 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     release.add_argument(
         "--seed", type=ca.seed(), help="the seed of the graded cases (default: a random one)"
     )
+    release.add_argument(
+        "--notebooks",
+        nargs="+",
+        metavar="NN",
+        help="release only these notebooks, by number (say 02 05; default: 02 to 07)",
+    )
     release.add_argument("--overwrite", action="store_true", help="replace DIR and the course")
     release.set_defaults(func=cmd_release)
     grade = sub.add_parser("grade", help="grade a folder of submissions, one folder per student")
@@ -130,6 +134,16 @@ def cmd_release(args: argparse.Namespace) -> int:
         raise InputError(
             str(SOLUTIONS), None, "no solution notebooks: release from a checkout of the lab"
         )
+    if args.notebooks:
+        known = {p.name[:2]: p for p in sources}
+        unknown = sorted(set(args.notebooks) - set(known))
+        if unknown:
+            raise InputError(
+                "--notebooks",
+                None,
+                f"no lab notebook {', '.join(unknown)} (known: {', '.join(known)})",
+            )
+        sources = [known[n] for n in sorted(set(args.notebooks))]
     for folder in (args.dir, args.course):
         if folder.exists() and any(folder.iterdir()):
             if not args.overwrite:
@@ -172,19 +186,21 @@ def cmd_grade(args: argparse.Namespace) -> int:
         raise InputError(str(args.submissions), None, "holds no student folder")
     feedback = args.feedback or args.csv.with_name(args.csv.stem + "-feedback")
     feedback.mkdir(parents=True, exist_ok=True)
-    notebooks = sorted(p.name for p in (course / "source" / ASSIGNMENT).glob("*.ipynb"))
+    notebooks = sorted((course / "source" / ASSIGNMENT).glob("*.ipynb"))
+    columns = course_columns(notebooks)
     started = time.perf_counter()
 
     def one(folder: Path) -> dict:
         result = grade_student(folder, course, args.timeout, len(notebooks))
-        print(f"{folder.name}: total {total(result):.2f} of {len(COLUMNS)}", flush=True)
+        print(f"{folder.name}: total {total(result, columns):.2f} of {len(columns)}", flush=True)
         return result
 
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
         results = list(pool.map(one, students))
-    write_csv(args.csv, results)
+    write_csv(args.csv, results, columns)
     for result in results:
-        (feedback / f"{result['student']}.txt").write_text(feedback_text(result), "utf-8")
+        text = feedback_text(result, columns)
+        (feedback / f"{result['student']}.txt").write_text(text, "utf-8")
     print(
         f"graded {len(results)} students in {time.perf_counter() - started:.0f} s: wrote "
         f"{args.csv} and {len(results)} feedback files in {feedback}"
@@ -230,27 +246,39 @@ def _failed(student: str, why: str) -> dict:
     return {"student": student, "scores": {}, "lines": {}, "notebooks": {"(all)": why}}
 
 
-def total(result: dict) -> float:
-    return float(sum(result["scores"].get(c, 0.0) for c in COLUMNS))
+def course_columns(notebooks: list[Path]) -> list[str]:
+    """The CSV's score columns: the grade ids of the course's check cells, the exercises first
+    (1a, 1b, 2a, ... 9), then the graded predictions (predict-02, ...)."""
+    ids = []
+    for path in notebooks:
+        for cell in json.loads(path.read_text(encoding="utf-8"))["cells"]:
+            meta = cell.get("metadata", {}).get("nbgrader", {})
+            if meta.get("grade"):
+                ids.append(meta["grade_id"])
+    return [n for n in EXERCISES if n in ids] + [i for i in ids if i not in EXERCISES]
 
 
-def write_csv(path: Path, results: list[dict]) -> None:
+def total(result: dict, columns: list[str]) -> float:
+    return float(sum(result["scores"].get(c, 0.0) for c in columns))
+
+
+def write_csv(path: Path, results: list[dict], columns: list[str]) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="", encoding="utf-8") as f:
         writer = csv.writer(f)
-        writer.writerow(["student", *COLUMNS, "total"])
+        writer.writerow(["student", *columns, "total"])
         for r in results:
-            scores = [f"{r['scores'].get(c, 0.0):.4g}" for c in COLUMNS]
-            writer.writerow([r["student"], *scores, f"{total(r):.4g}"])
+            scores = [f"{r['scores'].get(c, 0.0):.4g}" for c in columns]
+            writer.writerow([r["student"], *scores, f"{total(r, columns):.4g}"])
 
 
-def feedback_text(result: dict) -> str:
+def feedback_text(result: dict, columns: list[str]) -> str:
     lines = [f"Lab feedback for {result['student']}", ""]
     lines += [f"{name}: {status}" for name, status in sorted(result["notebooks"].items())]
     lines.append("")
-    for column in COLUMNS:
+    for column in columns:
         score = result["scores"].get(column, 0.0)
         lines.append(f"{column}: {score:.2f}")
         lines += [f"    {line}" for line in result["lines"].get(column, [])]
-    lines += ["", f"total: {total(result):.2f} of {len(COLUMNS)}"]
+    lines += ["", f"total: {total(result, columns):.2f} of {len(columns)}"]
     return "\n".join(lines) + "\n"
