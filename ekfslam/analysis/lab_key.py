@@ -51,8 +51,6 @@ EXERCISES: dict[str, Exercise] = {
         ALIGNMENT_EXERCISE,
     )
 }
-#: The predictions of notebooks 02-07 that are graded (their first answer, `check_prediction`).
-PREDICTIONS = ("02-wheels", "06-sigma", "06-error", "07-size")
 KEY_ENV = "EKFSLAM_LAB_KEY"
 KEY_VERSION = 1
 
