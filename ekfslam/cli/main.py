@@ -43,6 +43,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "ekfslam.cli.frames",
         "detect the AprilTags in a run's camera frames -> detections.csv",
     ),
+    "lab": (
+        "ekfslam.cli.lab",
+        "the lab for a course: release the students' copy; grade submissions into a CSV",
+    ),
 }
 
 
