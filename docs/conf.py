@@ -14,20 +14,14 @@ What it is made of, each kept in one place:
 The notebooks that read MRCLAM data find it as the tests do (``$EKFSLAM_SHARED_DATA``, else
 ``../shared/data`` beside the checkout, else the cache of ``python -m ekfslam fetch mrclam N``).
 Where it is absent the build says so and renders those notebooks unexecuted, with a warning on
-their page; in CI (``CI=true``) it stops instead.
+their page; in CI (``CI=true``) it stops instead (``docs/_ext/book_notebooks.py``).
 """
 
 from __future__ import annotations
 
-import json
 import os
-import re
 import sys
 from pathlib import Path
-
-from sphinx import addnodes
-from sphinx.errors import ExtensionError
-from sphinx.util import logging
 
 DOCS = Path(__file__).resolve().parent
 REPO = DOCS.parent
@@ -42,13 +36,12 @@ os.environ["PYTHONPATH"] = os.pathsep.join(
     p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p
 )
 
-from ekfslam.errors import InputError  # noqa: E402  (after the path above)
-from ekfslam.logs.mrclam.load import find_dataset  # noqa: E402
+from book_notebooks import unexecuted  # noqa: E402  (docs/_ext, on the path above)
 
 project = "ekfslam"
 author = "the ekfslam authors"
 copyright = "the ekfslam authors, MIT licence"
-html_title = "ekfslam: landmark EKF SLAM, learnt and run"
+html_title = "ekfslam"
 
 extensions = [
     "myst_nb",  # Markdown pages and the notebooks (it loads myst_parser)
@@ -57,6 +50,7 @@ extensions = [
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
     "house_docstrings",  # docs/_ext: our `name : text` docstring lines as reST lists
+    "book_notebooks",  # docs/_ext: links between notebooks; notebooks without their data
 ]
 
 exclude_patterns = [
@@ -75,13 +69,13 @@ nb_execution_timeout = 600  # a notebook takes 5-20 s; allow a busy 2-core machi
 nb_execution_raise_on_error = True  # a notebook that fails fails the build
 nb_execution_show_tb = True
 nb_merge_streams = True
+ekfslam_notebooks = str(NOTEBOOKS)
+#: {docname: the MRCLAM datasets it reads that are not on this machine}: left unexecuted
+ekfslam_unexecuted = unexecuted(NOTEBOOKS)
+nb_execution_excludepatterns = [f"{doc}.ipynb" for doc in ekfslam_unexecuted]
 # A notebook's heading that skips a level (06: # then ###) is the lab's style to choose, not a
 # broken page: the book renders it as it is.
-suppress_warnings = [
-    "myst.header",
-    # the guide's `*` lists every page in docs/guide/ not named before it; none is not an error
-    "toc.empty_glob",
-]
+suppress_warnings = ["myst.header"]
 
 # --- API reference ----------------------------------------------------------------------------
 autosummary_generate = True
@@ -108,112 +102,3 @@ html_theme_options = {
     "collapse_navbar": True,
 }
 html_last_updated_fmt = None
-
-logger = logging.getLogger("ekfslam.docs")
-
-
-def _in_ci() -> bool:
-    return os.environ.get("CI", "").lower() in {"1", "true", "yes"}
-
-
-def mrclam_needs() -> dict[str, tuple[int, ...]]:
-    """{notebook docname: the MRCLAM datasets it reads}, read off the notebooks' code (a call
-    of ``mrclam_dataset(N)``, the notebooks' one clean stop when data is missing)."""
-    needs = {}
-    for path in sorted(NOTEBOOKS.glob("[0-9][0-9]-*.ipynb")):
-        code = "\n".join(
-            "".join(cell["source"])
-            for cell in json.loads(path.read_text(encoding="utf-8"))["cells"]
-            if cell["cell_type"] == "code"
-        )
-        numbers = {int(n or 7) for n in re.findall(r"\bmrclam_dataset\((\d*)\)", code)}
-        if numbers:
-            needs[f"notebooks/{path.stem}"] = tuple(sorted(numbers))
-    return needs
-
-
-def missing_datasets(numbers) -> list[int]:
-    missing = []
-    for n in numbers:
-        try:
-            find_dataset(n)
-        except InputError:
-            missing.append(n)
-    return missing
-
-
-#: {docname: the datasets it needs that are not on this machine}: rendered unexecuted
-UNEXECUTED = {
-    doc: missing
-    for doc, numbers in mrclam_needs().items()
-    if (missing := missing_datasets(numbers))
-}
-nb_execution_excludepatterns = [f"{doc}.ipynb" for doc in UNEXECUTED]
-
-
-def _datasets(numbers) -> str:
-    return ", ".join(f"MRCLAM Dataset {n}" for n in numbers)
-
-
-def _say_what_is_missing(app) -> None:
-    if not UNEXECUTED:
-        return
-    lines = [
-        f"{doc}: needs {_datasets(numbers)} (python -m ekfslam fetch mrclam {numbers[0]})"
-        for doc, numbers in UNEXECUTED.items()
-    ]
-    if _in_ci():
-        raise ExtensionError(
-            "MRCLAM data missing, and CI must render every notebook executed: "
-            + "; ".join(lines)
-            + " (set EKFSLAM_SHARED_DATA)"
-        )
-    logger.info(
-        "NOT EXECUTED, their pages say why (MRCLAM data not found; set EKFSLAM_SHARED_DATA): "
-        + "; ".join(lines),
-        color="red",
-    )
-
-
-def _mark_unexecuted(app, docname: str, source: list[str]) -> None:
-    """A notebook built without its data gets a warning box under its title."""
-    numbers = UNEXECUTED.get(docname)
-    if not numbers:
-        return
-    nb = json.loads(source[0])
-    note = (
-        "```{warning}\nThis page was built on a machine without "
-        f"{_datasets(numbers)}, so its code was not run and it shows no outputs. "
-        f"`python -m ekfslam fetch mrclam {numbers[0]}` fetches the data (or set "
-        "`EKFSLAM_SHARED_DATA`); then build the book again.\n```"
-    )
-    cell = {"cell_type": "markdown", "metadata": {}, "source": note}
-    nb["cells"].insert(1, cell)
-    source[0] = json.dumps(nb)
-
-
-def _links_between_notebooks(app, doctree) -> None:
-    """Keep a notebook's link to another notebook (``[06](06-full-slam.ipynb)``) in the book.
-
-    ``docs/notebooks`` is a symbolic link, and Sphinx resolves a link's path through it to
-    ``notebooks/`` outside the source folder, where no document is; this maps it back.
-    """
-    outside = str(NOTEBOOKS) + os.sep
-    for node in doctree.findall(addnodes.pending_xref):
-        target = node.get("reftarget", "")
-        if node.get("refdomain") == "doc" and target.startswith(outside):
-            node["reftarget"] = "notebooks/" + target[len(outside) :]
-
-
-def _skip_foreign(app, what, name, obj, skip, options):
-    """A matplotlib artist's generated ``set`` is matplotlib's to document, not ours."""
-    if what == "class" and getattr(obj, "__module__", "").startswith("matplotlib"):
-        return True
-    return None
-
-
-def setup(app):
-    app.connect("builder-inited", _say_what_is_missing)
-    app.connect("source-read", _mark_unexecuted)
-    app.connect("doctree-read", _links_between_notebooks)
-    app.connect("autodoc-skip-member", _skip_foreign)

@@ -240,8 +240,16 @@ def process_signature(app, what, name, obj, options, signature, return_annotatio
     return fixed, returns
 
 
+def skip_foreign(app, what, name, obj, skip, options):
+    """A matplotlib artist's generated ``set`` is matplotlib's to document, not ours."""
+    if what == "class" and getattr(obj, "__module__", "").startswith("matplotlib"):
+        return True
+    return None
+
+
 def setup(app):
     app.connect("autodoc-process-docstring", process_docstring, priority=400)  # before numpydoc
+    app.connect("autodoc-skip-member", skip_foreign)
     app.connect("autodoc-process-signature", process_signature)
     app.connect("build-finished", report)
     return {"parallel_read_safe": True, "parallel_write_safe": True}

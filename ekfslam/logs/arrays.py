@@ -1,18 +1,19 @@
 """A run log from arrays in memory: your own robot's log, replayed without writing a run folder.
 
-`run_from_arrays` takes what a robot logs (time-stamped controls and tag sightings, and the
-true poses if you have them) as numpy arrays, checks them as ``read_run`` checks a run folder's
-files, and returns the `RunLog` that ``ekfslam.replay`` takes::
+`run_from_arrays` takes what a robot logs as numpy arrays whose columns are those of the run
+format's files (``data/README.md``): controls ``t, vx, vy, wz`` (or ``t, w1, w2, w3, w4``),
+detections ``t, tag_id, range, bearing`` and, if you have them, true poses ``t, x, y, theta``.
+It checks them as ``read_run`` checks a run folder and returns the `RunLog` that
+``ekfslam.replay`` takes::
 
     run = ekfslam.run_from_arrays(
-        controls_t=t, twist=twist,  # (N,) s and (N, 3) vx, vy (m/s), wz (rad/s)
-        detections_t=td, tag_id=ids, range=r, bearing=b,  # (M,) each: s, int, m, rad
-        start=(0.0, 0.0, 0.0),
+        controls=np.column_stack([t, vx, vy, wz]),  # s, m/s, m/s, rad/s
+        detections=np.column_stack([td, tag_id, r, bearing]),  # s, id, m, rad
     )
     result = ekfslam.replay(run)  # result.landmarks: {tag id: (x, y)}
 
-A problem is one line naming the argument and the row: ``detections[7]: negative range -1.5 m
-(a range is >= 0)``.
+A problem is one line naming the array and the row: ``detections[7]: negative range -1.5 m (a
+range is >= 0)``.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from numpy.typing import ArrayLike
 from ekfslam.core.kinematics import MecanumGeometry
 from ekfslam.errors import InputError
 from ekfslam.logs.runlog import (
+    CONTROL_COLUMNS,
     CONTROLS_CSV,
     DETECTIONS_CSV,
     GROUNDTRUTH_CSV,
@@ -37,7 +39,7 @@ from ekfslam.logs.runlog import (
     validate_run,
 )
 
-#: the run format's file names in the reader's messages -> the arrays they came from here
+#: the run format's file names in the reader's messages -> the arrays they are here
 _ARRAYS = {
     RUN_JSON: "run_from_arrays",
     CONTROLS_CSV: "controls",
@@ -46,52 +48,48 @@ _ARRAYS = {
 }
 _WORDS = {
     "run.json's tag_map": "tag_map",
-    "the file has a header but no rows": "controls_t is empty",
+    "the file has a header but no rows": "the array has no rows",
     "(delete the file if there is no truth)": "(pass groundtruth=None if there is no truth)",
     **{name: array for name, array in _ARRAYS.items() if name != RUN_JSON},
 }
+#: controls' width -> their kind: t and a body twist, or t and four wheel speeds
+_KINDS = {len(columns): kind for kind, columns in CONTROL_COLUMNS.items()}
 
 
 def run_from_arrays(
     *,
-    controls_t: ArrayLike,
-    twist: ArrayLike | None = None,
-    wheels: ArrayLike | None = None,
-    detections_t: ArrayLike,
-    tag_id: ArrayLike,
-    range: ArrayLike,
-    bearing: ArrayLike,
+    controls: ArrayLike,
+    detections: ArrayLike,
     start: ArrayLike = (0.0, 0.0, 0.0),
     robot: MecanumGeometry | None = None,
     tag_map: Mapping[int, ArrayLike] | None = None,
-    groundtruth_t: ArrayLike | None = None,
     groundtruth: ArrayLike | None = None,
     name: str = "arrays",
 ) -> RunLog:
-    """A checked `RunLog` from arrays: what ``read_run`` returns for a run folder.
+    """A checked `RunLog` from arrays, with the columns of the run format's files.
 
     Parameters
     ----------
-    controls_t
-        (N,) s, the controls' times, never decreasing; each row holds until the next.
-    twist
-        (N, 3): the body twist vx, vy (m/s, forward and left) and wz (rad/s, counter-clockwise).
-    wheels
-        (N, 4) rad/s: instead of `twist`, the wheel speeds front left, front right, rear left,
-        rear right, each positive when it rolls the robot forward; needs `robot`.
-    detections_t, tag_id, range, bearing
-        (M,) each: the sightings' times (s, on the controls' clock), the tags' ids (whole
-        numbers; floats such as ``np.loadtxt`` gives are accepted when whole), range (m) and
-        bearing (rad in [-π, π], counter-clockwise, 0 straight ahead) from the robot's centre
-        and heading. M may be 0.
+    controls
+        (N, 4): ``t, vx, vy, wz``, the time (s, never decreasing) and the body twist, forward
+        and left speed (m/s) and turn rate (rad/s, counter-clockwise). Or (N, 5):
+        ``t, w1, w2, w3, w4``, the wheel speeds (rad/s) front left, front right, rear left, rear
+        right, each positive when it rolls the robot forward; these need `robot`. Each row holds
+        until the next row's time.
+    detections
+        (M, 4): ``t, tag_id, range, bearing``, each tag sighting's time (s, on the controls'
+        clock), the tag's id (a whole number, as ``np.loadtxt`` gives it: a float), range (m)
+        and bearing (rad in [-π, π], counter-clockwise, 0 straight ahead) from the robot's
+        centre and heading. M may be 0.
     start
-        (3,) the pose (x, y, θ) in m, m, rad the filter starts from.
+        (3,): the pose (x, y, θ) in m, m, rad the filter starts from.
     robot
-        the mecanum geometry; needed with `wheels`.
+        the mecanum geometry, needed with wheel speeds.
     tag_map
         {tag id: (x, y)} m, the true tags if you surveyed them: the map is then scored (eq. 17).
-    groundtruth_t, groundtruth
-        (K,) s and (K, 3) true poses (x, y, θ), if you have them (ATE against them).
+    groundtruth
+        (K, 4): ``t, x, y, theta``, the true poses (s, m, m, rad) if you have them: the
+        trajectory is then scored.
     name
         the run's label in tables and plots.
 
@@ -103,44 +101,39 @@ def run_from_arrays(
     Raises
     ------
     InputError
-        One line naming the argument (and the row) and what is wrong: a shape, a time going
+        One line naming the array (and its row) and what is wrong: a shape, a time going
         backwards, a NaN, a negative range, a bearing in degrees, clocks that do not overlap.
     """
-    if (twist is None) == (wheels is None):
-        raise InputError("run_from_arrays", None, "give the controls as twist= or wheels=, once")
-    kind = "twist" if twist is not None else "wheels"
+    c = _table("controls", controls)
+    kind = _KINDS.get(c.shape[1])
+    if kind is None:
+        raise InputError(
+            "controls",
+            None,
+            f"has {c.shape[1]} columns: 4 are t, vx, vy, wz and 5 are t, w1, w2, w3, w4",
+        )
     if kind == "wheels" and robot is None:
         raise InputError(
-            "wheels", None, "wheel speeds need robot=MecanumGeometry(wheel_radius, lx, ly)"
+            "controls",
+            None,
+            "5 columns are wheel speeds, which need robot=MecanumGeometry(wheel_radius, lx, ly)",
         )
-    if (groundtruth_t is None) != (groundtruth is None):
-        raise InputError("groundtruth", None, "give groundtruth_t and groundtruth together")
-    t = _floats("controls_t", controls_t, 1)
-    columns = 3 if kind == "twist" else 4
-    values = _floats(kind, twist if twist is not None else wheels, 2, len(t), columns)
-    td = _floats("detections_t", detections_t, 1)
-    sightings = {
-        "tag_id": _whole("tag_id", tag_id, len(td)),
-        "range": _floats("range", range, 1, len(td)),
-        "bearing": _floats("bearing", bearing, 1, len(td)),
-    }
+    d = _table("detections", detections, 4)
     truth = None
-    if groundtruth_t is not None:
-        tg = _floats("groundtruth_t", groundtruth_t, 1)
-        truth = GroundTruth(t=tg, pose=_floats("groundtruth", groundtruth, 2, len(tg), 3))
+    if groundtruth is not None:
+        g = _table("groundtruth", groundtruth, 4)
+        truth = GroundTruth(t=g[:, 0], pose=g[:, 1:])
     meta = RunMeta(
         name=name,
         source="recorded",
-        nominal_start=_floats("start", start, 1, 3),
+        nominal_start=_start(start),
         robot=robot,
-        tag_map=None
-        if tag_map is None
-        else {_tag(tag): _floats(f"tag_map[{tag}]", xy, 1, 2) for tag, xy in tag_map.items()},
+        tag_map=None if tag_map is None else {_tag(t): _point(t, xy) for t, xy in tag_map.items()},
     )
     run = RunLog(
         meta=meta,
-        controls=Controls(t=t, kind=kind, values=values),
-        detections=Detections(t=td, **sightings),
+        controls=Controls(t=c[:, 0], kind=kind, values=c[:, 1:]),
+        detections=Detections(t=d[:, 0], tag_id=_ids(d[:, 1]), range=d[:, 2], bearing=d[:, 3]),
         groundtruth=truth,
     )
     try:
@@ -161,38 +154,49 @@ def _in_arrays(problem: InputError) -> InputError:
     return InputError(where, None, text)
 
 
-def _floats(what: str, values: ArrayLike, ndim: int, *shape: int) -> np.ndarray:
-    """`values` as a float array of `ndim` dimensions whose leading sizes are `shape`."""
+def _floats(what: str, values: ArrayLike) -> np.ndarray:
     try:
-        array = np.array(values, dtype=np.float64)
+        return np.array(values, dtype=np.float64)
     except (TypeError, ValueError) as err:
         raise InputError(what, None, f"must be numbers: {err}") from None
-    want = (*shape, *(None,) * (ndim - len(shape)))
-    if array.ndim != ndim or any(
-        w not in (None, n) for w, n in zip(want, array.shape, strict=True)
-    ):
-        sizes = ["N" if w is None else str(w) for w in want]
-        expected = "(" + ", ".join(sizes) + ("," if ndim == 1 else "") + ")"
+
+
+def _table(what: str, values: ArrayLike, columns: int | None = None) -> np.ndarray:
+    """`values` as an (N, columns) float array; an empty list is a table of no rows."""
+    array = _floats(what, values)
+    if array.size == 0 and columns is not None:
+        array = array.reshape(0, columns)
+    if array.ndim != 2 or (columns is not None and array.shape[1] != columns):
+        expected = f"(N, {columns})" if columns is not None else "(N, columns)"
         raise InputError(what, None, f"has shape {array.shape}, expected {expected}")
     return array
 
 
-def _whole(what: str, values: ArrayLike, m: int) -> np.ndarray:
-    """Tag ids as int64; floats only when whole (``np.loadtxt`` reads every column as float)."""
-    array = np.asarray(values)
-    if np.issubdtype(array.dtype, np.integer):
-        return _shaped(what, array.astype(np.int64), m)
-    ids = _floats(what, array, 1, m)
-    bad = np.flatnonzero(~np.isfinite(ids) | (ids != np.round(ids)) | (np.abs(ids) >= 2.0**63))
+def _start(start: ArrayLike) -> np.ndarray:
+    pose = _floats("start", start)
+    if pose.shape != (3,):
+        raise InputError("start", None, f"has shape {pose.shape}, expected (3,): x, y, theta")
+    return pose
+
+
+def _point(tag: int, xy: ArrayLike) -> np.ndarray:
+    point = _floats(f"tag_map[{tag}]", xy)
+    if point.shape != (2,):
+        raise InputError(f"tag_map[{tag}]", None, f"has shape {point.shape}, expected (2,)")
+    return point
+
+
+def _ids(column: np.ndarray) -> np.ndarray:
+    """Tag ids as int64: whole numbers only (``np.loadtxt`` reads every column as float)."""
+    bad = np.flatnonzero(
+        ~np.isfinite(column) | (column != np.round(column)) | (np.abs(column) >= 2.0**63)
+    )
     if bad.size:
-        raise InputError(f"{what}[{bad[0]}]", None, f"{float(ids[bad[0]])!r} is not a whole tag id")
-    return ids.astype(np.int64)
-
-
-def _shaped(what: str, array: np.ndarray, m: int) -> np.ndarray:
-    if array.shape != (m,):
-        raise InputError(what, None, f"has shape {array.shape}, expected ({m},)")
-    return array
+        row = int(bad[0])
+        raise InputError(
+            f"detections[{row}]", None, f"tag_id {float(column[row])!r} is not a whole id"
+        )
+    return column.astype(np.int64)
 
 
 def _tag(tag: object) -> int:

@@ -352,8 +352,9 @@ def test_readme_commands_exist_and_score_mrclam_fails_cleanly(tmp_path: Path, mo
     from ekfslam.logs.mrclam import load as mrclam
 
     readme = (REPO / "README.md").read_text()
+    guide = " ".join((REPO / "docs" / "guide" / "camera-frames.md").read_text().split())
     assert "`python -m ekfslam score-mrclam 7`" in readme
-    assert "`python -m ekfslam vision-eval --run\n  data/runs/square-1lap-frames`" in readme
+    assert "`python -m ekfslam vision-eval --run data/runs/square-1lap-frames`" in guide
     assert "from ekfslam.logs.mrclam.load import find_dataset;" not in readme
     # nowhere to find it: one line on stderr that says how to fetch it, exit 2
     monkeypatch.setenv("EKFSLAM_SHARED_DATA", str(tmp_path / "shared"))
