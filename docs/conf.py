@@ -51,6 +51,7 @@ extensions = [
     "sphinx.ext.mathjax",
     "house_docstrings",  # docs/_ext: our `name : text` docstring lines as reST lists
     "book_notebooks",  # docs/_ext: links between notebooks; notebooks without their data
+    "api_facade",  # docs/_ext: the table of the names `import ekfslam` gives
 ]
 
 exclude_patterns = [

@@ -70,14 +70,18 @@ def _datasets(numbers: Iterable[int]) -> str:
     return ", ".join(f"MRCLAM Dataset {n}" for n in numbers)
 
 
+def _fetch(numbers: Iterable[int]) -> str:
+    return " and ".join(f"`python -m ekfslam fetch mrclam {n}`" for n in numbers)
+
+
 def marked(notebook_json: str, numbers: tuple[int, ...]) -> str:
     """The notebook with a warning cell under its title: it was built without `numbers`."""
     nb = json.loads(notebook_json)
     note = (
         "```{warning}\nThis page was built on a machine without "
         f"{_datasets(numbers)}, so its code was not run and it shows no outputs. "
-        f"`python -m ekfslam fetch mrclam {numbers[0]}` fetches the data (or set "
-        "`EKFSLAM_SHARED_DATA`); then build the book again.\n```"
+        f"{_fetch(numbers)} fetches the data (or set `EKFSLAM_SHARED_DATA`); then build the "
+        "book again.\n```"
     )
     nb["cells"].insert(1, {"cell_type": "markdown", "metadata": {}, "source": note})
     return json.dumps(nb)
@@ -88,8 +92,7 @@ def say_what_is_missing(app) -> None:
     if not missing:
         return
     lines = "; ".join(
-        f"{doc} needs {_datasets(numbers)} (python -m ekfslam fetch mrclam {numbers[0]})"
-        for doc, numbers in missing.items()
+        f"{doc} needs {_datasets(numbers)} ({_fetch(numbers)})" for doc, numbers in missing.items()
     )
     if in_ci():
         raise ExtensionError(
