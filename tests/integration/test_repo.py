@@ -60,6 +60,14 @@ def test_ci_builds_the_book_with_the_readmes_command_before_the_tests():
     assert ci.index(book) < ci.index(test_command)  # the tests check the book CI built
 
 
+def test_every_link_of_the_readme_into_the_repository_leads_to_a_file():
+    links = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", README)
+    local = [link for link in links if "://" not in link]
+    assert len(local) >= 20  # the README is a front door: it links into the documentation
+    missing = [link for link in local if not (REPO / link).exists()]
+    assert not missing, f"README links to files that do not exist: {missing}"
+
+
 def _python_blocks(text: str) -> list[str]:
     return re.findall(r"```python\n(.*?)```", text, flags=re.S)
 
