@@ -577,14 +577,12 @@ CORPUS: list[tuple[str, str, str, str, str]] = [
     (
         "4b",
         CHEAT,
-        "the filter's compiled wrap (numba)",
-        "from ekfslam.core.filter import kernels\n"
-        + ZHAT.format(
-            delta="landmark[0] - pose[0], landmark[1] - pose[1]",
-            bearing="kernels.wrap(np.arctan2(dy, dx) - pose[2])",
-            ret="np.array([np.hypot(dx, dy), phi])",
-        ),
-        "wrap",
+        "the package's observation model, compiled by the package (numba)",
+        "from ekfslam.core import models\nfrom ekfslam.core.filter import compile as cc\n"
+        "h = cc.compiled({'h': models.observation}, {}).h\n"
+        "def predict_z(pose, landmark):\n"
+        "    return h(np.asarray(pose, float), np.asarray(landmark, float))\n",
+        "observation",
     ),
     # --- 5 ---
     ("5", RIGHT, "own Jacobians, block form", NEW.format(body=NEW_RIGHT), ""),
