@@ -18,7 +18,8 @@ from pathlib import Path
 from urllib.parse import unquote, urldefrag, urlparse
 
 import pytest
-from ekfslam.ui.browser_latency import CHROMIUM, CHROMIUM_ARGS
+
+from benchmarks.browser import CHROMIUM, CHROMIUM_ARGS
 
 pytestmark = pytest.mark.slow
 
