@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.association import AssociationConfig
+from ekfslam.core.diagnosis import Diagnosis, diagnose
 from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog, shares_image_error
 from ekfslam.core.filter.config import MAX_PASSES, FilterConfig, FilterCounts
 from ekfslam.core.filter.ekf import EKFSLAM
@@ -58,6 +59,8 @@ class ReplayResult:
     passes, chosen_pass : with `replay`'s ``passes`` > 1, each pass's record
         (`ekfslam.core.filter.prior.PassRecord`) and which one (1, 2, ...) the result is;
         () and 1 for a single pass.
+    diagnosis : does the filter agree with its data (`ekfslam.core.diagnosis.Diagnosis`): the
+        verdict "ok", "suspect" or "lost" and the figures behind it, from `history`.
     """
 
     name: str
@@ -75,6 +78,7 @@ class ReplayResult:
     map_noise: NoiseConfig | None = None
     passes: tuple[PassRecord, ...] = ()
     chosen_pass: int = 1
+    diagnosis: Diagnosis | None = None
 
 
 def replay(
@@ -309,13 +313,14 @@ def _result(
     map_noise: NoiseConfig | None = None,
 ) -> ReplayResult:
     ids = ekf.landmark_ids
+    history = ekf.history()
     return ReplayResult(
         name=run.meta.name,
         landmarks=ekf.landmark_map(),
         landmark_covariances={i: ekf.landmark(i)[1] for i in ids},
         mu=ekf.mu.copy(),
         Sigma=ekf.Sigma.copy(),
-        history=ekf.history(),
+        history=history,
         counts=ekf.counts,
         seconds=seconds,
         noise=noise,
@@ -323,6 +328,7 @@ def _result(
         association=association,
         keyframes=keyframes,
         map_noise=map_noise,
+        diagnosis=diagnose(history, association=association),
     )
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -183,6 +184,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(json.dumps(out, indent=2, allow_nan=False))
     else:
         print(_table(summary, out, report))
+    warning = None if result.diagnosis is None else result.diagnosis.warning()
+    if warning is not None:  # a replay that does not agree with its data says so, always
+        print(f"warning: {warning}", file=sys.stderr)
     return 0
 
 
@@ -242,6 +246,8 @@ def _table(summary: RunSummary, out: dict, report=None) -> str:
         f"re-initialised {summary.reinitialised}"
         + (f", singular S {summary.singular}" if summary.singular else "")
     )
+    if summary.diagnosis is not None:
+        lines.append(summary.diagnosis.line())
     if summary.ate_rmse is not None:
         lines.append(f"trajectory ATE RMSE (no alignment) {summary.ate_rmse:.3f} m")
     elif summary.ate_note is not None:
