@@ -17,6 +17,10 @@ degrees of freedom: beyond its 99% quantile (9.21) once in a hundred sightings, 
 - the mean NIS, each capped at the quantile (a rejected sighting counts at 9.21, so a lost filter
   cannot hide behind the few it still accepts), against its value for a consistent filter, 1.98,
   and the 95% band of one window's mean;
+- landmarks whose sightings are nearly all outliers (`MISPLACED_SHARE` of at least
+  `MISPLACED_MIN`): placed from a bad sighting, or while the pose was off, and never corrected
+  (MRCLAM turns re-initialisation off, `ekfslam.logs.mrclam.defaults.MRCLAM_CONFIG`), the
+  robot's map holds them metres from where they are while every other figure looks fine;
 - landmarks re-initialised, updates skipped for a singular S, and the recoveries the replay made
   (`ekfslam.core.recovery`);
 - with the ids hidden, two signs of decisions gone wrong that need no ground truth: landmarks
@@ -73,6 +77,10 @@ SUSPECT_RUN = 60
 #: (a consistent filter averages 1.98; MRCLAM robots with the default noise 0.5-1.8).
 UNDERCONFIDENT_NIS = 0.1
 
+#: A landmark with at least `MISPLACED_MIN` tested sightings, at least this share of them
+#: outliers, is misplaced: "suspect".
+MISPLACED_SHARE = 0.8
+MISPLACED_MIN = 10
 #: With hidden ids: landmarks founded in the second half of the run, and the share of sightings
 #: dropped as ambiguous, from which the decisions are "suspect".
 SUSPECT_LATE_FOUNDINGS = 2
@@ -81,6 +89,7 @@ SUSPECT_AMBIGUOUS = 0.01
 #: What to try, by what was seen.
 ADVICE_TOO_SMALL = "R or Q is too small for this log; try --noise fit"
 ADVICE_TOO_LARGE = "R or Q is larger than this log needs; try --noise fit"
+ADVICE_MISPLACED = "try re-initialising landmarks (--reinit-after 3) or --noise fit"
 ADVICE_SINGULAR = "the noise is so small or so large that S is singular; try --noise fit"
 ADVICE_ASSOCIATION = "the association may be wrong; try --association mht, or --passes 2"
 
@@ -116,6 +125,7 @@ class Diagnosis:
     nis_mean : the mean NIS of the tested sightings, each capped at `OUTLIER_NIS` (None: none
         tested); 1.98 for a consistent filter. nis_band : the 95% band of one window's mean for
         a consistent filter. nis_windows_above : the share of windows whose mean is above it.
+    misplaced : ids of the landmarks whose sightings are nearly all outliers (see the module).
     reinitialised : landmarks placed again. singular : updates skipped for a singular S.
     recoveries : times (s from the start) the replay inflated the pose covariance after a run of
         rejections (`ekfslam.core.recovery`); () when it made none.
@@ -139,6 +149,7 @@ class Diagnosis:
     nis_mean: float | None
     nis_band: tuple[float, float]
     nis_windows_above: float
+    misplaced: tuple[int, ...]
     reinitialised: int
     singular: int
     recoveries: tuple[float, ...]
@@ -194,6 +205,7 @@ class Diagnosis:
                 "window_band": list(self.nis_band),
                 "windows_above": self.nis_windows_above,
             },
+            "misplaced": list(self.misplaced),
             "reinitialised": self.reinitialised,
             "singular": self.singular,
             "recoveries": list(self.recoveries),
@@ -230,11 +242,18 @@ def diagnose(
     out = (outcome[tested] != Outcome.ACCEPTED) | ~(nis <= OUTLIER_NIS)
     t = np.asarray(h.obs_t, dtype=float)[tested] - start
     n = len(out)
+    ids = np.asarray(h.obs_id)[tested]
+    misplaced = []
+    for landmark in np.unique(ids):
+        mine = out[ids == landmark]
+        if len(mine) >= MISPLACED_MIN and mine.mean() >= MISPLACED_SHARE:
+            misplaced.append(int(landmark))
     figures: dict = dict(
         sightings=n,
         outliers=int(out.sum()),
         outlier_share=float(out.mean()) if n else 0.0,
         rejected=int(np.count_nonzero(outcome == Outcome.REJECTED)),
+        misplaced=tuple(misplaced),
         reinitialised=int(np.count_nonzero(outcome == Outcome.REINITIALISED)),
         singular=int(np.count_nonzero(outcome == Outcome.SINGULAR)),
         recoveries=tuple(float(r) - start for r in recoveries),
@@ -320,6 +339,15 @@ def _verdict(f: dict) -> Diagnosis:
         )
     if lost or suspect:
         advice = ADVICE_TOO_SMALL
+    if f["misplaced"]:
+        shown = ", ".join(map(str, f["misplaced"][:5])) + (
+            ", ..." if len(f["misplaced"]) > 5 else ""
+        )
+        suspect.append(
+            f"{len(f['misplaced'])} landmark(s) ({shown}) with {_percent(MISPLACED_SHARE)} or more "
+            "of their sightings rejected: misplaced"
+        )
+        advice = advice or ADVICE_MISPLACED
     if f["singular"]:
         suspect.append(f"{f['singular']} updates skipped: S singular or not finite")
         advice = advice or ADVICE_SINGULAR

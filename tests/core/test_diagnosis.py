@@ -16,7 +16,7 @@ from ekfslam.core.filter.history import History, Outcome
 A, R, I = int(Outcome.ACCEPTED), int(Outcome.REJECTED), int(Outcome.INITIALISED)
 
 
-def _history(outcomes, nis=None, t=None) -> History:
+def _history(outcomes, nis=None, t=None, ids=None) -> History:
     """A History with only what the diagnosis reads: the sightings' times, outcomes, NIS."""
     outcomes = np.asarray(outcomes, dtype=np.int8)
     m = len(outcomes)
@@ -33,7 +33,7 @@ def _history(outcomes, nis=None, t=None) -> History:
         pose_cov=np.zeros((len(events), 3, 3)),
         obs_t=t,
         obs_event=np.arange(m, dtype=np.int64),
-        obs_id=np.zeros(m, dtype=np.int64),
+        obs_id=np.zeros(m, dtype=np.int64) if ids is None else np.asarray(ids, dtype=np.int64),
         obs_z=empty2,
         obs_z_hat=empty2,
         obs_innovation=empty2,
@@ -178,3 +178,15 @@ def test_the_figures_agree_with_a_plain_count(outcomes) -> None:
         assert d.outlier_share < dg.SUSPECT_SHARE and d.longest_run < dg.SUSPECT_RUN
     assert (d.warning() is None) == d.ok
     assert math.isfinite(d.nis_band[1])
+
+
+def test_a_landmark_whose_sightings_are_nearly_all_rejected_is_misplaced() -> None:
+    outcomes = [A, A, A, A, R] * 40  # landmark 7 takes every fifth sighting: all rejected
+    ids = [3, 4, 5, 6, 7] * 40
+    d = dg.diagnose(_history(outcomes, ids=ids))
+    assert d.outlier_share == pytest.approx(0.2)
+    assert d.misplaced == (7,)
+    assert d.verdict == "suspect"
+    assert "1 landmark(s) (7) with 80% or more of their sightings rejected: misplaced" in d.reasons
+    few = dg.diagnose(_history([A] * 100 + [R] * 9, ids=[1] * 100 + [2] * 9))
+    assert few.misplaced == ()  # 9 sightings: under MISPLACED_MIN
