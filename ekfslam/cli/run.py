@@ -85,6 +85,14 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     )
     add_passes_argument(run)
     add_founding_arguments(run)
+    run.add_argument(
+        "--noise",
+        choices=("default", "fit"),
+        default="default",
+        help="default: the run's documented noise (with the --sigma-* overrides); fit: fit R "
+        "and Q to this run's innovations first, by maximum likelihood with no ground truth, "
+        "starting there (as `fit-noise` does), and replay with them",
+    )
     run.add_check(_match_needs_hidden_ids)
     ca.add_noise_arguments(run)
     add_iterations_argument(run)
@@ -113,6 +121,8 @@ def _match_needs_hidden_ids(args: argparse.Namespace) -> str | None:
         return "argument --new-rule: needs --association jcbb or mht"
     if args.passes != 1 and args.association == "known":
         return "argument --passes: needs --association nn, jcbb or mht"
+    if getattr(args, "noise", "default") == "fit" and args.association != "known":
+        return "argument --noise fit: fits with the known ids; not with --association"
     if args.passes != 1 and getattr(args, "linearization", None) == "invariant":
         return "argument --passes: needs the standard or fej filter, not --linearization invariant"
     return None
@@ -123,6 +133,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     hidden = getattr(args, "association", "known") != "known"
     # with the ids hidden, a noise whose Σ the association's χ² tests can trust
     noise, config = noise_from_args(args, run, assoc.association_noise(run) if hidden else None)
+    fitted = None
+    if getattr(args, "noise", "default") == "fit":
+        # lazy: scipy.optimize (about 0.3 s) only when asked to fit
+        fitted = importlib.import_module("ekfslam.analysis.noise_fit").fit_noise(run, noise, config)
+        noise = fitted.noise
     animate = getattr(args, "animate", None)
     # only an animation needs copies of the whole state (`Keyframes`); a plain replay keeps none
     frames = (
@@ -160,6 +175,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             "chosen": result.chosen_pass,
             "each": [{"cost": p.cost, "changed": p.changed} for p in result.passes],
         }
+    if fitted is not None:
+        out["noise_fit"] = fitted.as_dict()
     out["seed_report"] = _seed_report(run)
     out["detections"] = _detections_source(run, report)
     if report is not None:
@@ -183,6 +200,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(out, indent=2, allow_nan=False))
     else:
+        if fitted is not None:
+            print("\n".join(["noise fitted to the run's innovations:", *fitted.lines()]))
         print(_table(summary, out, report))
     warning = None if result.diagnosis is None else result.diagnosis.warning()
     if warning is not None:  # a replay that does not agree with its data says so, always
