@@ -31,6 +31,7 @@ from ekfslam.core.filter.mapping import MappingFilter
 from ekfslam.core.filter.mht import DecisionReplay, HypothesisBank
 from ekfslam.core.filter.prior import PassRecord, pass_record, prior_map, start_with
 from ekfslam.core.noise import NoiseConfig, default_config, default_noise
+from ekfslam.core.recovery import Recovery, RecoveryConfig
 from ekfslam.errors import ConfigError, EkfSlamError
 from ekfslam.logs.edit import truncate
 from ekfslam.logs.runlog import RunLog
@@ -92,6 +93,7 @@ def replay(
     keyframes: int | None = None,
     map_noise: NoiseConfig | None = None,
     passes: int = 1,
+    recovery: RecoveryConfig | None = None,
 ) -> ReplayResult:
     """Run the EKF over a log and return the estimate with its full history.
 
@@ -123,6 +125,9 @@ def replay(
         filter with `noise`), so no sighting counts twice. The result is the pass whose map fits its
         sightings best (`ekfslam.core.filter.prior.pass_record`'s cost); it stops early at a
         fixed point (no decision changed). 1 (the default): one pass.
+    recovery : with the ids known, widen the pose covariance after a run of rejected sightings
+        (`ekfslam.core.recovery`), so a filter that has lost its pose relocalises against its
+        map; the times are in ``result.diagnosis.recoveries``. None (the default): never.
     """
     whole = isinstance(keyframes, int | np.integer) and not isinstance(keyframes, bool)
     if keyframes is not None and not (whole and keyframes >= 2):
@@ -140,6 +145,11 @@ def replay(
     hidden = association is not None and association.method != "known"
     if map_noise is not None and not hidden:
         raise ConfigError("map_noise needs hidden ids (an association other than 'known')")
+    if recovery is not None and hidden:
+        raise ConfigError(
+            "recovery needs the ids known (with hidden ids a run of rejections is "
+            "also a question of association)"
+        )
     _check_passes(passes, hidden, config)
     started = time.perf_counter()  # the schedule counts: it is part of the replay's work
     steps = _schedule(run, noise)
@@ -148,8 +158,9 @@ def replay(
     with np.errstate(all="ignore"):  # an overflow is caught below, once, and said where
         if not hidden:
             ekf = EKFSLAM(pose0, start_covariance, config)
+            fed = ekf if recovery is None else Recovery(ekf, recovery)
             taker = None if keyframes is None else _KeyframeTaker(ekf, steps, int(keyframes))
-            _feed(ekf, *steps, pause=None if taker is None else taker.pause)
+            _feed(fed, *steps, pause=None if taker is None else taker.pause)
             log = None
         else:
             made, prior, last = (pose0, start_covariance, config), None, None
@@ -184,7 +195,8 @@ def replay(
         )
     if hidden and not (np.isfinite(ekf.mu).all() and np.isfinite(ekf.Sigma).all()):
         raise NonFiniteStateError(f"run {run.meta.name!r}: the filter state became non-finite")
-    result = _result(run, ekf, seconds, noise, config, log, frames, map_noise)
+    recovered = () if hidden or recovery is None else tuple(fed.times)
+    result = _result(run, ekf, seconds, noise, config, log, frames, map_noise, recovered)
     if passes == 1:
         return result
     return dataclasses.replace(result, passes=tuple(records), chosen_pass=kept[3] + 1)
@@ -311,6 +323,7 @@ def _result(
     association: AssociationLog | None = None,
     keyframes: Keyframes | None = None,
     map_noise: NoiseConfig | None = None,
+    recoveries: tuple[float, ...] = (),
 ) -> ReplayResult:
     ids = ekf.landmark_ids
     history = ekf.history()
@@ -328,7 +341,7 @@ def _result(
         association=association,
         keyframes=keyframes,
         map_noise=map_noise,
-        diagnosis=diagnose(history, association=association),
+        diagnosis=diagnose(history, recoveries, association),
     )
 
 
