@@ -423,12 +423,14 @@ def _feed(
 ) -> None:
     """Predict through the pieces before each detection, update, and predict to the end.
 
+    Q: (2, 2) for every detection, or (N, 2, 2) one per detection (its own noise).
     check: after every step, raise `NonFiniteStateError` naming the step if the state is no
     longer finite (the locating pass; the normal pass checks once, at the end).
     pause: called as pause(i, done) when detections 0..i-1 are applied and `done` pieces
     predicted, before the prediction for detection i (i = len(upto): before the last one).
     """
     done = 0
+    each = np.ndim(Q) == 3  # one Q per detection
     for i, p in enumerate(upto):
         if pause is not None:
             pause(i, done)
@@ -437,7 +439,7 @@ def _feed(
             done = p
             if check:
                 _check_finite(ekf, f"t = {ends[p - 1]:.3f} s (prediction)")
-        ekf.update(det_id[i], det_z[i], Q, det_time[i])
+        ekf.update(det_id[i], det_z[i], Q[i] if each else Q, det_time[i])
         if check:
             _check_finite(
                 ekf, f"t = {det_time[i]:.3f} s (update of landmark {det_id[i]}, detection {i + 1})"
