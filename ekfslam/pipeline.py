@@ -30,7 +30,7 @@ from ekfslam.core.filter.history import History, KeyframeRecorder, Keyframes
 from ekfslam.core.filter.mapping import MappingFilter
 from ekfslam.core.filter.mht import DecisionReplay, HypothesisBank
 from ekfslam.core.filter.prior import PassRecord, pass_record, prior_map, start_with
-from ekfslam.core.noise import NoiseConfig, default_config, default_noise
+from ekfslam.core.noise import NoiseConfig, default_config, default_noise, sighting_noise
 from ekfslam.core.recovery import Recovery, RecoveryConfig
 from ekfslam.errors import ConfigError, EkfSlamError
 from ekfslam.logs.edit import truncate
@@ -100,7 +100,9 @@ def replay(
     Parameters
     ----------
     run : RunLog
-    noise : NoiseConfig, the R and Q to use (default: `default_noise(run)`).
+    noise : NoiseConfig, the R and Q to use (default: `default_noise(run)`). With the ids known,
+        each sighting gets its own Q when the run's detections carry their σ or the noise's σ_r
+        grows with the range (`ekfslam.core.noise.sighting_noise`).
     config : FilterConfig, landmark initialisation, gate (default: `default_config(run)`).
     start_pose : (3,), where the filter starts; the run's nominal start by default (the seed
         starts from its nominal pose and recovers the placement error afterwards, eq. 17).
@@ -153,6 +155,17 @@ def replay(
     _check_passes(passes, hidden, config)
     started = time.perf_counter()  # the schedule counts: it is part of the replay's work
     steps = _schedule(run, noise)
+    each = sighting_noise(noise, run.detections)
+    if np.ndim(each) == 3 and not hidden:  # each sighting its own Q (the run's, or by range)
+        steps = (*steps[:9], each)
+    elif np.ndim(each) == 3:
+        warnings.warn(
+            f"run {run.meta.name!r}: with hidden ids every sighting has sigma_range and "
+            "sigma_bearing; its own noise (detections.csv's sigma columns, sigma_range_per_m) "
+            "is used with the ids known only",
+            RuntimeWarning,
+            stacklevel=2,
+        )
     kept: list = []  # the pass the result is: filter, log, keyframes, its record's index
     records: list[PassRecord] = []
     with np.errstate(all="ignore"):  # an overflow is caught below, once, and said where
