@@ -11,7 +11,9 @@ their densities (the prediction-error decomposition; Mehra 1972 and Bar-Shalom, 
 
 `fit_noise` maximises it over the log of a few σ with `scipy.optimize.minimize` (Nelder-Mead: the
 gate makes the function step where a sighting flips between accepted and rejected, so no
-gradient), each evaluation a full replay (`ekfslam.pipeline.replay`, about 0.05-0.2 s for a MRCLAM
+gradient), after scaling every σ of the start by one factor (`SCALES`: a start 100 times too
+small sits in a flat, lost region, or the search ends beside a local optimum where R is so wide
+that Q no longer matters), each evaluation a full replay (`ekfslam.pipeline.replay`, about 0.05-0.2 s for a MRCLAM
 robot). What it must not learn from, and how it does not:
 
 - a sighting the gate rejects counts only as "beyond the gate", its probability under the
@@ -86,6 +88,9 @@ F_TOLERANCE = 1e-3
 CORRELATION_GAP = 2.0
 #: The widening's ρ is at most this: (1 + ρ) / (1 - ρ) <= 39, σ by at most 6.2 times.
 MAX_CORRELATION = 0.95
+#: Before the search, every σ of the start is scaled by 10^k for each k here, and the search
+#: starts from the best (a start 100 times too small is found 100 times too small).
+SCALES = (-1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0)
 #: ln σ step of the central differences for the standard errors.
 SCORE_STEP = 0.05
 #: A standard error of ln σ beyond this (a factor e² either way) says the log does not
@@ -246,7 +251,10 @@ def fit_noise(
     sideways = bool(np.any(np.asarray(run.control_twist())[:, 1] != 0))
     fields = (*FITTED[:1], "sigma_y", *FITTED[1:]) if sideways else FITTED
     cost = _Cost(run, start, config, fields)
-    x0 = np.log([max(getattr(start, f), BOUNDS[0]) for f in fields])
+    x_start = np.log([max(getattr(start, f), BOUNDS[0]) for f in fields])
+    # a start 100 times off leaves the simplex in a flat lost region or beside a local optimum
+    # (R so wide that Q does not matter): first every σ scaled by one factor, the best taken
+    x0 = min((x_start + math.log(10) * k for k in SCALES), key=cost)
     simplex = np.vstack([x0, x0 + SIMPLEX_STEP * np.eye(len(x0))])
     found = minimize(
         cost,
@@ -275,7 +283,7 @@ def fit_noise(
         correlation=rho,
         standard_errors=errors,
         log_likelihood=-cost(best),
-        start_log_likelihood=-cost(x0),
+        start_log_likelihood=-cost(x_start),
         sightings=tested,
         evaluations=cost.calls + 2,
         seconds=time.perf_counter() - began,
