@@ -13,8 +13,8 @@ their densities (the prediction-error decomposition; Mehra 1972 and Bar-Shalom, 
 gate makes the function step where a sighting flips between accepted and rejected, so no
 gradient), after scaling every σ of the start by one factor (`SCALES`: a start 100 times too
 small sits in a flat, lost region, or the search ends beside a local optimum where R is so wide
-that Q no longer matters), each evaluation a full replay (`ekfslam.pipeline.replay`, about 0.05-0.2 s for a MRCLAM
-robot). What it must not learn from, and how it does not:
+that Q no longer matters), each evaluation a full replay (`ekfslam.pipeline.replay`, about
+0.05-0.2 s for a MRCLAM robot). What it must not learn from, and how it does not:
 
 - a sighting the gate rejects counts only as "beyond the gate", its probability under the
   model, e^(-gate/2) for 2 dof, never by its value: a censored observation. A noise that rejects
@@ -56,6 +56,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize
 
+from ekfslam.analysis.rescue import sighting_log_likelihoods
 from ekfslam.core.diagnosis import Diagnosis
 from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.filter.history import History, Outcome
@@ -96,37 +97,6 @@ SCORE_STEP = 0.05
 #: A standard error of ln σ beyond this (a factor e² either way) says the log does not
 #: determine that σ.
 UNDETERMINED = 2.0
-_LN_2PI = math.log(2 * math.pi)
-
-
-def sighting_log_likelihoods(
-    history: History, gate: float | None, lost_after: float | None = None
-) -> Array:
-    """Each sighting's term of ln L (see the module), (M,), 0 for those no innovation tests.
-
-    gate : the filter's NIS gate (None: off, nothing is censored). lost_after : s from the
-    history's first event; from there on every tested sighting counts as censored (None: no
-    lost stretch).
-    """
-    outcome = np.asarray(history.obs_outcome)
-    nu = np.asarray(history.obs_innovation, dtype=float)
-    S = np.asarray(history.obs_S, dtype=float)
-    terms = np.zeros(len(outcome))
-    accepted = outcome == Outcome.ACCEPTED
-    censored = np.isin(outcome, (Outcome.REJECTED, Outcome.REINITIALISED, Outcome.SINGULAR))
-    if lost_after is not None:
-        late = np.asarray(history.obs_t) - history.t[0] >= lost_after
-        censored |= accepted & late
-        accepted &= ~late
-    a, b, c = S[accepted, 0, 0], S[accepted, 0, 1], S[accepted, 1, 1]
-    det = a * c - b * b
-    n0, n1 = nu[accepted, 0], nu[accepted, 1]
-    nis = (c * n0 * n0 - 2 * b * n0 * n1 + a * n1 * n1) / det
-    with np.errstate(divide="ignore", invalid="ignore"):
-        dense = -0.5 * (nis + np.log(det)) - _LN_2PI
-    terms[accepted] = np.where(np.isfinite(dense) & (det > 0), dense, -0.5 * (gate or 1e3))
-    terms[censored] = -0.5 * (gate if gate is not None else 1e3)
-    return terms
 
 
 @dataclass(frozen=True, eq=False)

@@ -339,7 +339,7 @@ def _verdict(f: dict) -> Diagnosis:
         )
     if lost or suspect:
         advice = ADVICE_TOO_SMALL
-    if f["misplaced"]:
+    if f["misplaced"] and not lost:  # a lost filter rejects every landmark's sightings
         shown = ", ".join(map(str, f["misplaced"][:5])) + (
             ", ..." if len(f["misplaced"]) > 5 else ""
         )

@@ -8,7 +8,6 @@ values from `ekfslam.logs.mrclam.defaults`); `default_noise` and `default_config
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -145,57 +144,8 @@ def default_config(run: Any) -> FilterConfig:
 
 def default_noise(run: Any) -> NoiseConfig:
     """The documented starting noise for a run: its loader's (``run.meta.noise_defaults``), else
-    `NoiseConfig()`; for a recorded run, with the variance its odometry's rate adds
-    (`odometry_hold_density`, `with_odometry_rate`).
+    `NoiseConfig()`.
 
-    A tuned default is a density per second of driving, measured on logs of one odometry rate
-    (MRCLAM's, about 100 rows a second). Holding each row until the next misses how the speed
-    changed in between, an error that grows with the interval: on MRCLAM's robots resampled to
-    rows held for 0.5-1 s, the tuned default rejects 60-90% of the sightings and loses the robot
-    (aligned map errors of 1-3 m), while the same default with this term added maps them within
-    0.1 m (``studies/noise_default/``). On MRCLAM's own logs the term is 0.0016-0.003 rad²/s
-    (σθ 0.05 -> 0.052-0.053 rad/√s). A simulated run's robot follows its commands exactly
-    between rows, so it gets none.
-
-    run : a `ekfslam.logs.runlog.RunLog` (anything whose ``meta`` has ``noise_defaults`` and
-        ``source``, and with ``controls.t`` and ``control_twist()``).
+    run : a `ekfslam.logs.runlog.RunLog` (anything whose ``meta`` has ``noise_defaults``).
     """
-    noise = run.meta.noise_defaults or NoiseConfig()
-    if getattr(run.meta, "source", None) != "recorded":
-        return noise
-    return with_odometry_rate(noise, run.controls.t, run.control_twist())
-
-
-def odometry_hold_density(t: ArrayLike, twist: ArrayLike) -> Array:
-    """(3,) variance per second of driving that holding each control row until the next adds to
-    the increment along body x, y and θ: (m²/s, m²/s, rad²/s), M's diagonal's units.
-
-    t : (N,) s, the rows' times. twist : (N, 3) body twist (vx, vy, ω) of each row.
-
-    Between rows k and k + 1 (Δ_k apart) the true speed drifts by J_k = u_{k+1} - u_k. A random
-    walk with that drift over Δ_k has diffusion J_k² / Δ_k, and the increment the held row misses,
-    ∫ (u(t) - u_k) dt over the interval, then has variance (J_k² / Δ_k) Δ_k³ / 3 = J_k² Δ_k² / 3.
-    Summed over the rows and divided by the log's duration it is a density per second, as M is:
-    for evenly spaced rows J² Δ / 3, growing with the interval (and with how much the speed
-    changes per row). Read from the log alone: no ground truth.
-    """
-    t = np.asarray(t, dtype=float)
-    u = np.asarray(twist, dtype=float)
-    if len(t) < 2 or not t[-1] > t[0]:
-        return np.zeros(3)
-    dt = np.diff(t)
-    jumps = np.diff(u, axis=0)
-    return (jumps**2 * (dt**2)[:, None]).sum(axis=0) / (3.0 * (t[-1] - t[0]))
-
-
-def with_odometry_rate(noise: NoiseConfig, t: ArrayLike, twist: ArrayLike) -> NoiseConfig:
-    """`noise` with `odometry_hold_density` of the controls (t, twist) added to σx², σy², σθ²
-    (unchanged when it gives a fixed per-step R instead: it has no density to add to)."""
-    if noise.R_per_step is not None:
-        return noise
-    extra = odometry_hold_density(t, twist)
-    sx, sy, st = (
-        math.sqrt(s * s + float(e))
-        for s, e in zip((noise.sigma_x, noise.sigma_y, noise.sigma_theta), extra, strict=True)
-    )
-    return dataclasses.replace(noise, sigma_x=sx, sigma_y=sy, sigma_theta=st)
+    return run.meta.noise_defaults or NoiseConfig()

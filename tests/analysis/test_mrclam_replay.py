@@ -15,7 +15,7 @@ import pytest
 from ekfslam.analysis.evaluation import summarize
 from ekfslam.analysis.mrclam_tuning import RobotScore, score_robots, scores_table, tune_noise
 from ekfslam.cli.main import main
-from ekfslam.core.noise import NoiseConfig, default_noise, with_odometry_rate
+from ekfslam.core.noise import NoiseConfig, default_noise
 from ekfslam.logs.mrclam.calibration import (
     MRCLAM_CALIBRATION,
     CommandCalibration,
@@ -56,15 +56,8 @@ def test_table_has_a_row_per_robot_and_the_average(scores: list[RobotScore]) -> 
 
 
 def test_cli_defaults_are_the_documented_noise(mrclam7: Path) -> None:
-    """MRCLAM_NOISE with the variance robot 1's odometry rate adds (about 100 rows a second:
-    a few per cent on sigma_x and sigma_theta, nothing on Q)."""
     run, _ = load_mrclam(mrclam7, 1)
-    noise = default_noise(run)
-    assert noise == with_odometry_rate(MRCLAM_NOISE, run.controls.t, run.control_twist())
-    assert (noise.sigma_range, noise.sigma_bearing) == (0.3, 0.01)
-    assert noise.sigma_theta == pytest.approx(0.0527, abs=1e-4)
-    assert noise.sigma_x == pytest.approx(0.0065, abs=1e-4)
-    assert noise.sigma_y == MRCLAM_NOISE.sigma_y  # the robot never moves sideways
+    assert default_noise(run) is MRCLAM_NOISE
 
 
 def test_true_start_is_vicon_at_the_first_command(mrclam7: Path) -> None:

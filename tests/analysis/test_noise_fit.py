@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ekfslam.analysis import noise_fit as nf
+from ekfslam.analysis.rescue import sighting_log_likelihoods
 from ekfslam.core.filter.history import History, Outcome
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.logs.runlog import read_run
@@ -47,7 +48,7 @@ def test_an_accepted_sighting_counts_its_gaussian_density_a_rejected_one_the_gat
     S = np.array([[0.04, 0.01], [0.01, 0.09]])
     nu = np.array([0.1, -0.2])
     h = _history([I, A, R], [[0, 0], nu, [5.0, 5.0]], [np.eye(2), S, S])
-    terms = nf.sighting_log_likelihoods(h, gate=9.21)
+    terms = sighting_log_likelihoods(h, gate=9.21)
     density = math.exp(-0.5 * nu @ np.linalg.solve(S, nu)) / (
         2 * math.pi * math.sqrt(np.linalg.det(S))
     )
@@ -59,7 +60,7 @@ def test_an_accepted_sighting_counts_its_gaussian_density_a_rejected_one_the_gat
 def test_from_a_lost_stretch_on_every_sighting_is_censored_the_accepted_ones_too() -> None:
     S = np.broadcast_to(np.eye(2) * 0.01, (4, 2, 2))
     h = _history([A, A, R, A], np.zeros((4, 2)), S, t=[1.0, 2.0, 3.0, 4.0])
-    terms = nf.sighting_log_likelihoods(h, gate=9.21, lost_after=2.5)  # from t = 2.5 s
+    terms = sighting_log_likelihoods(h, gate=9.21, lost_after=2.5)  # from t = 2.5 s
     assert terms[0] == terms[1] > 0
     assert terms[2] == terms[3] == pytest.approx(-9.21 / 2)
 
