@@ -51,9 +51,10 @@ def test_a_log_held_half_a_second_is_rescued_by_the_most_likely_r(square) -> Non
     coarse = held(square, 0.5)
     rescue = replay_rescued(coarse, NoiseConfig(), FilterConfig())
     assert rescue.documented.verdict == "lost"
-    assert [f for f, _, _ in rescue.tried] == [1.0, *RESCUE_SCALES]
+    assert [what for what, _, _ in rescue.tried] == ["x1", *(f"x{f:g}" for f in RESCUE_SCALES)]
     likelihoods = [ll for _, ll, _ in rescue.tried]
-    assert rescue.scale == rescue.tried[int(np.argmax(likelihoods))][0] == 4.0
+    assert rescue.tried[int(np.argmax(likelihoods))][0] == "x4" and rescue.scale == 4.0
+    assert not rescue.reinitialise
     assert rescue.result.noise == scaled_motion(NoiseConfig(), 4.0)
     assert rescue.result.diagnosis.verdict == "ok"
     assert summarize(coarse, rescue.result).alignment.mean_error < 0.02

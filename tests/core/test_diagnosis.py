@@ -141,9 +141,11 @@ def _log(n: int, ambiguous: int) -> SimpleNamespace:
 
 
 def test_with_hidden_ids_landmarks_founded_late_are_suspect() -> None:
-    outcomes = [I] * 5 + [A] * 200 + [I] * 2 + [A] * 200  # 2 founded after half the run
-    d = dg.diagnose(_history(outcomes), association=_log(407, 0))
-    assert (d.verdict, d.late_foundings, d.ambiguous_share) == ("suspect", 2, 0.0)
+    outcomes = [I] * 5 + [A] * 200 + [I] * 3 + [A] * 200  # 3 founded after half the run
+    d = dg.diagnose(_history(outcomes), association=_log(408, 0))
+    assert (d.verdict, d.late_foundings, d.ambiguous_share) == ("suspect", 3, 0.0)
+    two = [I] * 5 + [A] * 200 + [I] * 2 + [A] * 200
+    assert dg.diagnose(_history(two), association=_log(407, 0)).verdict == "ok"
     assert d.advice == dg.ADVICE_ASSOCIATION
     known = dg.diagnose(_history(outcomes))  # with the ids known a tag may be first seen late
     assert (known.verdict, known.late_foundings) == ("ok", None)
