@@ -26,6 +26,7 @@ from ekfslam.cli.common import (
     time_shared_of,
 )
 from ekfslam.core.association import METHODS
+from ekfslam.core.recovery import RecoveryConfig
 from ekfslam.files import save_figure
 from ekfslam.logs.mrclam.defaults import MRCLAM_MAP_NOISE
 from ekfslam.logs.mrclam.load import MrclamLoadReport
@@ -96,6 +97,14 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         "also takes as they are); fit: fit R and Q to this run's innovations first, by maximum "
         "likelihood with no ground truth (as `fit-noise` does), and replay with them",
     )
+    run.add_argument(
+        "--recover",
+        action="store_true",
+        help="with the ids known: after 20 rejected sightings in a row (of 2 or more landmarks) "
+        "widen the pose covariance by what their innovations say, so a robot whose pose was "
+        "lost relocalises against its map; the diagnosis lists when (off by default: on MRCLAM "
+        "it helped as often as it hurt)",
+    )
     run.add_check(_match_needs_hidden_ids)
     ca.add_noise_arguments(run)
     add_iterations_argument(run)
@@ -124,6 +133,8 @@ def _match_needs_hidden_ids(args: argparse.Namespace) -> str | None:
         return "argument --new-rule: needs --association jcbb or mht"
     if args.passes != 1 and args.association == "known":
         return "argument --passes: needs --association nn, jcbb or mht"
+    if getattr(args, "recover", False) and args.association != "known":
+        return "argument --recover: needs the ids known (not with --association)"
     if getattr(args, "noise", "auto") == "fit" and args.association != "known":
         return "argument --noise fit: fits with the known ids; not with --association"
     if args.passes != 1 and getattr(args, "linearization", None) == "invariant":
@@ -142,6 +153,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         fitted = importlib.import_module("ekfslam.analysis.noise_fit").fit_noise(run, noise, config)
         noise = fitted.noise
     animate = getattr(args, "animate", None)
+    recover = {"recovery": RecoveryConfig()} if getattr(args, "recover", False) else {}
     # only an animation needs copies of the whole state (`Keyframes`); a plain replay keeps none
     frames = (
         {"keyframes": args.frames or animate_args.DEFAULT_FRAMES} if animate is not None else {}
@@ -167,10 +179,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         result, found = assoc.score(run, result, args.match)
         labels = None if animate is None else animate_args.true_labels(result, found.mapping)
     elif _rescues(args):  # the documented noise, or R scaled when it does not fit the log
-        rescue = rescued_replay(run, noise, config, **frames)
+        rescue = rescued_replay(run, noise, config, **frames, **recover)
         result, labels = rescue.result, None
     else:
-        result = pipeline.replay(run, noise, config, **frames)
+        result = pipeline.replay(run, noise, config, **frames, **recover)
         labels = None
     summary = summarize(run, result, method=args.align)
     out = summary.as_dict()

@@ -47,3 +47,18 @@ def test_by_default_a_log_the_documented_noise_loses_is_replayed_with_r_rescued(
     assert json.loads(exact.stdout)["diagnosis"]["verdict"] == "lost"
     assert "noise_rescue" not in json.loads(exact.stdout)
     assert "warning: lost:" in exact.stderr
+
+
+def test_run_recover_relocalises_a_robot_whose_odometry_dropped_out(tmp_path) -> None:
+    run = read_run(RUNS / "octagon-2laps")
+    c = run.controls
+    still = np.where(((c.t >= 35.0) & (c.t < 37.0))[:, None], 0.0, c.values)
+    write_run(dataclasses.replace(run, controls=Controls(c.t, c.kind, still)), tmp_path / "drop")
+    args = ["run", str(tmp_path / "drop"), "--noise", "documented", "--json"]
+    lost = json.loads(run_ekfslam(*args).stdout)
+    found = json.loads(run_ekfslam(*args, "--recover").stdout)
+    assert lost["diagnosis"]["verdict"] == "lost" and lost["alignment"]["mean_error"] > 0.15
+    assert found["diagnosis"]["verdict"] == "ok" and found["alignment"]["mean_error"] < 0.01
+    assert len(found["diagnosis"]["recoveries"]) == 1
+    refused = run_ekfslam("run", str(RUNS / "square-2laps"), "--recover", "--association", "nn")
+    assert refused.returncode == 2 and "argument --recover: needs the ids known" in refused.stderr
