@@ -110,13 +110,19 @@ def test_each_sighting_is_updated_with_its_own_q(seed) -> None:
     noisy = _with_sigmas(run, s_r, s_b)
     got = replay(noisy, NoiseConfig(), noisy.meta.filter_defaults)
     upto, us, dts, ends, M, R, det_id, det_time, det_z, _ = _schedule(run, NoiseConfig())
+    # each Q as the replay builds them (a 2x2 matmul may round its last bit otherwise, by the
+    # memory alignment of its operands): their values are diag(σ_r², σ_φ²), checked here
+    each = NoiseConfig().sighting_Q(run.detections.range, s_r, s_b)
+    np.testing.assert_array_equal(each[:, 0, 0], s_r**2)
+    np.testing.assert_array_equal(each[:, 1, 1], s_b**2)
+    np.testing.assert_array_equal(each[:, 0, 1], 0.0)
     ekf = EKFSLAM(run.meta.nominal_start)
     done = 0
     for i, p in enumerate(upto):
         if p > done:
             ekf.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
             done = p
-        ekf.update(det_id[i], det_z[i], np.diag([s_r[i] ** 2, s_b[i] ** 2]), det_time[i])
+        ekf.update(det_id[i], det_z[i], each[i], det_time[i])
     if done < len(us):
         ekf.predict_many(us[done:], dts[done:], ends[done:], M, R)
     np.testing.assert_array_equal(got.mu, ekf.mu)
