@@ -195,7 +195,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         }
     if fitted is not None:
         out["noise_fit"] = fitted.as_dict()
-    if rescue is not None:
+    if rescue is not None and len(rescue.tried) > 1:  # the documented noise was not ok
         out["noise_rescue"] = rescue.as_dict()
     out["seed_report"] = _seed_report(run)
     out["detections"] = _detections_source(run, report)

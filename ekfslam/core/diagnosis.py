@@ -293,9 +293,9 @@ def _windows(out: NDArray[np.bool_], nis: Array, t: Array) -> dict:
             nis_windows_above=0.0,
         )
     capped = np.where(out, OUTLIER_NIS, np.minimum(nis, OUTLIER_NIS))
-    kernel = np.ones(w) / w
-    shares = np.convolve(out, kernel, "valid")
-    means = np.convolve(capped, kernel, "valid")
+    # whole counts over the window, then one division: 50/50 is 1.0, not 1.0000000000000002
+    shares = np.convolve(out.astype(np.int64), np.ones(w, dtype=np.int64), "valid") / w
+    means = np.convolve(capped, np.ones(w) / w, "valid")
     worst = int(np.argmax(shares))
     left = np.arange(n, 0, -1)  # sightings from each one to the end
     tail = np.cumsum(out[::-1])[::-1] / left

@@ -80,6 +80,11 @@ def test_a_filter_that_rejects_everything_after_a_time_is_lost_from_that_time() 
     )
 
 
+def test_a_window_of_nothing_but_rejections_is_a_share_of_exactly_one() -> None:
+    d = dg.diagnose(_history([R] * 9))  # found by hypothesis: the float sum gave 1.0000000000000002
+    assert d.worst_window_share == 1.0 and d.outlier_share == 1.0
+
+
 def test_a_scatter_of_rejections_under_the_suspect_share_is_ok() -> None:
     outcomes = ([A] * 9 + [R]) * 40  # 10%, never two in a row
     d = dg.diagnose(_history(outcomes))
