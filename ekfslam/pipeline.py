@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.association import AssociationConfig
+from ekfslam.core.diagnosis import Diagnosis, diagnose
 from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog, shares_image_error
 from ekfslam.core.filter.config import MAX_PASSES, FilterConfig, FilterCounts, backend_for
 from ekfslam.core.filter.ekf import EKFSLAM
@@ -29,7 +30,8 @@ from ekfslam.core.filter.history import History, KeyframeRecorder, Keyframes
 from ekfslam.core.filter.mapping import MappingFilter
 from ekfslam.core.filter.mht import DecisionReplay, HypothesisBank
 from ekfslam.core.filter.prior import PassRecord, pass_record, prior_map, start_with
-from ekfslam.core.noise import NoiseConfig, default_config, default_noise
+from ekfslam.core.noise import NoiseConfig, default_config, default_noise, sighting_noise
+from ekfslam.core.recovery import Recovery, RecoveryConfig
 from ekfslam.errors import ConfigError, EkfSlamError
 from ekfslam.logs.edit import truncate
 from ekfslam.logs.runlog import RunLog
@@ -58,6 +60,8 @@ class ReplayResult:
     passes, chosen_pass : with `replay`'s ``passes`` > 1, each pass's record
         (`ekfslam.core.filter.prior.PassRecord`) and which one (1, 2, ...) the result is;
         () and 1 for a single pass.
+    diagnosis : does the filter agree with its data (`ekfslam.core.diagnosis.Diagnosis`): the
+        verdict "ok", "suspect" or "lost" and the figures behind it, from `history`.
     """
 
     name: str
@@ -75,6 +79,7 @@ class ReplayResult:
     map_noise: NoiseConfig | None = None
     passes: tuple[PassRecord, ...] = ()
     chosen_pass: int = 1
+    diagnosis: Diagnosis | None = None
 
 
 def replay(
@@ -88,13 +93,16 @@ def replay(
     keyframes: int | None = None,
     map_noise: NoiseConfig | None = None,
     passes: int = 1,
+    recovery: RecoveryConfig | None = None,
 ) -> ReplayResult:
     """Run the EKF over a log and return the estimate with its full history.
 
     Parameters
     ----------
     run : RunLog
-    noise : NoiseConfig, the R and Q to use (default: `default_noise(run)`).
+    noise : NoiseConfig, the R and Q to use (default: `default_noise(run)`). With the ids known,
+        each sighting gets its own Q when the run's detections carry their σ or the noise's σ_r
+        grows with the range (`ekfslam.core.noise.sighting_noise`).
     config : FilterConfig, landmark initialisation, gate (default: `default_config(run)`).
     start_pose : (3,), where the filter starts; the run's nominal start by default (the seed
         starts from its nominal pose and recovers the placement error afterwards, eq. 17).
@@ -119,6 +127,9 @@ def replay(
         filter with `noise`), so no sighting counts twice. The result is the pass whose map fits its
         sightings best (`ekfslam.core.filter.prior.pass_record`'s cost); it stops early at a
         fixed point (no decision changed). 1 (the default): one pass.
+    recovery : with the ids known, widen the pose covariance after a run of rejected sightings
+        (`ekfslam.core.recovery`), so a filter that has lost its pose relocalises against its
+        map; the times are in ``result.diagnosis.recoveries``. None (the default): never.
     """
     whole = isinstance(keyframes, int | np.integer) and not isinstance(keyframes, bool)
     if keyframes is not None and not (whole and keyframes >= 2):
@@ -136,17 +147,34 @@ def replay(
     hidden = association is not None and association.method != "known"
     if map_noise is not None and not hidden:
         raise ConfigError("map_noise needs hidden ids (an association other than 'known')")
+    if recovery is not None and hidden:
+        raise ConfigError(
+            "recovery needs the ids known (with hidden ids a run of rejections is "
+            "also a question of association)"
+        )
     _check_passes(passes, hidden, config)
     started = time.perf_counter()  # the schedule counts: it is part of the replay's work
     steps = schedule(run, noise)
     asked, config = config, backend_for(config, steps.events)  # "auto": compiled for long runs
+    each = sighting_noise(noise, run.detections)
+    if np.ndim(each) == 3 and not hidden:  # each sighting its own Q (the run's, or by range)
+        steps = dataclasses.replace(steps, Q=each)
+    elif np.ndim(each) == 3:
+        warnings.warn(
+            f"run {run.meta.name!r}: with hidden ids every sighting has sigma_range and "
+            "sigma_bearing; its own noise (detections.csv's sigma columns, sigma_range_per_m) "
+            "is used with the ids known only",
+            RuntimeWarning,
+            stacklevel=2,
+        )
     kept: list = []  # the pass the result is: filter, log, keyframes, its record's index
     records: list[PassRecord] = []
     with np.errstate(all="ignore"):  # an overflow is caught below, once, and said where
         if not hidden:
             ekf = EKFSLAM(pose0, start_covariance, config)
+            fed = ekf if recovery is None else Recovery(ekf, recovery)
             taker = None if keyframes is None else _KeyframeTaker(ekf, steps, int(keyframes))
-            _feed(ekf, steps, pause=None if taker is None else taker.pause)
+            _feed(fed, steps, pause=None if taker is None else taker.pause)
             log = None
         else:
             made, prior, last = (pose0, start_covariance, config), None, None
@@ -181,7 +209,8 @@ def replay(
         )
     if hidden and not (np.isfinite(ekf.mu).all() and np.isfinite(ekf.Sigma).all()):
         raise NonFiniteStateError(f"run {run.meta.name!r}: the filter state became non-finite")
-    result = _result(run, ekf, seconds, noise, asked, log, frames, map_noise)
+    recovered = () if hidden or recovery is None else tuple(fed.times)
+    result = _result(run, ekf, seconds, noise, asked, log, frames, map_noise, recovered)
     if passes == 1:
         return result
     return dataclasses.replace(result, passes=tuple(records), chosen_pass=kept[3] + 1)
@@ -271,7 +300,8 @@ class Schedule:
     row held until the next): u (K, 3) the body-frame increments of eq. (4), dt (K,) s, t (K,)
     s the time each ends. Before detection i the filter predicts through the pieces up to
     upto[i]. The detections: ids (N,), times (N,) s, z (N, 2) range and bearing. The noise
-    they are fed with: M (3, 3) per second, or R (3, 3) per step (the other None), and Q (2, 2).
+    they are fed with: M (3, 3) per second, or R (3, 3) per step (the other None), and Q:
+    (2, 2) for every detection, or (N, 2, 2) each its own (`noise_of`).
     """
 
     upto: list[int]
@@ -290,6 +320,10 @@ class Schedule:
         fixed = None if noise.R_per_step is None else np.asarray(noise.R_per_step, dtype=float)
         M = noise.motion_density() if fixed is None else None
         return dataclasses.replace(self, M=M, R=fixed, Q=noise.Q)
+
+    def noise_of(self, i: int) -> Array:
+        """Q (2, 2) of detection i: the one Q, or its own when Q holds one per detection."""
+        return self.Q if self.Q.ndim == 2 else self.Q[i]
 
     def predict(self, target, start: int, stop: int) -> None:
         """Predict `target` through pieces start..stop-1 (`EKFSLAM.predict_many`)."""
@@ -344,15 +378,17 @@ def _result(
     association: AssociationLog | None = None,
     keyframes: Keyframes | None = None,
     map_noise: NoiseConfig | None = None,
+    recoveries: tuple[float, ...] = (),
 ) -> ReplayResult:
     ids = ekf.landmark_ids
+    history = ekf.history()
     return ReplayResult(
         name=run.meta.name,
         landmarks=ekf.landmark_map(),
         landmark_covariances={i: ekf.landmark(i)[1] for i in ids},
         mu=ekf.mu.copy(),
         Sigma=ekf.Sigma.copy(),
-        history=ekf.history(),
+        history=history,
         counts=ekf.counts,
         seconds=seconds,
         noise=noise,
@@ -360,6 +396,7 @@ def _result(
         association=association,
         keyframes=keyframes,
         map_noise=map_noise,
+        diagnosis=diagnose(history, recoveries, association),
     )
 
 
@@ -455,7 +492,7 @@ def _feed(ekf: EKFSLAM, steps: Schedule, *, check: bool = False, pause=None) -> 
             done = p
             if check:
                 _check_finite(ekf, f"t = {steps.t[p - 1]:.3f} s (prediction)")
-        ekf.update(steps.ids[i], steps.z[i], steps.Q, steps.times[i])
+        ekf.update(steps.ids[i], steps.z[i], steps.noise_of(i), steps.times[i])
         if check:
             where = f"update of landmark {steps.ids[i]}, detection {i + 1}"
             _check_finite(ekf, f"t = {steps.times[i]:.3f} s ({where})")

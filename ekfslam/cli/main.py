@@ -27,6 +27,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "run": ("ekfslam.cli.run", "replay a run (our run-log folder, or a MRCLAM dataset)"),
     "simulate": ("ekfslam.cli.simulate", "simulate the seed's robot and write a run folder"),
     "fetch": ("ekfslam.cli.fetch", "download a public dataset into the cache"),
+    "fit-noise": (
+        "ekfslam.cli.fit_noise",
+        "fit R and Q to a run's innovations (maximum likelihood, no ground truth)",
+    ),
     "convert": (
         "ekfslam.cli.convert",
         "convert a recorded log (MRCLAM, ROS bag) to a run folder",
