@@ -17,7 +17,7 @@ from ekfslam.core.noise import NoiseConfig
 from ekfslam.errors import InputError
 from ekfslam.logs.edit import truncate
 from ekfslam.logs.runlog import Detections, read_run, write_run
-from ekfslam.pipeline import _schedule, replay
+from ekfslam.pipeline import replay, schedule
 
 RUNS = Path(__file__).resolve().parents[2] / "data" / "runs"
 
@@ -109,7 +109,9 @@ def test_each_sighting_is_updated_with_its_own_q(seed) -> None:
     s_r, s_b = rng.uniform(0.005, 0.2, n), rng.uniform(0.005, 0.2, n)
     noisy = _with_sigmas(run, s_r, s_b)
     got = replay(noisy, NoiseConfig(), noisy.meta.filter_defaults)
-    upto, us, dts, ends, M, R, det_id, det_time, det_z, _ = _schedule(run, NoiseConfig())
+    steps = schedule(run, NoiseConfig())
+    upto, us, dts, ends, M, R = steps.upto, steps.u, steps.dt, steps.t, steps.M, steps.R
+    det_id, det_time, det_z = steps.ids, steps.times, steps.z
     # each Q as the replay builds them (a 2x2 matmul may round its last bit otherwise, by the
     # memory alignment of its operands): their values are diag(σ_r², σ_φ²), checked here
     each = NoiseConfig().sighting_Q(run.detections.range, s_r, s_b)

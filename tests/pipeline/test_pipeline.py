@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -12,7 +13,7 @@ from ekfslam.core.filter.history import OBSERVE, PREDICT
 from ekfslam.core.kinematics import MecanumGeometry, twist_to_wheels
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta
-from ekfslam.pipeline import _feed, _schedule, replay
+from ekfslam.pipeline import _feed, replay, schedule
 
 
 def make_run(ctrl_t, twist, det_t, det_id, det_z, kind="twist", robot=None):
@@ -212,11 +213,13 @@ def test_feed_gives_each_detection_its_own_q_when_given_one_per_detection() -> N
     bit for bit, as that Q alone."""
     run = _random_run(3)
     noise = NoiseConfig(sigma_range=0.05, sigma_bearing=0.02)
-    upto, us, dts, ends, M, R, det_id, det_time, det_z, Q = _schedule(run, noise)
+    steps = schedule(run, noise)
+    upto, us, dts, ends, M, R = steps.upto, steps.u, steps.dt, steps.t, steps.M, steps.R
+    det_id, det_time, det_z, Q = steps.ids, steps.times, steps.z, steps.Q
     n = len(det_id)
     each = np.array([np.diag([(0.01 + 0.02 * k) ** 2, (0.005 * (k + 1)) ** 2]) for k in range(n)])
     fed = EKFSLAM(run.meta.nominal_start)
-    _feed(fed, upto, us, dts, ends, M, R, det_id, det_time, det_z, each)
+    _feed(fed, dataclasses.replace(steps, Q=each))
     by_hand = EKFSLAM(run.meta.nominal_start)
     done = 0
     for i, p in enumerate(upto):
@@ -229,8 +232,8 @@ def test_feed_gives_each_detection_its_own_q_when_given_one_per_detection() -> N
     np.testing.assert_array_equal(fed.mu, by_hand.mu)
     np.testing.assert_array_equal(fed.Sigma, by_hand.Sigma)
     one, copies = EKFSLAM(run.meta.nominal_start), EKFSLAM(run.meta.nominal_start)
-    _feed(one, upto, us, dts, ends, M, R, det_id, det_time, det_z, Q)
-    _feed(copies, upto, us, dts, ends, M, R, det_id, det_time, det_z, np.repeat(Q[None], n, 0))
+    _feed(one, steps)
+    _feed(copies, dataclasses.replace(steps, Q=np.repeat(Q[None], n, 0)))
     np.testing.assert_array_equal(one.mu, copies.mu)
     np.testing.assert_array_equal(one.Sigma, copies.Sigma)
     assert not np.array_equal(fed.mu, one.mu)  # the Q given did change the estimate
