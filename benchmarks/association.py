@@ -24,6 +24,7 @@ import numpy as np
 from benchmarks.timing import median_time
 from ekfslam.core.association import AssociationConfig, jcbb
 from ekfslam.core.filter.associating import AssociatingFilter
+from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.models import observation, observation_noise
 from ekfslam.logs.runlog import read_run
@@ -34,6 +35,8 @@ SIGHTINGS = (1, 2, 4, 8, 16)  # m, sightings at one time
 MAP_SIZE = 16  # landmarks
 POSE_SIGMA = (0.05, 0.05, 0.02)  # m, m, rad: a robot some way into a loop
 _Q = observation_noise(0.05, 0.03)
+#: the filter's steps compiled, as a long run's are: the figures compare with `bench`'s replays
+COMPILED = FilterConfig(backend="numba")
 
 
 def bench_association(runs_dir: Path | None, repeats: int) -> dict:
@@ -50,7 +53,7 @@ def bench_association(runs_dir: Path | None, repeats: int) -> dict:
         for _ in range(repeats):  # interleaved, as the other replays
             for m, c in configs.items():
                 t0 = time.perf_counter()
-                replay(run, association=c)
+                replay(run, config=COMPILED, association=c)
                 times[m].append(time.perf_counter() - t0)
         n = len(run.detections.t)
         per = {m: 1e6 * statistics.median(times[m]) / n for m in METHODS}
@@ -66,7 +69,7 @@ def _step(m: int, repeats: int) -> dict:
     rng = np.random.default_rng(m)
     angles = np.linspace(0.0, 2.0 * math.pi, MAP_SIZE, endpoint=False)
     landmarks = 2.0 * np.column_stack([np.cos(angles), np.sin(angles)])
-    f = EKFSLAM(np.zeros(3), np.diag(np.square(POSE_SIGMA)))
+    f = EKFSLAM(np.zeros(3), np.diag(np.square(POSE_SIGMA)), COMPILED)
     for j, p in enumerate(landmarks):
         f.update(j, observation(np.zeros(3), p), _Q)
     truth = np.array([0.03, -0.02, 0.01])  # where the robot really is

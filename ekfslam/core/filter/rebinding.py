@@ -77,14 +77,20 @@ def rebind(
     models: dict[str, object],
     build: Callable[[Callable, dict], Callable],
     primitives: frozenset = frozenset(),
+    replace: dict[Callable, Callable] | None = None,
 ) -> types.SimpleNamespace:
     """Copies of the roots whose model names, and every function of ours they call, are bound
-    again: `build(fn, env)` makes one function from its original and its new globals."""
+    again: `build(fn, env)` makes one function from its original and its new globals. `replace`
+    gives some functions another to stand in for them (generated code, the compiled backend's)."""
     modules = _model_modules(models)
     made: dict[Callable, Callable] = {}
+    replace = replace or {}
 
     def make(fn: Callable) -> Callable:
         if fn in made:
+            return made[fn]
+        if fn in replace:
+            made[fn] = make(replace[fn])
             return made[fn]
         env = dict(fn.__globals__)
         for name, value in called(fn, models).items():

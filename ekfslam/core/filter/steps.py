@@ -138,50 +138,85 @@ class Observed(NamedTuple):
 
 
 # ----------------------------------------------------------------------------- prediction
+#: `advance`'s block: where the pose block's state through a batch lies in one small array
+POSE, COV, PRODUCT, BEFORE, OWED, BLOCK = 0, 3, 12, 21, 24, 27
+
+
 def predict(storage: Storage, d: int, batch: Batch, rows: Array) -> None:
     """Predict through a batch of increments, eqs. (6), (7) and (9), on the blocks they touch.
 
-    The landmarks do not move, so of Σ only the pose block Σ[r, r] changes at every step, and
-    the pose-map block Σ[r, m] changes once for the whole batch, by the product of its G's:
-    O(n) for the batch. rows : (K, `ROW`) receives the pose and its covariance after each step,
-    or has no rows (nothing recorded).
+    The landmarks do not move, so of Σ only the pose block Σ[r, r] changes at every step
+    (`advance`), and the pose-map block Σ[r, m] changes once for the whole batch, by the product
+    of its G's: O(n) for the batch. rows : (K, `ROW`) receives the pose and its covariance after
+    each step, or has no rows (nothing recorded).
     """
     mu, Sigma, first, owed_now, lin = storage
     u_all, dt, t, N, per_second = batch
     r, m = slice(0, 3), slice(3, d)
     if lin == Linearization.INVARIANT and owed_now[0] != 0.0 and owed_now[1] != d:
         settle(storage, d)  # landmarks came in since: what is owed is owed to fewer rows
-    P = rows_of(Sigma, 0, 3, 3)  # Σ[r, r]
-    G_batch = np.eye(3)  # the batch's G_K ... G_1
-    owed = np.zeros(3)  # invariant: the noise's heading column, summed over the batch
+    block = np.zeros(BLOCK)  # the pose block's state through the batch, `advance`'s
+    block[POSE:COV] = mu[r]
+    block[COV:PRODUCT] = rows_of(Sigma, 0, 3, 3).ravel()  # Σ[r, r]
+    block[PRODUCT:BEFORE] = np.eye(3).ravel()
+    block[BEFORE:OWED] = first[r]
     for k in range(u_all.shape[0]):
-        pose, u = mu[r].copy(), u_all[k]
-        R = N
-        if per_second:  # eq. (9)'s R: the control noise through V, R = V M Vᵀ
-            V = motion.F_v(pose)
-            R = V @ (N * dt[k]) @ V.T
-        mu[r] = motion.f(pose, u)  # eq. (6)
-        if lin == Linearization.INVARIANT:  # ξ's motion Jacobian is I; its noise A R Aᵀ
-            G = np.eye(3)
-            A = invariant_noise_map(mu[r])
-            R = A @ R @ A.T
-            owed += R[:, 2]
-        elif lin == Linearization.FEJ:  # at the predicted positions, not the updated one
-            G = fej_motion_jacobian(first[r], mu[r])
-        else:
-            G = motion.F_x(pose, u)  # eq. (7)
-        P = G @ P @ G.T + R  # eq. (9) on the pose block
-        G_batch = G @ G_batch
-        first[r] = mu[r]
+        advance(block, u_all[k], N, dt[k], per_second, lin)
         if rows.shape[0]:
-            record_pose(rows[k], t[k], mu[r], P, lin)
-    Sigma[r, r] = P
+            record_pose(rows[k], t[k], block[POSE:COV], block[COV:PRODUCT].reshape(3, 3), lin)
+    mu[r], first[r] = block[POSE:COV], block[BEFORE:OWED]
+    Sigma[r, r] = block[COV:PRODUCT].reshape(3, 3)
     if lin == Linearization.INVARIANT:  # the noise's map rows: -J m̂ times its heading column
-        Sigma[m, r] += np.outer(-rotation_column(mu[:d])[m], owed)
-        owed_now[0] += owed[2]  # the map block's ρ v vᵀ, O(n²): owed (`settle`)
+        Sigma[m, r] += np.outer(-rotation_column(mu[:d])[m], block[OWED:BLOCK])
+        owed_now[0] += block[OWED + 2]  # the map block's ρ v vᵀ, O(n²): owed (`settle`)
         owed_now[1] = d
-    else:
-        Sigma[m, r] = Sigma[m, r] @ G_batch.T  # Σ[r, m] = G Σ[r, m], stored transposed
+    else:  # Σ[r, m] = G Σ[r, m], stored transposed, G the product of the batch's G's
+        Sigma[m, r] = Sigma[m, r] @ block[PRODUCT:BEFORE].reshape(3, 3).T
+
+
+def advance(block: Array, u: Array, N: Array, dt: float, per_second: bool, lin: int) -> None:
+    """One increment u on the pose block, eqs. (6), (7) and (9), in place.
+
+    block (`BLOCK`,): the pose (x, y, θ) at `POSE`; its covariance P (3x3, row by row) at
+    `COV`; the product of the batch's G's so far at `PRODUCT`; FEJ's pose predicted at the last
+    step, p̂(k|k-1), at `BEFORE`; the invariant filter's noise column owed to the map at
+    `OWED`. N, dt, per_second: the control noise per second and the step's duration (R = V (N
+    dt) Vᵀ), or a fixed R = N. One small array in, the same array out: compiled, this step runs
+    as straight-line code generated from these lines (`ekfslam.core.filter.generate`).
+    """
+    pose, before, owed = block[POSE:COV], block[BEFORE:OWED], block[OWED:BLOCK]
+    P, G_batch = block[COV:PRODUCT].reshape(3, 3), block[PRODUCT:BEFORE].reshape(3, 3)
+    G = motion.F_x(pose, u)  # eq. (7), at the pose before the step
+    R = N
+    if per_second:  # eq. (9)'s R: the control noise through V, R = V M Vᵀ
+        V = motion.F_v(pose)
+        R = V @ (N * dt) @ V.T
+    pose[:] = motion.f(pose, u)  # eq. (6)
+    if lin == Linearization.INVARIANT:  # ξ's motion Jacobian is I; its noise A R Aᵀ
+        G = np.eye(3)
+        A = invariant_noise_map(pose)
+        R = A @ R @ A.T
+        owed += R[:, 2]
+    elif lin == Linearization.FEJ:  # at the predicted positions, not the updated one
+        G = fej_motion_jacobian(before, pose)
+    P[:] = G @ P @ G.T + R  # eq. (9) on the pose block
+    G_batch[:] = G @ G_batch
+    before[:] = pose
+
+
+#: The steps the compiled filter runs as straight-line code generated from their lines
+#: (`ekfslam.core.filter.generate`), with the shapes of their arguments (a flag: its values, a
+#: list).
+STRAIGHT_LINE = {
+    "advance": {
+        "block": (BLOCK,),
+        "u": (3,),
+        "N": (3, 3),
+        "dt": (),
+        "per_second": [False, True],
+        "lin": [int(v) for v in Linearization],
+    }
+}
 
 
 def fej_motion_jacobian(before: Array, after: Array) -> Array:
@@ -368,7 +403,9 @@ def record_pose(row: Array, t: float, pose: Array, P: Array, lin: int) -> None:
         P = to_cartesian(P, pose)
     row[ROW_T] = t
     row[ROW_POSE : ROW_POSE + 3] = pose
-    row[ROW_COV : ROW_COV + 6] = np.array((P[0, 0], P[1, 0], P[2, 0], P[1, 1], P[2, 1], P[2, 2]))
+    c = ROW_COV  # its six distinct entries: xx, xy, xθ, yy, yθ, θθ
+    row[c], row[c + 1], row[c + 2] = P[0, 0], P[1, 0], P[2, 0]
+    row[c + 3], row[c + 4], row[c + 5] = P[1, 1], P[2, 1], P[2, 2]
 
 
 def record_observation(
