@@ -7,7 +7,7 @@ The package is a house with floors (ARCHITECTURE.md); each subpackage is one:
 - `ekfslam.teaching`   sympy derivations, the literal F_x reference, the notebooks' helpers
 - `ekfslam.logs`, `ekfslam.sim`, `ekfslam.vision`  data sources: logs, the simulator, cameras
 - `ekfslam.pipeline`   a log source joined to the filter (`replay`)
-- `ekfslam.analysis`   alignment (eq. 17), scores, consistency, robustness, benchmarks
+- `ekfslam.analysis`   alignment (eq. 17), scores, consistency: what the notebooks compute
 - `ekfslam.viz`, `ekfslam.ui`, `ekfslam.cli`  figures, the live tuner, the command line
 
 The names below are the public API the notebooks use. They are loaded on first use (PEP 562), so
@@ -41,6 +41,7 @@ if TYPE_CHECKING:
     from ekfslam.core.kinematics import MecanumGeometry, twist_to_wheels, wheels_to_twist
     from ekfslam.core.noise import NoiseConfig, default_noise
     from ekfslam.errors import AlignmentError, EkfSlamError, InputError
+    from ekfslam.logs.arrays import run_from_arrays
     from ekfslam.logs.runlog import RunLog, read_run, write_run
     from ekfslam.pipeline import ReplayResult, replay
     from ekfslam.sim.simulation import SimulationConfig, simulate
@@ -73,6 +74,7 @@ _EXPORTS: dict[str, str] = {
     "default_noise": "ekfslam.core.noise",
     "read_run": "ekfslam.logs.runlog",
     "replay": "ekfslam.pipeline",
+    "run_from_arrays": "ekfslam.logs.arrays",
     "simulate": "ekfslam.sim.simulation",
     "summarize": "ekfslam.analysis.evaluation",
     "twist_to_wheels": "ekfslam.core.kinematics",
@@ -121,6 +123,7 @@ __all__ = [
     "default_noise",
     "read_run",
     "replay",
+    "run_from_arrays",
     "simulate",
     "summarize",
     "twist_to_wheels",

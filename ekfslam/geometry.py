@@ -14,23 +14,19 @@ TWO_PI = 2.0 * math.pi
 
 
 def wrap_angle(angle: ArrayLike) -> NDArray[np.float64] | float:
-    """Wrap an angle (rad), or an array of them, to [-π, π).
+    """Wrap an angle (rad), or an array of them, to [-π, π): the one angle wrap of ekfslam.
 
-    A scalar in gives a Python float out, so hot paths can use it without numpy overhead.
+    A float in gives a float out, an array an array. The same two lines run in plain Python and
+    compiled inside the filter (`ekfslam.core.filter.compile`), so it takes no list: give an array.
     """
-    if isinstance(angle, float | int):
-        wrapped = (angle + math.pi) % TWO_PI - math.pi
-        # float rounding can land exactly on +π for inputs just below it
-        return -math.pi if wrapped >= math.pi else wrapped
-    a = np.asarray(angle, dtype=float)
-    wrapped = np.mod(a + np.pi, TWO_PI) - np.pi
-    return np.where(wrapped >= np.pi, -np.pi, wrapped)
+    wrapped = (angle + math.pi) % TWO_PI - math.pi
+    return wrapped - TWO_PI * (wrapped >= math.pi)  # rounding can land exactly on +π: that is -π
 
 
 def rotation(theta: float) -> NDArray[np.float64]:
     """The 2x2 rotation matrix R(θ) that turns body-frame vectors into the world frame."""
     c, s = math.cos(theta), math.sin(theta)
-    return np.array([[c, -s], [s, c]])
+    return np.array(((c, -s), (s, c)))
 
 
 def compose(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:

@@ -23,14 +23,16 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam import checks
 from ekfslam.core.association import AssociationConfig
+from ekfslam.core.diagnosis import Diagnosis, diagnose
 from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog, shares_image_error
-from ekfslam.core.filter.config import MAX_PASSES, FilterConfig, FilterCounts
+from ekfslam.core.filter.config import MAX_PASSES, FilterConfig, FilterCounts, backend_for
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.filter.history import History, KeyframeRecorder, Keyframes
 from ekfslam.core.filter.mapping import MappingFilter
 from ekfslam.core.filter.mht import DecisionReplay, HypothesisBank
 from ekfslam.core.filter.prior import PassRecord, pass_record, prior_map, start_with
-from ekfslam.core.noise import NoiseConfig, default_config, default_noise
+from ekfslam.core.noise import NoiseConfig, default_config, default_noise, sighting_noise
+from ekfslam.core.recovery import Recovery, RecoveryConfig
 from ekfslam.errors import ConfigError, EkfSlamError
 from ekfslam.logs.edit import truncate
 from ekfslam.logs.runlog import RunLog, check_replayable
@@ -62,6 +64,8 @@ class ReplayResult:
     passes, chosen_pass : with `replay`'s ``passes`` > 1, each pass's record
         (`ekfslam.core.filter.prior.PassRecord`) and which one (1, 2, ...) the result is;
         () and 1 for a single pass.
+    diagnosis : does the filter agree with its data (`ekfslam.core.diagnosis.Diagnosis`): the
+        verdict "ok", "suspect" or "lost" and the figures behind it, from `history`.
     """
 
     name: str
@@ -79,6 +83,7 @@ class ReplayResult:
     map_noise: NoiseConfig | None = None
     passes: tuple[PassRecord, ...] = ()
     chosen_pass: int = 1
+    diagnosis: Diagnosis | None = None
 
 
 def replay(
@@ -92,13 +97,16 @@ def replay(
     keyframes: int | None = None,
     map_noise: NoiseConfig | None = None,
     passes: int = 1,
+    recovery: RecoveryConfig | None = None,
 ) -> ReplayResult:
     """Run the EKF over a log and return the estimate with its full history.
 
     Parameters
     ----------
     run : RunLog
-    noise : NoiseConfig, the R and Q to use (default: `default_noise(run)`).
+    noise : NoiseConfig, the R and Q to use (default: `default_noise(run)`). With the ids known,
+        each sighting gets its own Q when the run's detections carry their σ or the noise's σ_r
+        grows with the range (`ekfslam.core.noise.sighting_noise`).
     config : FilterConfig, landmark initialisation, gate (default: `default_config(run)`).
     start_pose : (3,), where the filter starts; the run's nominal start by default (the seed
         starts from its nominal pose and recovers the placement error afterwards, eq. 17).
@@ -123,6 +131,9 @@ def replay(
         filter with `noise`), so no sighting counts twice. The result is the pass whose map fits its
         sightings best (`ekfslam.core.filter.prior.pass_record`'s cost); it stops early at a
         fixed point (no decision changed). 1 (the default): one pass.
+    recovery : with the ids known, widen the pose covariance after a run of rejected sightings
+        (`ekfslam.core.recovery`), so a filter that has lost its pose relocalises against its
+        map; the times are in ``result.diagnosis.recoveries``. None (the default): never.
     """
     check_replayable(run, "replay: run")
     for name, value, kind, hint in (
@@ -157,16 +168,34 @@ def replay(
     hidden = association is not None and association.method != "known"
     if map_noise is not None and not hidden:
         raise ConfigError("map_noise needs hidden ids (an association other than 'known')")
+    if recovery is not None and hidden:
+        raise ConfigError(
+            "recovery needs the ids known (with hidden ids a run of rejections is "
+            "also a question of association)"
+        )
     _check_passes(passes, hidden, config)
     started = time.perf_counter()  # the schedule counts: it is part of the replay's work
-    steps = _schedule(run, noise)
+    steps = schedule(run, noise)
+    asked, config = config, backend_for(config, steps.events)  # "auto": compiled for long runs
+    each = sighting_noise(noise, run.detections)
+    if np.ndim(each) == 3 and not hidden:  # each sighting its own Q (the run's, or by range)
+        steps = dataclasses.replace(steps, Q=each)
+    elif np.ndim(each) == 3:
+        warnings.warn(
+            f"run {run.meta.name!r}: with hidden ids every sighting has sigma_range and "
+            "sigma_bearing; its own noise (detections.csv's sigma columns, sigma_range_per_m) "
+            "is used with the ids known only",
+            RuntimeWarning,
+            stacklevel=2,
+        )
     kept: list = []  # the pass the result is: filter, log, keyframes, its record's index
     records: list[PassRecord] = []
     with np.errstate(all="ignore"):  # an overflow is caught below, once, and said where
         if not hidden:
             ekf = EKFSLAM(pose0, start_covariance, config)
+            fed = ekf if recovery is None else Recovery(ekf, recovery)
             taker = None if keyframes is None else _KeyframeTaker(ekf, steps, int(keyframes))
-            _feed(ekf, *steps, pause=None if taker is None else taker.pause)
+            _feed(fed, steps, pause=None if taker is None else taker.pause)
             log = None
         else:
             made, prior, last = (pose0, start_covariance, config), None, None
@@ -189,7 +218,7 @@ def replay(
     if not hidden and not (np.isfinite(ekf.mu).all() and np.isfinite(ekf.Sigma).all()):
         # once per replay, O(n²); only on failure is the run fed again, checking every step
         with np.errstate(all="ignore"):
-            _feed(EKFSLAM(pose0, start_covariance, config, record=False), *steps, check=True)
+            _feed(EKFSLAM(pose0, start_covariance, config, record=False), steps, check=True)
         raise NonFiniteStateError(f"run {run.meta.name!r}: the filter state became non-finite")
     if ekf.counts.singular:
         warnings.warn(
@@ -201,7 +230,8 @@ def replay(
         )
     if hidden and not (np.isfinite(ekf.mu).all() and np.isfinite(ekf.Sigma).all()):
         raise NonFiniteStateError(f"run {run.meta.name!r}: the filter state became non-finite")
-    result = _result(run, ekf, seconds, noise, config, log, frames, map_noise)
+    recovered = () if hidden or recovery is None else tuple(fed.times)
+    result = _result(run, ekf, seconds, noise, asked, log, frames, map_noise, recovered)
     if passes == 1:
         return result
     return dataclasses.replace(result, passes=tuple(records), chosen_pass=kept[3] + 1)
@@ -236,17 +266,17 @@ def _hidden_pass(made, association, steps, noise, map_noise, keyframes, prior):
     if association.method == "mht":  # the bank decides, a replay records
         first = EKFSLAM(pose0, start_covariance, config, record=False)
         bank = HypothesisBank(first if prior is None else start_with(first, prior), association)
-        _feed_hidden(bank, *steps)
+        _feed_hidden(bank, steps)
         _, winner, options = bank.finish()
         associating = DecisionReplay(decider, association, winner, options)
     else:
         associating = AssociatingFilter(decider, association)
-    _feed_hidden(associating, *steps, pause=None if mapped else pause)
+    _feed_hidden(associating, steps, pause=None if mapped else pause)
     log = associating.finish()
     if mapped:
         shared = shares_image_error(association)  # as it decided
         mapping = MappingFilter(ekf, log, association.time_sigma, shared)
-        _feed_hidden(mapping, *_with_noise(steps, map_noise or noise), pause=pause)
+        _feed_hidden(mapping, steps.with_noise(map_noise or noise), pause=pause)
         mapping.finish()
     return ekf, decider, log, taker
 
@@ -259,8 +289,8 @@ class _KeyframeTaker:
     pause comes only between one time's sightings, so a target inside a group waits for its end.
     """
 
-    def __init__(self, ekf: EKFSLAM, steps: tuple, count: int) -> None:
-        _, _, dts, ends, _, _, _, det_time, _, _ = steps  # `_schedule`'s
+    def __init__(self, ekf: EKFSLAM, steps: Schedule, count: int) -> None:
+        dts, ends, det_time = steps.dt, steps.t, steps.times
         self.det_time = det_time
         n = len(det_time)
         self.targets = np.unique(np.round(np.linspace(0, n, count - 1)).astype(int)).tolist()
@@ -283,14 +313,58 @@ class _KeyframeTaker:
         return self.recorder.finish(ekf.landmark_ids)
 
 
-def _schedule(run: RunLog, noise: NoiseConfig) -> tuple:
-    """`_feed`'s arguments for a run: the prediction pieces and the detections, in time order."""
+@dataclass(frozen=True, eq=False)
+class Schedule:
+    """A run as the filter takes it: the prediction pieces and the detections, in time order.
+
+    The pieces are every control interval, split at the detection times inside it (each control
+    row held until the next): u (K, 3) the body-frame increments of eq. (4), dt (K,) s, t (K,)
+    s the time each ends. Before detection i the filter predicts through the pieces up to
+    upto[i]. The detections: ids (N,), times (N,) s, z (N, 2) range and bearing. The noise
+    they are fed with: M (3, 3) per second, or R (3, 3) per step (the other None), and Q:
+    (2, 2) for every detection, or (N, 2, 2) each its own (`noise_of`).
+    """
+
+    upto: list[int]
+    u: Array
+    dt: Array
+    t: Array
+    ids: list[int]
+    times: list[float]
+    z: list[list[float]]
+    M: Array | None
+    R: Array | None
+    Q: Array
+
+    def with_noise(self, noise: NoiseConfig) -> Schedule:
+        """The same schedule with another noise's M, R (eq. 9) and Q (eq. 11)."""
+        fixed = None if noise.R_per_step is None else np.asarray(noise.R_per_step, dtype=float)
+        M = noise.motion_density() if fixed is None else None
+        return dataclasses.replace(self, M=M, R=fixed, Q=noise.Q)
+
+    def noise_of(self, i: int) -> Array:
+        """Q (2, 2) of detection i: the one Q, or its own when Q holds one per detection."""
+        return self.Q if self.Q.ndim == 2 else self.Q[i]
+
+    def predict(self, target, start: int, stop: int) -> None:
+        """Predict `target` through pieces start..stop-1 (`EKFSLAM.predict_many`)."""
+        target.predict_many(
+            self.u[start:stop], self.dt[start:stop], self.t[start:stop], self.M, self.R
+        )
+
+    @property
+    def events(self) -> int:
+        """Predictions and detections: what the filter will be fed."""
+        return len(self.u) + len(self.ids)
+
+
+def schedule(run: RunLog, noise: NoiseConfig) -> Schedule:
+    """The run's `Schedule` with this noise."""
     twist = run.control_twist()
     if len(twist) == 0:
         raise ValueError(f"run {run.meta.name!r} has no controls")
     t_ctrl = np.asarray(run.controls.t, dtype=float)
     det = run.detections
-    # The prediction pieces: every control interval, split at the detection times inside it.
     det_t = np.asarray(det.t, dtype=float)
     t_first = min(t_ctrl[0], det_t[0]) if len(det_t) else t_ctrl[0]
     t_end = max(t_ctrl[-1], det_t[-1]) if len(det_t) else t_ctrl[-1]
@@ -301,22 +375,19 @@ def _schedule(run: RunLog, noise: NoiseConfig) -> tuple:
     starts, ends, row = starts[moving], ends[moving], row[moving]
     dts = ends - starts
     us = twist[row] * dts[:, None]
-    # before detection i, predict through every piece that ends at or before its time
-    upto = np.searchsorted(ends, det_t, side="right")
-    us, dts, ends = (np.ascontiguousarray(a, dtype=float) for a in (us, dts, ends))
-    det_id, det_time = det.tag_id.tolist(), det_t.tolist()
-    det_z = np.column_stack([det.range, det.bearing]).tolist()
-    return _with_noise(
-        (upto.tolist(), us, dts, ends, None, None, det_id, det_time, det_z, None), noise
-    )
-
-
-def _with_noise(steps: tuple, noise: NoiseConfig) -> tuple:
-    """`_schedule`'s arguments with another noise's M, R (eq. 9) and Q (eq. 11): all they hold
-    that depends on the noise (the mapping filter's replay of the same run)."""
-    fixed_R = None if noise.R_per_step is None else np.asarray(noise.R_per_step, dtype=float)
-    M, R = (None, fixed_R) if fixed_R is not None else (noise.motion_density(), None)
-    return (*steps[:4], M, R, *steps[6:9], noise.Q)
+    upto = np.searchsorted(ends, det_t, side="right")  # the pieces that end by detection i
+    return Schedule(
+        upto=upto.tolist(),
+        u=np.ascontiguousarray(us, dtype=float),
+        dt=np.ascontiguousarray(dts, dtype=float),
+        t=np.ascontiguousarray(ends, dtype=float),
+        ids=det.tag_id.tolist(),
+        times=det_t.tolist(),
+        z=np.column_stack([det.range, det.bearing]).tolist(),
+        M=None,
+        R=None,
+        Q=np.zeros((2, 2)),
+    ).with_noise(noise)
 
 
 def _result(
@@ -328,15 +399,17 @@ def _result(
     association: AssociationLog | None = None,
     keyframes: Keyframes | None = None,
     map_noise: NoiseConfig | None = None,
+    recoveries: tuple[float, ...] = (),
 ) -> ReplayResult:
     ids = ekf.landmark_ids
+    history = ekf.history()
     return ReplayResult(
         name=run.meta.name,
         landmarks=ekf.landmark_map(),
         landmark_covariances={i: ekf.landmark(i)[1] for i in ids},
         mu=ekf.mu.copy(),
         Sigma=ekf.Sigma.copy(),
-        history=ekf.history(),
+        history=history,
         counts=ekf.counts,
         seconds=seconds,
         noise=noise,
@@ -344,6 +417,7 @@ def _result(
         association=association,
         keyframes=keyframes,
         map_noise=map_noise,
+        diagnosis=diagnose(history, recoveries, association),
     )
 
 
@@ -379,23 +453,25 @@ def replay_until_each(
     """
     noise = noise or default_noise(run)
     config = config or default_config(run)
-    ekf = EKFSLAM(run.meta.nominal_start, None, config)
     started = time.perf_counter()
-    steps = _schedule(run, noise)
-    waiting: dict[int, list[tuple[int, RunLog, tuple]]] = {}
+    steps = schedule(run, noise)
+    config = backend_for(config, steps.events)
+    ekf = EKFSLAM(run.meta.nominal_start, None, config)
+    waiting: dict[int, list[tuple[int, RunLog, Schedule]]] = {}
     for k, t in enumerate(times):
         cut = truncate(run, float(t))
-        waiting.setdefault(len(cut.detections.t), []).append((k, cut, _schedule(cut, noise)))
+        waiting.setdefault(len(cut.detections.t), []).append((k, cut, schedule(cut, noise)))
     found: dict[int, ReplayResult] = {}
 
     def pause(i: int, done: int) -> None:
-        for k, cut, (_, us, dts, ends, M, R, *_rest, Q) in waiting.get(i, ()):
+        for k, cut, pieces in waiting.get(i, ()):
             twin = copy.deepcopy(ekf)
-            _feed(twin, [], us[done:], dts[done:], ends[done:], M, R, [], [], [], Q)
+            if done < len(pieces.u):
+                pieces.predict(twin, done, len(pieces.u))
             found[k] = _result(cut, twin, time.perf_counter() - started, noise, config)
 
     with np.errstate(all="ignore"):
-        _feed(ekf, *steps, pause=pause)
+        _feed(ekf, steps, pause=pause)
     full = _result(run, ekf, time.perf_counter() - started, noise, config)
     return full, tuple(found[k] for k in range(len(times)))
 
@@ -420,9 +496,7 @@ def landmark_slots(result: ReplayResult) -> list[int]:
     return ids
 
 
-def _feed(
-    ekf, upto, us, dts, ends, M, R, det_id, det_time, det_z, Q, check=False, pause=None
-) -> None:
+def _feed(ekf: EKFSLAM, steps: Schedule, *, check: bool = False, pause=None) -> None:
     """Predict through the pieces before each detection, update, and predict to the end.
 
     check: after every step, raise `NonFiniteStateError` naming the step if the state is no
@@ -431,61 +505,52 @@ def _feed(
     predicted, before the prediction for detection i (i = len(upto): before the last one).
     """
     done = 0
-    for i, p in enumerate(upto):
+    for i, p in enumerate(steps.upto):
         if pause is not None:
             pause(i, done)
         if p > done:
-            ekf.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
+            steps.predict(ekf, done, p)
             done = p
             if check:
-                _check_finite(ekf, f"t = {ends[p - 1]:.3f} s (prediction)")
-        ekf.update(det_id[i], det_z[i], Q, det_time[i])
+                _check_finite(ekf, f"t = {steps.t[p - 1]:.3f} s (prediction)")
+        ekf.update(steps.ids[i], steps.z[i], steps.noise_of(i), steps.times[i])
         if check:
-            _check_finite(
-                ekf, f"t = {det_time[i]:.3f} s (update of landmark {det_id[i]}, detection {i + 1})"
-            )
+            where = f"update of landmark {steps.ids[i]}, detection {i + 1}"
+            _check_finite(ekf, f"t = {steps.times[i]:.3f} s ({where})")
     if pause is not None:
-        pause(len(upto), done)
-    if done < len(us):
-        ekf.predict_many(us[done:], dts[done:], ends[done:], M, R)
+        pause(len(steps.upto), done)
+    if done < len(steps.u):
+        steps.predict(ekf, done, len(steps.u))
         if check:
-            _check_finite(ekf, f"t = {ends[-1]:.3f} s (prediction to the end)")
+            _check_finite(ekf, f"t = {steps.t[-1]:.3f} s (prediction to the end)")
 
 
 def _feed_hidden(
     associating: AssociatingFilter | HypothesisBank | MappingFilter,  # (DecisionReplay is one)
-    upto,
-    us,
-    dts,
-    ends,
-    M,
-    R,
-    det_id,
-    det_time,
-    det_z,
-    Q,
+    steps: Schedule,
+    *,
     pause=None,
 ) -> None:
     """`_feed` without the ids: the detections of one time are associated together.
 
-    det_id is not looked at (the filter must not know it); the replay's pieces are the same.
+    The ids are not looked at (the filter must not know them); the replay's pieces are the same.
     associating: an `AssociatingFilter`; a `HypothesisBank` (``mht``), which keeps no history;
     or what replays decisions already made (`DecisionReplay`, `MappingFilter`).
     pause: as `_feed`'s, called only between one time's sightings and the next.
     """
     done = 0
-    for i, k in _one_time_groups(det_time):
+    for i, k in _one_time_groups(steps.times):
         if pause is not None:
             pause(i, done)
-        p = upto[i]
+        p = steps.upto[i]
         if p > done:
-            associating.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
+            steps.predict(associating, done, p)
             done = p
-        associating.observe(det_z[i:k], Q, det_time[i], *_body_rate(us, dts, p))
+        associating.observe(steps.z[i:k], steps.Q, steps.times[i], *_body_rate(steps, p))
     if pause is not None:
-        pause(len(upto), done)
-    if done < len(us):
-        associating.predict_many(us[done:], dts[done:], ends[done:], M, R)
+        pause(len(steps.upto), done)
+    if done < len(steps.u):
+        steps.predict(associating, done, len(steps.u))
 
 
 def decisions_from_known_state(
@@ -504,20 +569,21 @@ def decisions_from_known_state(
     make them, its wrong decisions not fed back.
     """
     noise = noise or default_noise(run)
-    ekf = EKFSLAM(run.meta.nominal_start, None, config or default_config(run))
+    steps = schedule(run, noise)
+    config = backend_for(config or default_config(run), steps.events)
+    ekf = EKFSLAM(run.meta.nominal_start, None, config)
     judge = AssociatingFilter(ekf, association)
-    upto, us, dts, ends, M, R, det_id, det_time, det_z, Q = _schedule(run, noise)
     chosen: list[int] = []
     done = 0
     with np.errstate(all="ignore"):
-        for i, k in _one_time_groups(det_time):
-            p = upto[i]
+        for i, k in _one_time_groups(steps.times):
+            p = steps.upto[i]
             if p > done:
-                ekf.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
+                steps.predict(ekf, done, p)
                 done = p
-            chosen += judge.decide(det_z[i:k], Q, *_body_rate(us, dts, p))
+            chosen += judge.decide(steps.z[i:k], steps.Q, *_body_rate(steps, p))
             for a in range(i, k):
-                ekf.update(det_id[a], det_z[a], Q, det_time[a])
+                ekf.update(steps.ids[a], steps.z[a], steps.Q, steps.times[a])
     return np.array(chosen, dtype=np.int64)
 
 
@@ -532,11 +598,11 @@ def _one_time_groups(det_time) -> Iterator[tuple[int, int]]:
         i = k
 
 
-def _body_rate(us, dts, p: int) -> tuple[float, tuple[float, float]]:
+def _body_rate(steps: Schedule, p: int) -> tuple[float, tuple[float, float]]:
     """rad/s and the body velocity (m/s) of the piece that ends at the sightings (a time-stamp
     error moves the pose they were taken from)."""
-    if p > 0 and dts[p - 1] > 0:
-        vx, vy, w = (us[p - 1] / dts[p - 1]).tolist()
+    if p > 0 and steps.dt[p - 1] > 0:
+        vx, vy, w = (steps.u[p - 1] / steps.dt[p - 1]).tolist()
         return w, (vx, vy)
     return 0.0, (0.0, 0.0)
 

@@ -1,4 +1,5 @@
-"""Where the data outside the package is: the source checkout's runs and the shared data folder.
+"""Where the data is: the seed's runs (installed with the package, or the checkout's), the
+source checkout, and the shared data folder.
 
 The one module that looks outside the installed package. In a source checkout (this package's
 parent folder holds ``pyproject.toml``) the seed's runs are ``data/runs/`` of the checkout and
@@ -40,3 +41,21 @@ def shared_data_dir() -> Path | None:
         return Path(os.environ[SHARED_DATA_ENV]).expanduser()
     root = checkout()
     return root.parent / "shared" / "data" if root is not None else None
+
+
+#: The seed's runs inside an installed package: package data built from ``data/runs``.
+INSTALLED_RUNS = Path(__file__).resolve().parent / "runs"
+
+
+def seed_run(name: str) -> Path:
+    """The folder of the seed's run `name` (``square-2laps``, ``octagon-2laps``, ...) where a
+    notebook reads it: installed with the package (``ekfslam/runs/``, which every wheel holds,
+    built from the checkout's ``data/runs``), else the source checkout's ``data/runs/`` (an
+    editable install, or ``PYTHONPATH`` at a checkout). A notebook that asks for its runs by name
+    needs no path, so it runs copied anywhere: out of the repository, in a lab release, on Colab.
+    The folder may not exist (a name that is no run): `ekfslam.logs.runlog.read_run` says so."""
+    installed = INSTALLED_RUNS / name
+    if installed.is_dir():
+        return installed
+    runs = seed_runs_dir()
+    return (runs if runs is not None else INSTALLED_RUNS) / name

@@ -5,7 +5,8 @@ for it in `MAY_IMPORT`. On top of that: outside `ekfslam.core.filter` the lower 
 the filter at run time, matplotlib belongs to viz and ui, nothing imports inside a function except
 an optional heavy dependency with a ``# lazy: why`` comment, `ekfslam/__init__.py` imports nothing
 at run time, and the modules form no cycle (counting imports inside functions and module names
-in importlib tables).
+in importlib tables). The repository's ``studies/`` and ``benchmarks/`` sit beside the package:
+they may import anything in it, never each other, and nothing in it imports them.
 
 A rule broken on purpose is listed in `KNOWN_VIOLATIONS` with its reason (today: none). A
 violation not in it fails, and so does an entry that no longer happens.
@@ -17,10 +18,12 @@ import ast
 import re
 import subprocess
 import sys
+import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from setuptools import find_packages
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -65,7 +68,7 @@ MAY_IMPORT = {  # besides its own floor
 VIZ_TYPES_FROM = _BELOW_ANALYSIS - {"teaching"} | {"analysis"}
 NO_FILTER_FLOORS = {"core", "logs", "sim", "vision", "teaching"}  # core: outside core.filter
 # the filter proper (numba): its config and history are plain data anyone below may use
-FILTER_MODULES = ("core.filter.ekf", "core.filter.state", "core.filter.kernels")
+FILTER_MODULES = ("core.filter.ekf", "core.filter.state", "core.filter.compile")
 MATPLOTLIB_FLOORS = {"viz", "ui"}
 # optional or heavy dependencies a function may import late, with a `# lazy: why` comment
 LAZY_OK = {
@@ -78,6 +81,10 @@ LAZY_OK = {
     "distributed",  # the optional extra ekfslam[dask], only for `--dask`
     "imageio_ffmpeg",  # the optional extra ekfslam[video]: its ffmpeg, only for an MP4
 }
+
+# The repository's folders beside the package (ARCHITECTURE.md): each may import the package and
+# itself, never the other; the package never imports either.
+OUTSIDE = ("studies", "benchmarks")
 
 # Rules the code breaks on purpose, each with its reason (violation -> why). Empty: the refactor
 # of issue 14 removed every violation it found. A new entry needs a reason a reviewer accepts;
@@ -152,6 +159,12 @@ def imports_of(module: str, path: Path, modules: dict[str, Path], package: str) 
                 and child.value in modules
             ):
                 found.append(Import(module, child.value, fn, tc, True, False))
+            elif (  # an importlib table naming a module of a folder beside the package
+                isinstance(child, ast.Constant)
+                and isinstance(child.value, str)
+                and re.fullmatch(rf"({'|'.join(OUTSIDE)})(\.\w+)+", child.value)
+            ):
+                found.append(Import(module, child.value, fn, tc, True, False))
             for name in names:
                 ours = _resolve(name, modules)
                 if ours == module:
@@ -197,6 +210,8 @@ def violations(root: Path, package: str = "ekfslam") -> set[str]:
                     found.add(f"lazy-without-reason: {where} -> {imp.target}")
             if top == "matplotlib" and src_floor not in MATPLOTLIB_FLOORS:
                 found.add(f"matplotlib-outside-viz: {module}")
+            if top in OUTSIDE:
+                found.add(f"package-imports-outside: {module} -> {imp.target}")
             if top != package:
                 continue
             if imp.target not in modules:
@@ -305,7 +320,8 @@ def test_the_package_keeps_the_import_rules() -> None:
 
 def test_test_files_have_unique_basenames() -> None:
     # pytest's default import mode puts each test folder on sys.path: no __init__.py, one name each
-    names = [p.name for p in (REPO / "tests").rglob("test_*.py")]
+    folders = [REPO / "tests", *(REPO / name / "tests" for name in OUTSIDE)]
+    names = [p.name for folder in folders for p in folder.rglob("*.py") if p.name != "conftest.py"]
     assert len(names) == len(set(names)), sorted(n for n in names if names.count(n) > 1)
 
 
@@ -393,6 +409,14 @@ def test_the_checker_passes_a_tiny_package_that_keeps_the_rules(tmp_path: Path) 
             "from pkg.core.models import f\n",
             {"facade-eager: pkg -> pkg.core.models"},
         ),
+        (  # the package importing the studies beside it, directly or by a command table
+            "pkg/analysis/study.py",
+            "import studies.robustness\nTABLE = {'x': ('benchmarks.cli.bench', 'help')}\n",
+            {
+                "package-imports-outside: pkg.analysis.study -> studies.robustness",
+                "package-imports-outside: pkg.analysis.study -> benchmarks.cli.bench",
+            },
+        ),
         (  # a relative import is resolved like an absolute one
             "pkg/core/models.py",
             "from .filter import ekf\n",
@@ -411,6 +435,35 @@ def test_the_checker_reports_a_bad_import(
     with (tmp_path / path).open("a", encoding="utf-8") as f:
         f.write(code)
     assert violations(tmp_path, "pkg") == expected
+
+
+def test_the_folders_beside_the_package_import_it_never_each_other() -> None:
+    """studies/ and benchmarks/: the package and themselves; an import inside a function only
+    for an optional heavy dependency, with its reason (the package's rule)."""
+    found = set()
+    for name in OUTSIDE:
+        modules = {**modules_of(REPO, name), **modules_of(REPO, "ekfslam")}
+        for module, path in modules_of(REPO, name).items():
+            if ".tests" in module:
+                continue  # tests import what they test, where they need it
+            for imp in imports_of(module, path, modules, name):
+                top = imp.target.split(".")[0]
+                if top in OUTSIDE and top != name:
+                    found.add(f"outside-imports-outside: {module} -> {imp.target}")
+                if imp.function and not imp.string and top not in LAZY_OK:
+                    found.add(f"function-import: {module}.{imp.function} -> {imp.target}")
+                elif imp.function and not imp.string and not imp.lazy_comment:
+                    found.add(f"lazy-without-reason: {module}.{imp.function} -> {imp.target}")
+    assert not found, "\n".join(sorted(found))
+
+
+def test_the_wheel_holds_the_package_and_not_the_folders_beside_it() -> None:
+    config = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))
+    found = find_packages(REPO, **config["tool"]["setuptools"]["packages"]["find"])
+    assert "ekfslam" in found and "ekfslam.core.filter" in found
+    assert not [p for p in found if p.split(".")[0] != "ekfslam"], found
+    testpaths = config["tool"]["pytest"]["ini_options"]["testpaths"]
+    assert testpaths == ["tests", *(f"{name}/tests" for name in OUTSIDE)]
 
 
 def test_the_allow_list_can_only_shrink() -> None:

@@ -1,3 +1,3 @@
-"""The analysis floor: alignment, scores, consistency, robustness, benchmarks, studies.
+"""The analysis floor: alignment, scores, consistency, the MRCLAM and vision scores, lab checks.
 
 Imports anything below it (pipeline, logs, sim, vision, core, teaching); never viz, ui or cli."""

@@ -27,11 +27,11 @@ The runs have no outliers by construction, so the study runs every filter withou
 censor true sightings: it drops the 1% with the largest innovations, taken when the error is
 largest, and lifts the mean NEES of even an exact linear Kalman filter by about 4% of its dof
 (`tests/analysis/test_gate_bias.py`; on the loop 0.09 of 3). ``gate=`` puts it back; the outlier
-study (`ekfslam.analysis.robustness.outlier_study`), whose runs do have outliers, keeps it.
+study (`studies.robustness.outlier_study`), whose runs do have outliers, keeps it.
 
-The outlier study and the long run (`ekfslam.analysis.robustness`) and the pose NEES against
+The outlier study and the long run (`studies.robustness`) and the pose NEES against
 MRCLAM's Vicon (`ekfslam.analysis.mrclam_consistency`) are the other subcommands of
-``python -m ekfslam consistency`` (`ekfslam.cli.consistency`).
+``python -m studies consistency`` (`studies.cli.consistency`).
 """
 
 from __future__ import annotations
@@ -394,14 +394,4 @@ def _average(name, errors, config, counts, noise, seconds) -> Consistency:
         gate=config.gate,
         seconds=seconds,
         iterations=config.iterations,
-    )
-
-
-def counts_line(counts: FilterCounts) -> str:
-    """The filters' counts over all runs, each number after its own label."""
-    c = counts
-    return (
-        f"over all runs: {c.predictions} predictions; updates {c.accepted} accepted, "
-        f"{c.rejected} rejected, {c.refused} refused; landmarks {c.initialised} initialised, "
-        f"{c.reinitialised} re-initialised"
     )

@@ -24,6 +24,7 @@ from ekfslam.pipeline import ReplayResult, replay
 from ekfslam.sim.config import seed_experiment  # noqa: F401
 
 if TYPE_CHECKING:
+    from ekfslam.core.diagnosis import Diagnosis
     from ekfslam.core.filter.config import FilterConfig
     from ekfslam.core.noise import NoiseConfig
 
@@ -94,6 +95,8 @@ class RunSummary:
     """Everything the command line reports about one replay.
 
     accepted ... singular: how many sightings had each `Outcome` (fields named by its `label`).
+    diagnosis: the replay's self-diagnosis (`ekfslam.core.diagnosis.Diagnosis`), None for a
+    result made without one.
     """
 
     name: str
@@ -116,6 +119,7 @@ class RunSummary:
     singular: int = (
         0  # updates skipped: S singular or not finite (`ekfslam.core.filter.history.Outcome`)
     )
+    diagnosis: Diagnosis | None = None
 
     def as_dict(self) -> dict:
         """Nested JSON-ready dict (``alignment.x0`` is ``{"alignment": {"x0": ...}}``)."""
@@ -147,6 +151,7 @@ class RunSummary:
             "predictions": self.predictions,
             "trajectory": {"ate_rmse": opt(self.ate_rmse), "reason": self.ate_note},
             "consistency": {"nis_mean": opt(self.nis_mean)},
+            "diagnosis": None if self.diagnosis is None else self.diagnosis.as_dict(),
             "seconds": self.seconds,
         }
 
@@ -202,6 +207,7 @@ def summarize(run: RunLog, result: ReplayResult, method: str = "mean_distance") 
         seconds=result.seconds,
         alignment_note=note,
         ate_note=ate_note,
+        diagnosis=result.diagnosis,
     )
 
 

@@ -35,9 +35,11 @@ SWAPPED = (
 #: mistake -> what a loop with it does, as the check tells it (the typical ones, in this order)
 MISTAKES = {
     "whole": "predicts each control interval whole and only then applies the detections inside "
-    "it: apply each detection once the pose is predicted up to its time, not past it.",
+    "it: split the interval at each detection, predict up to the detection's time, apply it, "
+    "then predict on to the end of the interval.",
     "early": "applies each detection before the pose is predicted up to its time (the update "
-    "comes before the prediction that reaches it): predict first, then update.",
+    "comes before the prediction that reaches it): split the interval at the detection, "
+    "predict up to its time first, then update.",
     "unscaled": "builds each piece's R from M itself: M is a noise density per second, so a "
     "piece of length dt has R = V (M dt) Vᵀ (eq. 9).",
     "twice": "feeds each tag's first sighting twice: ekf.update already places a new landmark "

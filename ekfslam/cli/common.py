@@ -144,17 +144,6 @@ def arena_half_size(run: RunLog) -> float | None:
     return SEED_ARENA.half_size if same else None
 
 
-def _dask_address(text: str) -> str:
-    scheme, sep, rest = text.partition("://")
-    if not sep or not rest or scheme not in DASK_SCHEMES:
-        raise argparse.ArgumentTypeError(
-            f"a Dask scheduler address is {'|'.join(DASK_SCHEMES)}://HOST:PORT, got {text!r}"
-        )
-    return text
-
-
-DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "inproc")
-
 #: The largest bank ``--hypotheses`` takes (``run``, ``score-mrclam``): every hypothesis is a
 #: filter, so the cost grows with it.
 MAX_HYPOTHESES = 256
@@ -214,25 +203,3 @@ def time_shared_of(args: argparse.Namespace) -> bool | None:
     """``--time-error`` as `AssociationConfig.time_shared` (None: the source's own)."""
     choice = getattr(args, "time_error", None)
     return None if choice is None else choice == "shared"
-
-
-def add_parallel_arguments(p: argparse.ArgumentParser) -> None:
-    """``--jobs N`` and ``--dask ADDRESS``: where the runs go (`ekfslam.analysis.parallel`).
-
-    Every command that runs a study in parallel (``consistency``, ``tune-mrclam``) takes them
-    from here.
-    """
-    p.add_argument(
-        "--jobs",
-        type=ca.whole(1, 4096),
-        default=None,
-        metavar="N",
-        help="local processes for the runs; 1 runs in this process (default: every core)",
-    )
-    p.add_argument(
-        "--dask",
-        type=ca._name(_dask_address, "address"),
-        metavar="ADDRESS",
-        help="run on the Dask cluster at ADDRESS (tcp://host:8786; needs "
-        "pip install 'ekfslam[dask]'); --jobs is then ignored",
-    )

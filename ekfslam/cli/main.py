@@ -39,13 +39,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "run": ("ekfslam.cli.run", "replay a run (our run-log folder, or a MRCLAM dataset)"),
     "simulate": ("ekfslam.cli.simulate", "simulate the seed's robot and write a run folder"),
     "fetch": ("ekfslam.cli.fetch", "download a public dataset into the cache"),
-    "score-mrclam": (
-        "ekfslam.cli.score_mrclam",
-        "replay every robot of a MRCLAM dataset with one noise setting; print the scores",
-    ),
-    "tune-mrclam": (
-        "ekfslam.cli.tune_mrclam",
-        "tune the MRCLAM noise over datasets; --cross-validate: leave one dataset out",
+    "fit-noise": (
+        "ekfslam.cli.fit_noise",
+        "fit R and Q to a run's innovations (maximum likelihood, no ground truth)",
     ),
     "convert": (
         "ekfslam.cli.convert",
@@ -63,36 +59,34 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "ekfslam.cli.frames",
         "detect the AprilTags in a run's camera frames -> detections.csv",
     ),
-    "vision-eval": (
-        "ekfslam.cli.vision_eval",
-        "score range and bearing from rendered frames against the truth",
+    "lab": (
+        "ekfslam.cli.lab",
+        "the lab for a course: release the students' copy; grade submissions into a CSV",
     ),
-    "consistency": (
-        "ekfslam.cli.consistency",
-        "NEES/NIS over Monte Carlo runs; outlier gating; a long Σ run; MRCLAM against Vicon",
-    ),
-    "budget": (
-        "ekfslam.cli.budget",
-        "the realistic robot's error budget: each error source alone and all but it",
-    ),
-    "bench": ("ekfslam.cli.bench", "time replays and per-step costs against map size"),
-    "tune": ("ekfslam.cli.tune", "time the live tuning panel's change-to-figure latency"),
 }
 
 
-def build_parser(argv: list[str] | None = None) -> ca.Parser:
+#: What ``python -m ekfslam --help`` says the commands are for.
+DESCRIPTION = "Landmark EKF SLAM after the UCSD CSE276A HW3 report."
+
+
+def build_parser(
+    argv: list[str] | None = None,
+    commands: dict[str, tuple[str, str]] = COMMANDS,
+    prog: str = "python -m ekfslam",
+    description: str = DESCRIPTION,
+) -> ca.Parser:
     """The parser, with the full subparser of the command named in `argv` only.
 
     The other commands are listed with their help but get no options: parsing stops at the
-    command's name, so only that command's options (and its module) are ever needed.
+    command's name, so only that command's options (and its module) are ever needed. `commands`
+    is a table like `COMMANDS`: the repository's ``python -m studies`` and ``python -m
+    benchmarks`` run their own through this same parser.
     """
-    parser = ca.Parser(
-        prog="python -m ekfslam",
-        description="Landmark EKF SLAM after the UCSD CSE276A HW3 report.",
-    )
+    parser = ca.Parser(prog=prog, description=description)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=ca.Parser)
-    chosen = command_in(sys.argv[1:] if argv is None else argv)
-    for name, (module, help_line) in COMMANDS.items():
+    chosen = command_in(sys.argv[1:] if argv is None else argv, commands)
+    for name, (module, help_line) in commands.items():
         if name == chosen:
             importlib.import_module(module).add_command(sub, name, help_line)
         else:
@@ -100,12 +94,12 @@ def build_parser(argv: list[str] | None = None) -> ca.Parser:
     return parser
 
 
-def command_in(argv: list[str]) -> str | None:
+def command_in(argv: list[str], commands: dict[str, tuple[str, str]] = COMMANDS) -> str | None:
     """The command `argv` names: its first word that is not an option (the top level has no
     option that takes a value), or None."""
     for word in argv:
         if not word.startswith("-"):
-            return word if word in COMMANDS else None
+            return word if word in commands else None
     return None
 
 
@@ -114,12 +108,17 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
     print(f"warning: {' '.join(str(message).split())}", file=sys.stderr if file is None else file)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run one command; returns its exit status (2: a bad option, path or input, one line;
-    130 or 143: ended by Ctrl-C or SIGTERM)."""
+def main(
+    argv: list[str] | None = None,
+    commands: dict[str, tuple[str, str]] = COMMANDS,
+    prog: str = "python -m ekfslam",
+    description: str = DESCRIPTION,
+) -> int:
+    """Run one command of `commands`; returns its exit status (2: a bad option, path or input,
+    one line; 130 or 143: ended by Ctrl-C or SIGTERM)."""
     try:
         with interrupts_raise():
-            return _run(argv)
+            return _run(argv, commands, prog, description)
     except BaseException as exc:
         signum = _signal_in(exc)
         if signum is None:
@@ -143,8 +142,10 @@ def _signal_in(exc: BaseException | None) -> int | None:
     return None
 
 
-def _run(argv: list[str] | None) -> int:
-    parser = build_parser(argv)
+def _run(
+    argv: list[str] | None, commands: dict[str, tuple[str, str]], prog: str, description: str
+) -> int:
+    parser = build_parser(argv, commands, prog, description)
     try:
         args = parser.parse_args(argv)  # a bad option ends here, before any work
     except SystemExit as exc:  # --help (0) or a refused option (2): a status, as for the rest

@@ -5,11 +5,13 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import sys
 from typing import TYPE_CHECKING
 
 from ekfslam import pipeline
 from ekfslam.analysis import association as assoc
 from ekfslam.analysis.evaluation import SEED_TABLE1, RunSummary, seed_experiment, summarize
+from ekfslam.analysis.rescue import replay_rescued as rescued_replay
 from ekfslam.cli import animate as animate_args
 from ekfslam.cli import args as ca
 from ekfslam.cli.common import (
@@ -23,6 +25,7 @@ from ekfslam.cli.common import (
     time_shared_of,
 )
 from ekfslam.core.association import METHODS
+from ekfslam.core.recovery import RecoveryConfig
 from ekfslam.files import save_figure
 from ekfslam.logs.mrclam.defaults import MRCLAM_MAP_NOISE
 from ekfslam.logs.mrclam.load import MrclamLoadReport
@@ -83,6 +86,24 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     )
     add_passes_argument(run)
     add_founding_arguments(run)
+    run.add_argument(
+        "--noise",
+        choices=("auto", "documented", "fit"),
+        default="auto",
+        help="auto (the default): the run's documented noise, and when the replay does not agree "
+        "with its data (its diagnosis is not ok), R scaled by 2-16, the most likely; "
+        "documented: exactly the documented noise (with the --sigma-* overrides, which auto "
+        "also takes as they are); fit: fit R and Q to this run's innovations first, by maximum "
+        "likelihood with no ground truth (as `fit-noise` does), and replay with them",
+    )
+    run.add_argument(
+        "--recover",
+        action="store_true",
+        help="with the ids known: after 20 rejected sightings in a row (of 2 or more landmarks) "
+        "widen the pose covariance by what their innovations say, so a robot whose pose was "
+        "lost relocalises against its map; the diagnosis lists when (off by default: on MRCLAM "
+        "it helped as often as it hurt)",
+    )
     run.add_check(_match_needs_hidden_ids)
     ca.add_noise_arguments(run)
     add_iterations_argument(run)
@@ -111,6 +132,10 @@ def _match_needs_hidden_ids(args: argparse.Namespace) -> str | None:
         return "argument --new-rule: needs --association jcbb or mht"
     if args.passes != 1 and args.association == "known":
         return "argument --passes: needs --association nn, jcbb or mht"
+    if getattr(args, "recover", False) and args.association != "known":
+        return "argument --recover: needs the ids known (not with --association)"
+    if getattr(args, "noise", "auto") == "fit" and args.association != "known":
+        return "argument --noise fit: fits with the known ids; not with --association"
     if args.passes != 1 and getattr(args, "linearization", None) == "invariant":
         return "argument --passes: needs the standard or fej filter, not --linearization invariant"
     return None
@@ -121,7 +146,13 @@ def cmd_run(args: argparse.Namespace) -> int:
     hidden = getattr(args, "association", "known") != "known"
     # with the ids hidden, a noise whose Σ the association's χ² tests can trust
     noise, config = noise_from_args(args, run, assoc.association_noise(run) if hidden else None)
+    fitted = rescue = None
+    if getattr(args, "noise", "auto") == "fit":
+        # lazy: scipy.optimize (about 0.3 s) only when asked to fit
+        fitted = importlib.import_module("ekfslam.analysis.noise_fit").fit_noise(run, noise, config)
+        noise = fitted.noise
     animate = getattr(args, "animate", None)
+    recover = {"recovery": RecoveryConfig()} if getattr(args, "recover", False) else {}
     # only an animation needs copies of the whole state (`Keyframes`); a plain replay keeps none
     frames = (
         {"keyframes": args.frames or animate_args.DEFAULT_FRAMES} if animate is not None else {}
@@ -146,8 +177,11 @@ def cmd_run(args: argparse.Namespace) -> int:
         )
         result, found = assoc.score(run, result, args.match)
         labels = None if animate is None else animate_args.true_labels(result, found.mapping)
+    elif _rescues(args):  # the documented noise, or R scaled when it does not fit the log
+        rescue = rescued_replay(run, noise, config, **frames, **recover)
+        result, labels = rescue.result, None
     else:
-        result = pipeline.replay(run, noise, config, **frames)
+        result = pipeline.replay(run, noise, config, **frames, **recover)
         labels = None
     summary = summarize(run, result, method=args.align)
     out = summary.as_dict()
@@ -158,6 +192,10 @@ def cmd_run(args: argparse.Namespace) -> int:
             "chosen": result.chosen_pass,
             "each": [{"cost": p.cost, "changed": p.changed} for p in result.passes],
         }
+    if fitted is not None:
+        out["noise_fit"] = fitted.as_dict()
+    if rescue is not None and len(rescue.tried) > 1:  # the documented noise was not ok
+        out["noise_rescue"] = rescue.as_dict()
     out["seed_report"] = _seed_report(run)
     out["detections"] = _detections_source(run, report)
     if report is not None:
@@ -181,8 +219,27 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(out, indent=2, allow_nan=False))
     else:
+        if fitted is not None:
+            print("\n".join(["noise fitted to the run's innovations:", *fitted.lines()]))
         print(_table(summary, out, report))
+        if rescue is not None and rescue.line() is not None:
+            print(rescue.line())
+    warning = None if result.diagnosis is None else result.diagnosis.warning()
+    if warning is not None:  # a replay that does not agree with its data says so, always
+        print(f"warning: {warning}", file=sys.stderr)
     return 0
+
+
+#: The noise options a rescue leaves as given (`_rescues`).
+_SIGMAS = ("sigma_x", "sigma_y", "sigma_theta", "sigma_range", "sigma_bearing")
+
+
+def _rescues(args: argparse.Namespace) -> bool:
+    """``--noise auto`` with the documented noise as it is: no ``--sigma-*`` given (those are
+    replayed exactly as asked, the diagnosis saying whether they fit)."""
+    return getattr(args, "noise", "auto") == "auto" and all(
+        getattr(args, name, None) is None for name in _SIGMAS
+    )
 
 
 def _true_labels(result: pipeline.ReplayResult, mapping: dict[int, int]) -> list[str]:
@@ -241,6 +298,8 @@ def _table(summary: RunSummary, out: dict, report=None) -> str:
         f"re-initialised {summary.reinitialised}"
         + (f", singular S {summary.singular}" if summary.singular else "")
     )
+    if summary.diagnosis is not None:
+        lines.append(summary.diagnosis.line())
     if summary.ate_rmse is not None:
         lines.append(f"trajectory ATE RMSE (no alignment) {summary.ate_rmse:.3f} m")
     elif summary.ate_note is not None:

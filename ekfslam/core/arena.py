@@ -135,4 +135,5 @@ def seed_arena() -> Arena:
     return Arena(half_size, tags, np.array([-0.375, -0.375, 0.0]))
 
 
+#: The seed's arena, `seed_arena()`: 1.5 m square, 8 tags on the walls, start (-0.375, -0.375, 0).
 SEED_ARENA = seed_arena()

@@ -29,24 +29,30 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam.geometry import rotation, wrap_angle
+
 Array = NDArray[np.float64]
 
 #: ∂ξ_m/∂ξ_pose of a landmark initialised by eq. (12): ξ_m = ξ_p + G_z δz, no heading term.
-INVARIANT_NEW_LANDMARK_POSE = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+INVARIANT_NEW_LANDMARK_POSE = np.array(((1.0, 0.0, 0.0), (0.0, 1.0, 0.0)))
 INVARIANT_NEW_LANDMARK_POSE.flags.writeable = False
 
 
-def _column(mu: ArrayLike) -> Array:
-    """c = (J p̂, 0, J m̂_1, ...): the Cartesian error of the rotation ξ = e₃ (without its e₃)."""
-    mu = np.asarray(mu, dtype=float)
-    points = np.concatenate([mu[:2], mu[3:]]).reshape(-1, 2)
-    jp = np.column_stack([-points[:, 1], points[:, 0]]).ravel()
-    return np.concatenate([jp[:2], [0.0], jp[2:]])
+def rotation_column(mu: ArrayLike) -> Array:
+    """c = (J p̂, 0, J m̂_1, ...) (d,): the Cartesian error of the rotation ξ = e₃ (without its e₃).
+
+    Written for plain numpy and for numba alike: the filter's compiled steps call it too.
+    """
+    c = np.empty(len(mu))
+    c[0], c[1], c[2] = -mu[1], mu[0], 0.0
+    c[3::2] = -mu[4::2]
+    c[4::2] = mu[3::2]
+    return c
 
 
 def error_map(mu: ArrayLike) -> Array:
     """T(μ̂) (d, d): the Cartesian error δ = T ξ of a small invariant error ξ at the estimate μ̂."""
-    c = _column(mu)
+    c = rotation_column(np.asarray(mu, dtype=np.float64))
     T = np.eye(len(c))
     T[:, 2] += c
     return T
@@ -54,30 +60,24 @@ def error_map(mu: ArrayLike) -> Array:
 
 def to_cartesian(P: ArrayLike, mu: ArrayLike) -> Array:
     """Σ = T P Tᵀ (a new array): the Cartesian covariance of an invariant one P, O(d²)."""
-    P = np.asarray(P, dtype=float)
-    c = _column(mu[: len(P)])
+    P = np.asarray(P, dtype=np.float64)
+    c = rotation_column(np.asarray(mu, dtype=np.float64)[: len(P)])
     p2 = P[:, 2]
     return P + np.outer(c, p2) + np.outer(p2, c) + P[2, 2] * np.outer(c, c)
 
 
 def from_cartesian(Sigma: ArrayLike, mu: ArrayLike) -> Array:
     """P = T⁻¹ Σ T⁻ᵀ, with T⁻¹ = I - c e₃ᵀ: the invariant covariance of a Cartesian one."""
-    Sigma = np.asarray(Sigma, dtype=float)
-    c = -_column(mu[: len(Sigma)])
+    Sigma = np.asarray(Sigma, dtype=np.float64)
+    c = -rotation_column(np.asarray(mu, dtype=np.float64)[: len(Sigma)])
     s2 = Sigma[:, 2]
     return Sigma + np.outer(c, s2) + np.outer(s2, c) + Sigma[2, 2] * np.outer(c, c)
 
 
 def landmark_to_cartesian(P_mm: ArrayLike, P_mtheta: ArrayLike, P_thth: float, m: ArrayLike):
     """One landmark's 2x2 Cartesian covariance from its invariant blocks (δm = ξ_m + J m̂ ξ_θ)."""
-    g = np.array([-m[1], m[0]])
-    P_mtheta = np.asarray(P_mtheta, dtype=float)
-    return (
-        np.asarray(P_mm, dtype=float)
-        + np.outer(g, P_mtheta)
-        + np.outer(P_mtheta, g)
-        + P_thth * np.outer(g, g)
-    )
+    g = np.array((-m[1], m[0]))
+    return P_mm + np.outer(g, P_mtheta) + np.outer(P_mtheta, g) + P_thth * np.outer(g, g)
 
 
 def noise_map(mu: ArrayLike) -> Array:
@@ -87,7 +87,7 @@ def noise_map(mu: ArrayLike) -> Array:
     error a heading noise turns the whole map about the robot's frame (Barrau & Bonnabel's
     Ad_X̂), so the noise reaches every row of P, not only the pose's.
     """
-    c = _column(mu)
+    c = rotation_column(np.asarray(mu, dtype=np.float64))
     A = np.zeros((len(c), 3))
     A[:3] = np.eye(3)
     A[:, 2] -= c
@@ -96,29 +96,26 @@ def noise_map(mu: ArrayLike) -> Array:
 
 def so2_left_jacobian(phi: float) -> Array:
     """V(φ) = (sin φ / φ) I + ((1 - cos φ) / φ) J, the translation part of SE(2)'s exponential."""
-    if abs(phi) < 1e-6:
+    if abs(phi) < 1e-6:  # the series of sin φ / φ and (1 - cos φ) / φ
         a, b = 1.0 - phi * phi / 6.0, 0.5 * phi
     else:
         a, b = math.sin(phi) / phi, (1.0 - math.cos(phi)) / phi
-    return np.array([[a, -b], [b, a]])
+    return np.array(((a, -b), (b, a)))
 
 
 def retract(mu: ArrayLike, xi: ArrayLike) -> Array:
     """exp(ξ) X̂ as a state vector: θ + ξ_θ, and each point v -> R(ξ_θ) v + V(ξ_θ) ξ_v.
 
     The invariant filter's correction of eq. (16): μ̂ <- exp(K ν) μ̂ instead of μ̂ + K ν. The
-    heading is wrapped to [-π, π).
+    heading is wrapped to [-π, π). Plain numpy and numba alike (the filter compiles it).
     """
-    mu = np.asarray(mu, dtype=float)
-    xi = np.asarray(xi, dtype=float)
-    w = float(xi[2])
-    c, s = math.cos(w), math.sin(w)
-    Rw, V = np.array([[c, -s], [s, c]]), so2_left_jacobian(w)
-    points = np.concatenate([mu[:2], mu[3:]]).reshape(-1, 2)
-    steps = np.concatenate([xi[:2], xi[3:]]).reshape(-1, 2)
-    moved = points @ Rw.T + steps @ V.T
-    out = np.concatenate([moved[0], [mu[2] + w], moved[1:].ravel()])
-    out[2] = (out[2] + math.pi) % (2.0 * math.pi) - math.pi
+    w = xi[2]
+    R, V = rotation(w), so2_left_jacobian(w)
+    out = np.empty(len(mu))
+    out[0:2] = R @ mu[0:2] + V @ xi[0:2]
+    out[2] = wrap_angle(mu[2] + w)
+    for i in range(3, len(mu), 2):
+        out[i : i + 2] = R @ mu[i : i + 2] + V @ xi[i : i + 2]
     return out
 
 
@@ -130,9 +127,9 @@ def pose_error(truth: ArrayLike, estimate: ArrayLike) -> Array:
     ξ = T(μ̂)⁻¹ δ with δ the Cartesian error: this is the error that the invariant filter's
     covariance P describes, and the one Barrau & Bonnabel (2015) score their NEES with.
     """
-    p = np.asarray(truth, dtype=float).reshape(-1, 3)
-    q = np.asarray(estimate, dtype=float).reshape(-1, 3)
-    w = (p[:, 2] - q[:, 2] + math.pi) % (2.0 * math.pi) - math.pi
+    p = np.asarray(truth, dtype=np.float64).reshape(-1, 3)
+    q = np.asarray(estimate, dtype=np.float64).reshape(-1, 3)
+    w = wrap_angle(p[:, 2] - q[:, 2])
     c, s = np.cos(w), np.sin(w)
     dx = p[:, 0] - (c * q[:, 0] - s * q[:, 1])
     dy = p[:, 1] - (s * q[:, 0] + c * q[:, 1])

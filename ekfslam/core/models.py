@@ -1,16 +1,43 @@
-"""The motion and observation models of the seed report, with their Jacobians.
+"""The seed's models, each stated once: motion (eqs. 4-7), observation (eqs. 10-14) and a new
+landmark (eq. 12), with their Jacobians.
 
 Pose p = (x, y, θ) in m, m, rad. Control increment u = (Δux, Δuy, Δθ) in the body frame (eq. 4).
 Observation z = (r, φ): range in m and bearing in rad, measured from the robot's heading (eq. 10).
 Landmark m = (mx, my) in m.
 
-These are the numeric forms used by the filter. `ekfslam.teaching.derivations` derives the same
-expressions symbolically with sympy, and the tests check that the two agree.
+The vocabulary is the seed's, with the Robotics Toolbox's names in the model records:
+
+==================================  ==============  ===========================================
+function                            record field    what it is
+==================================  ==============  ===========================================
+`motion`                            ``f``           the pose after an increment, eq. (6)
+`motion_jacobian`                   ``F_x``         G = ∂f/∂pose, eq. (7)
+`motion_control_jacobian`           ``F_v``         V = ∂f/∂u, the rotation of eq. (5)
+`observation`                       ``h``           ẑ = (r, φ), eq. (13), with atan2
+`observation_jacobians`             ``H``           H's two blocks ∂h/∂pose, ∂h/∂landmark, eq. (14)
+`inverse_observation`               ``g``           where a sighting puts a landmark, eq. (12)
+`inverse_observation_jacobians`     ``G``           ∂g/∂pose and ∂g/∂z
+`innovation`                        ``innovation``  ν = z - ẑ, the bearing wrapped
+==================================  ==============  ===========================================
+
+These functions are the only place the models are written. Everything that needs a model reads
+it from here: the filter through its `MotionModel` and `SensorModel` (`ODOMETRY`,
+`RANGE_BEARING`), in plain Python or compiled by numba from this very source
+(`ekfslam.core.filter.compile`); the association methods, the literal F_x reference
+(`ekfslam.teaching.reference`), the simulator. `ekfslam.teaching.derivations` derives the same
+expressions with sympy, and the tests check that the two agree and that every Jacobian is the
+finite difference of its function.
+
+They are written so that numba compiles them unchanged: plain `math` on floats, small arrays
+built from tuples. A new sensor is four such functions and an `innovation`, gathered in a
+`SensorModel` (ARCHITECTURE.md, "Where a new sensor model goes").
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -19,7 +46,7 @@ from ekfslam.geometry import wrap_angle
 
 Array = NDArray[np.float64]
 
-#: Squared range (m^2) below which a landmark is "at the robot" and its bearing is undefined.
+#: Squared range (m²) below which a landmark is "at the robot" and its bearing is undefined.
 MIN_RANGE_SQUARED = 1e-12
 
 
@@ -27,6 +54,7 @@ class DegenerateGeometry(ValueError):
     """An observation that cannot be linearised: the landmark sits on the robot."""
 
 
+# ----------------------------------------------------------------------------------- motion
 def motion(pose: ArrayLike, u: ArrayLike) -> Array:
     """Predicted pose after the body-frame increment u, eqs. (5)-(6).
 
@@ -39,23 +67,20 @@ def motion(pose: ArrayLike, u: ArrayLike) -> Array:
     -------
     array (3,)  (x, y, θ) at t|t-1, θ wrapped to [-π, π).
     """
-    x, y, th = pose[0], pose[1], pose[2]
-    dux, duy, dth = u[0], u[1], u[2]
-    c, s = math.cos(th), math.sin(th)
-    return np.array([x + dux * c - duy * s, y + dux * s + duy * c, wrap_angle(float(th + dth))])
+    x, y, theta = pose[0], pose[1], pose[2]
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array((x + u[0] * c - u[1] * s, y + u[0] * s + u[1] * c, wrap_angle(theta + u[2])))
 
 
 def motion_jacobian(pose: ArrayLike, u: ArrayLike) -> Array:
     """G: the 3x3 Jacobian of eq. (6) with respect to the pose (the block inside eq. 7)."""
-    th = pose[2]
-    dux, duy = u[0], u[1]
-    c, s = math.cos(th), math.sin(th)
+    c, s = math.cos(pose[2]), math.sin(pose[2])
     return np.array(
-        [
-            [1.0, 0.0, -dux * s - duy * c],
-            [0.0, 1.0, dux * c - duy * s],
-            [0.0, 0.0, 1.0],
-        ]
+        (
+            (1.0, 0.0, -u[0] * s - u[1] * c),
+            (0.0, 1.0, u[0] * c - u[1] * s),
+            (0.0, 0.0, 1.0),
+        )
     )
 
 
@@ -64,9 +89,8 @@ def motion_control_jacobian(pose: ArrayLike) -> Array:
 
     A control-noise covariance M (in u-space) becomes the state-space motion noise R = V M Vᵀ.
     """
-    th = pose[2]
-    c, s = math.cos(th), math.sin(th)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    return np.array(((c, -s, 0.0), (s, c, 0.0), (0.0, 0.0, 1.0)))
 
 
 def motion_noise(pose: ArrayLike, M: ArrayLike) -> Array:
@@ -76,15 +100,14 @@ def motion_noise(pose: ArrayLike, M: ArrayLike) -> Array:
     return 0.5 * (R + R.T)
 
 
+# ------------------------------------------------------------------------------ observation
 def _offset(pose: ArrayLike, landmark: ArrayLike) -> tuple[float, float, float]:
     """δ = landmark - robot position and q = δᵀδ of eq. (13), refusing a landmark on the robot."""
     dx = landmark[0] - pose[0]
     dy = landmark[1] - pose[1]
     q = dx * dx + dy * dy
     if not q > MIN_RANGE_SQUARED:
-        raise DegenerateGeometry(
-            f"landmark at ({landmark[0]:.6g}, {landmark[1]:.6g}) sits on the robot"
-        )
+        raise DegenerateGeometry("the landmark sits on the robot: no bearing is defined there")
     return dx, dy, q
 
 
@@ -100,41 +123,94 @@ def observation(pose: ArrayLike, landmark: ArrayLike) -> Array:
         When the landmark is within 1e-6 m of the robot (no bearing is defined there).
     """
     dx, dy, q = _offset(pose, landmark)
-    return np.array([math.sqrt(q), wrap_angle(math.atan2(dy, dx) - float(pose[2]))])
+    return np.array((math.sqrt(q), wrap_angle(math.atan2(dy, dx) - pose[2])))
 
 
 def observation_jacobians(pose: ArrayLike, landmark: ArrayLike) -> tuple[Array, Array]:
     """The two non-zero blocks of H, eq. (14): ∂ẑ/∂pose (2x3) and ∂ẑ/∂landmark (2x2).
 
-    Eq. (14) writes them side by side as a 2x5 matrix times the lift F_x,j; the efficient filter
-    uses the blocks directly.
+    Eq. (14) writes them side by side as a 2x5 matrix times the lift F_x,j; the filter uses the
+    blocks directly.
     """
     dx, dy, q = _offset(pose, landmark)
     r = math.sqrt(q)
-    a, b = dx / r, dy / r
-    c, d = dy / q, dx / q
-    H_pose = np.array([[-a, -b, 0.0], [c, -d, -1.0]])
-    H_landmark = np.array([[a, b], [-c, d]])
+    H_pose = np.array(((-dx / r, -dy / r, 0.0), (dy / q, -dx / q, -1.0)))
+    H_landmark = np.array(((dx / r, dy / r), (-dy / q, dx / q)))
     return H_pose, H_landmark
+
+
+def innovation(z: ArrayLike, z_hat: ArrayLike) -> Array:
+    """ν = z - ẑ (2,), the bearing's difference wrapped to [-π, π) (the seed forgets it)."""
+    return np.array((z[0] - z_hat[0], wrap_angle(z[1] - z_hat[1])))
 
 
 def inverse_observation(pose: ArrayLike, z: ArrayLike) -> Array:
     """Landmark position from the pose and one observation, eq. (12)."""
-    r, phi = z[0], z[1]
-    ang = pose[2] + phi
-    return np.array([pose[0] + r * math.cos(ang), pose[1] + r * math.sin(ang)])
+    angle = pose[2] + z[1]
+    return np.array((pose[0] + z[0] * math.cos(angle), pose[1] + z[0] * math.sin(angle)))
 
 
 def inverse_observation_jacobians(pose: ArrayLike, z: ArrayLike) -> tuple[Array, Array]:
     """Jacobians of eq. (12): ∂m/∂pose (2x3) and ∂m/∂z (2x2)."""
-    r, phi = z[0], z[1]
-    ang = pose[2] + phi
-    c, s = math.cos(ang), math.sin(ang)
-    G_pose = np.array([[1.0, 0.0, -r * s], [0.0, 1.0, r * c]])
-    G_z = np.array([[c, -r * s], [s, r * c]])
+    angle = pose[2] + z[1]
+    c, s = math.cos(angle), math.sin(angle)
+    G_pose = np.array(((1.0, 0.0, -z[0] * s), (0.0, 1.0, z[0] * c)))
+    G_z = np.array(((c, -z[0] * s), (s, z[0] * c)))
     return G_pose, G_z
 
 
 def observation_noise(sigma_range: float, sigma_bearing: float) -> Array:
     """Q, eq. (11): diag(σ_r², σ_φ²) with σ_r in m and σ_φ in rad."""
     return np.diag([float(sigma_range) ** 2, float(sigma_bearing) ** 2])
+
+
+# ----------------------------------------------------------------------------- the records
+@dataclass(frozen=True)
+class MotionModel:
+    """How the robot moves (the Robotics Toolbox's vehicle model).
+
+    f(pose, u) -> pose (3,); F_x(pose, u) -> G (3, 3) = ∂f/∂pose; F_v(pose) -> V (3, 3) = ∂f/∂u,
+    so that a control noise M becomes R = V M Vᵀ. Each is plain math on small arrays (see the
+    module). name : how messages call it.
+    """
+
+    f: Callable
+    F_x: Callable
+    F_v: Callable
+    name: str
+
+
+@dataclass(frozen=True)
+class SensorModel:
+    """What a sensor measures of a landmark, and where one sighting puts a new landmark.
+
+    h(pose, landmark) -> ẑ (2,), the predicted measurement (eq. 13 for range and bearing);
+    H(pose, landmark) -> (H_r (2, 3), H_l (2, 2)), ∂h/∂pose and ∂h/∂landmark (eq. 14's blocks);
+    g(pose, z) -> landmark (2,), where a measurement puts a new landmark (eq. 12);
+    G(pose, z) -> (G_r (2, 3), G_z (2, 2)), ∂g/∂pose and ∂g/∂z;
+    innovation(z, z_hat) -> ν (2,), z - ẑ in the measurement's space (angles wrapped).
+    Each is plain math on small arrays (see the module), so the filter compiles it. h and H may
+    assume the landmark is not on the robot (the filter refuses such a sighting first,
+    `MIN_RANGE_SQUARED`). name : how messages call it.
+    """
+
+    h: Callable
+    H: Callable
+    g: Callable
+    G: Callable
+    innovation: Callable
+    name: str
+
+
+#: The seed's robot: a body-frame increment composed onto the pose, eqs. (4)-(7).
+ODOMETRY = MotionModel(f=motion, F_x=motion_jacobian, F_v=motion_control_jacobian, name="odometry")
+
+#: The seed's camera: range and bearing of a tag from the robot's centre, eqs. (10)-(14), (12).
+RANGE_BEARING = SensorModel(
+    h=observation,
+    H=observation_jacobians,
+    g=inverse_observation,
+    G=inverse_observation_jacobians,
+    innovation=innovation,
+    name="range-bearing",
+)

@@ -1,10 +1,11 @@
-"""One EKF prediction (eqs. 6-9), one new landmark (eq. 12) and one correction (eqs. 13-16) in
-block form: the readable statement of each step.
+"""One EKF prediction (eqs. 6-9), one new landmark (eq. 12) and one correction (eqs. 13-16) on a
+state held as plain arrays: the filter's own steps, as a notebook calls them.
 
-The filter's compiled kernel (`ekfslam.core.filter.kernels.correct`) and the literal F_x,j
-reference (`ekfslam.teaching.reference`) compute the same numbers; the tests hold both to this
-one (tests/core/test_steps.py). The observation model and its Jacobian blocks are
-`ekfslam.core.models.observation` and `observation_jacobians`, not derived again here.
+Each function copies μ and Σ into storage of the filter's kind, runs the step the filter runs
+(`ekfslam.core.filter.steps`, in block form, as Python) and hands back new arrays, so a reader
+who steps through these steps through the filter. `update_steps` also hands back every
+intermediate of the correction (H, K, and eq. (16) as the seed prints it beside Joseph's form)
+for display; the literal F_x,j reference (`ekfslam.teaching.reference`) is tested against them.
 
 The block form is Solà's (slamtb): an observation of landmark j sees only the robot's rows
 r = 0:3 and the landmark's rows l = 3+2j : 5+2j, so eq. (14)'s H = [H_r  H_l] F_x,j touches two
@@ -13,27 +14,21 @@ O(n²) products.
 
 With ``invariant=True`` each step is the right-invariant EKF's (Barrau & Bonnabel 2015,
 `ekfslam.core.invariant`), on the covariance P of the invariant error ξ: the prediction's
-Jacobian is I and its noise A R Aᵀ reaches every row (O(n²)); H's heading column is zero; the
+Jacobian is I and its noise A R Aᵀ reaches every row; H is eq. (14)'s times the error map; the
 mean moves by the group exponential; a new landmark's ξ is ξ_p + G_z δz.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ekfslam.core.invariant import INVARIANT_NEW_LANDMARK_POSE, noise_map, retract
-from ekfslam.core.models import (
-    inverse_observation,
-    inverse_observation_jacobians,
-    motion,
-    motion_jacobian,
-    observation,
-    observation_jacobians,
-)
-from ekfslam.geometry import wrap_angle
+from ekfslam.core.filter import steps
+from ekfslam.core.filter.history import OBS_NIS, OBS_ROW, Outcome
+from ekfslam.core.filter.symmetric import mirror
 
 Array = NDArray[np.float64]
 
@@ -45,8 +40,8 @@ class UpdateSteps:
     z_hat (2,) eq. (13); nu (2,) innovation z - ẑ, bearing wrapped; H (2, d) eq. (14), zero
     outside the robot's and the landmark's columns; S (2, 2) innovation covariance H Σ Hᵀ + Q;
     K (d, 2) eq. (15); nis νᵀ S⁻¹ ν; mu_prior / mu_post (d,) eq. (16); Sigma_prior,
-    Sigma_seed = (I - KH) Σ as printed in eq. (16), Sigma_joseph = (I - KH) Σ (I - KH)ᵀ + K Q Kᵀ,
-    all (d, d).
+    Sigma_seed = (I - KH) Σ as printed in eq. (16), Sigma_joseph = (I - KH) Σ (I - KH)ᵀ + K Q Kᵀ
+    (what the filter computes, as Σ - K S Kᵀ), all (d, d).
     """
 
     j: int
@@ -64,6 +59,22 @@ class UpdateSteps:
     Sigma_joseph: Array
 
 
+def _storage(mu: Array, Sigma: Array, size: int, invariant: bool) -> steps.Storage:
+    """The filter's storage holding μ and Σ, with room for `size` rows."""
+    lin = steps.Linearization.INVARIANT if invariant else steps.Linearization.STANDARD
+    s = steps.Storage(np.zeros(size), np.zeros((size, size)), np.zeros(size), np.zeros(2), lin)
+    d = len(mu)
+    s.mu[:d], s.Sigma[:d, :d], s.first[:d] = mu, Sigma, mu
+    return s
+
+
+def _arrays(storage: steps.Storage, d: int) -> tuple[Array, Array]:
+    """μ and Σ out of the storage, Σ whole (the steps keep its lower triangle)."""
+    steps.settle(storage, d)
+    mirror(storage.Sigma, d)
+    return storage.mu[:d].copy(), storage.Sigma[:d, :d].copy()
+
+
 def update_steps(
     mu: ArrayLike, Sigma: ArrayLike, j: int, z: ArrayLike, Q: ArrayLike, invariant: bool = False
 ) -> UpdateSteps:
@@ -77,42 +88,38 @@ def update_steps(
     """
     mu = np.array(mu, dtype=float)
     Sigma = np.array(Sigma, dtype=float)
-    z = np.asarray(z, dtype=float)
-    Q = np.asarray(Q, dtype=float)
+    z, Q = np.array(z, dtype=float), np.array(Q, dtype=float)
     d = len(mu)
     if not 0 <= j < (d - 3) // 2:
         raise ValueError(f"landmark slot {j} is not in a state of {(d - 3) // 2} landmarks")
     r, l = slice(0, 3), slice(3 + 2 * j, 5 + 2 * j)  # the robot's rows, landmark j's rows
-    z_hat = observation(mu[r], mu[l])  # eq. (13), with atan2
-    H_r, H_l = observation_jacobians(mu[r], mu[l])  # eq. (14)'s two non-zero blocks
-    if invariant:  # in ξ the bearing does not see the heading: H_r = [-H_l | 0]
-        H_r = H_r.copy()
-        H_r[:, 2] = 0.0
-    SigmaHt = Sigma[:, r] @ H_r.T + Sigma[:, l] @ H_l.T  # Σ Hᵀ, (d, 2)
-    S = H_r @ SigmaHt[r] + H_l @ SigmaHt[l] + Q  # H Σ Hᵀ + Q
-    K = SigmaHt @ np.linalg.inv(S)  # eq. (15)
-    nu = z - z_hat
-    nu[1] = wrap_angle(float(nu[1]))
-    mu_post = retract(mu, K @ nu) if invariant else mu + K @ nu  # eq. (16)
-    mu_post[2] = wrap_angle(float(mu_post[2]))
+    s = _storage(mu, Sigma, d, invariant)
+    point = np.concatenate([mu[r], mu[l]])
+    obs = np.full(len(OBS_ROW), math.nan)
+    outcome = steps.correct(s, d, l.start, steps.Update(z, Q, math.inf, point), obs)
+    if outcome != Outcome.ACCEPTED:
+        raise ValueError(f"the correction was {Outcome(outcome).label}, not accepted")
+    mu_post, Sigma_post = _arrays(s, d)
+    H_r, H_l = steps.jacobians(s, point)  # eq. (14), in the filter's error
     H = np.zeros((2, d))
     H[:, r], H[:, l] = H_r, H_l
-    KHSigma = K @ SigmaHt.T  # K H Σ, with H Σ = (Σ Hᵀ)ᵀ
+    S = H @ Sigma @ H.T + Q
+    K = Sigma @ H.T @ np.linalg.inv(S)  # eq. (15)
+    z_hat = steps.sensor.h(mu[r], mu[l])
     return UpdateSteps(
         j=j,
-        z=z.copy(),
+        z=z,
         z_hat=z_hat,
-        nu=nu,
+        nu=steps.sensor.innovation(z, z_hat),
         H=H,
         S=S,
         K=K,
-        nis=float(nu @ np.linalg.solve(S, nu)),
+        nis=float(obs[OBS_NIS]),
         mu_prior=mu,
         mu_post=mu_post,
         Sigma_prior=Sigma,
-        Sigma_seed=Sigma - KHSigma,
-        # Joseph's form expanded: (I-KH)Σ(I-KH)ᵀ + KQKᵀ = Σ - KHΣ - (KHΣ)ᵀ + K S Kᵀ
-        Sigma_joseph=Sigma - KHSigma - KHSigma.T + K @ S @ K.T,
+        Sigma_seed=Sigma - K @ H @ Sigma,
+        Sigma_joseph=Sigma_post,
     )
 
 
@@ -135,17 +142,12 @@ def predict_step(
     (mu, Sigma) : new arrays (d,) and (d, d); the heading is wrapped to [-π, π).
     """
     mu = np.array(mu, dtype=float)
-    Sigma = np.array(Sigma, dtype=float)
-    r, m = slice(0, 3), slice(3, None)
-    G = motion_jacobian(mu[r], u)
-    mu[r] = motion(mu[r], u)
-    if invariant:  # Σ (that is P) + A R Aᵀ, A = noise_map at the new state: every row moves
-        A = noise_map(mu)
-        return mu, Sigma + A @ np.asarray(R, dtype=float) @ A.T
-    Sigma[r, r] = G @ Sigma[r, r] @ G.T + np.asarray(R, dtype=float)
-    Sigma[r, m] = G @ Sigma[r, m]
-    Sigma[m, r] = Sigma[r, m].T
-    return mu, Sigma
+    d = len(mu)
+    s = _storage(mu, np.array(Sigma, dtype=float), d, invariant)
+    one = np.zeros(1)
+    batch = steps.Batch(np.array(u, dtype=float).reshape(1, 3), one, one, np.array(R, float), False)
+    steps.predict(s, d, batch, np.zeros((0, 10)))
+    return _arrays(s, d)
 
 
 def new_landmark_step(
@@ -167,15 +169,8 @@ def new_landmark_step(
     (mu, Sigma) : new arrays (d+2,) and (d+2, d+2).
     """
     mu = np.asarray(mu, dtype=float)
-    Sigma = np.asarray(Sigma, dtype=float)
-    d, r = mu.size, slice(0, 3)
-    G_p, G_z = inverse_observation_jacobians(mu[r], z)
-    if invariant:
-        G_p = INVARIANT_NEW_LANDMARK_POSE
-    cross = G_p @ Sigma[r, :]  # (2, d)
-    new = np.zeros((d + 2, d + 2))
-    new[:d, :d] = Sigma
-    new[d:, :d] = cross
-    new[:d, d:] = cross.T
-    new[d:, d:] = G_p @ Sigma[r, r] @ G_p.T + G_z @ np.asarray(Q, dtype=float) @ G_z.T
-    return np.concatenate([mu, inverse_observation(mu[r], z)]), new
+    d = len(mu)
+    s = _storage(mu, np.asarray(Sigma, dtype=float), d + 2, invariant)
+    update = steps.Update(np.asarray(z, dtype=float), np.asarray(Q, dtype=float), math.inf, mu)
+    steps.place_landmark(s, d + 2, d, update, 0.0)
+    return _arrays(s, d + 2)

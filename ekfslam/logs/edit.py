@@ -40,7 +40,12 @@ def truncate(run: RunLog, t_end: float, max_detections: int | None = None) -> Ru
     if max_detections is not None:
         seen &= np.arange(len(seen)) < max_detections
     detections = Detections(
-        t=d.t[seen], tag_id=d.tag_id[seen], range=d.range[seen], bearing=d.bearing[seen]
+        t=d.t[seen],
+        tag_id=d.tag_id[seen],
+        range=d.range[seen],
+        bearing=d.bearing[seen],
+        sigma_range=None if d.sigma_range is None else d.sigma_range[seen],
+        sigma_bearing=None if d.sigma_bearing is None else d.sigma_bearing[seen],
     )
     truth = run.groundtruth
     if truth is not None:

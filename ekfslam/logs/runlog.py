@@ -4,7 +4,8 @@ A run is a folder::
 
     run.json          format version, units, rates, robot, camera mounting, nominal start, tag map
     controls.csv      time + wheel speeds (w1..w4) or body twist (vx, vy, wz); header says which
-    detections.csv    time, tag id, range, bearing (robot frame)
+    detections.csv    time, tag id, range, bearing (robot frame); optionally each sighting's
+                      sigma_range and sigma_bearing (its own observation noise)
     groundtruth.csv   optional: time, x, y, theta
     frames.csv, ...   optional: a run logged as camera frames (see `ekfslam.logs.frames`); such a
                       run may come without detections.csv until ``python -m ekfslam detect`` makes
@@ -57,6 +58,12 @@ RUN_JSON, CONTROLS_CSV = "run.json", "controls.csv"
 DETECTIONS_CSV, GROUNDTRUTH_CSV = "detections.csv", "groundtruth.csv"
 CONTROL_COLUMNS = {"wheels": ("t", "w1", "w2", "w3", "w4"), "twist": ("t", "vx", "vy", "wz")}
 DETECTION_COLUMNS = ("t", "tag_id", "range", "bearing")
+#: Optional last two columns of detections.csv: each sighting's σ_r (m) and σ_φ (rad) of eq. (11).
+SIGMA_COLUMNS = ("sigma_range", "sigma_bearing")
+DETECTION_LAYOUTS = {
+    "detections": DETECTION_COLUMNS,
+    "detections with noise": DETECTION_COLUMNS + SIGMA_COLUMNS,
+}
 # Decimals of every float in a simulated run's CSVs: 1 ns, 1 nm, 1 nrad. Far below any noise we
 # simulate (mm, mrad), far above the 1e-16 that numpy's SIMD code paths change between CPUs.
 SIMULATED_DECIMALS = 9
@@ -97,12 +104,25 @@ class Detections:
 
     Range and bearing are measured from the robot's centre and heading (the camera mounting has
     already been applied).
+
+    sigma_range (M,) m, sigma_bearing (M,) rad : optional, each sighting's own observation noise
+    (σ_r, σ_φ of eq. 11; both or neither): a sensor whose noise depends on the sighting (a range
+    and bearing converted from Cartesian x, y, a stereo range growing with distance) states it
+    here, and a replay uses it instead of `ekfslam.core.noise.NoiseConfig`'s one σ_r and σ_φ
+    (`NoiseConfig.per_sighting`). None: every sighting has the replay's noise.
     """
 
     t: Array
     tag_id: NDArray[np.int64]
     range: Array
     bearing: Array
+    sigma_range: Array | None = None
+    sigma_bearing: Array | None = None
+
+    @property
+    def has_sigmas(self) -> bool:
+        """Whether the sightings carry their own σ_r and σ_φ."""
+        return self.sigma_range is not None
 
 
 @dataclass(frozen=True, eq=False)
@@ -179,8 +199,8 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
     path = folder / DETECTIONS_CSV
     found_in_frames = detections is not None
     if detections is None:
-        _, (t, tag_id, rng, bearing) = read_table(path, {"detections": DETECTION_COLUMNS})
-        detections = Detections(t=t, tag_id=tag_id, range=rng, bearing=bearing)
+        _, (t, tag_id, rng, bearing, *sigmas) = read_table(path, DETECTION_LAYOUTS)
+        detections = Detections(t, tag_id, rng, bearing, *sigmas)
     _check_detections(detections, path, meta.tag_map)
 
     groundtruth = None
@@ -433,6 +453,13 @@ def _check_detections(det: Detections, path: Path, tag_map: dict[int, Array] | N
         check_shape(path, f"detections.{name}", getattr(det, name), (m,))
     if not np.issubdtype(np.asarray(det.tag_id).dtype, np.integer):
         raise InputError(path, None, f"detections.tag_id must be integers, not {det.tag_id.dtype}")
+    if (det.sigma_range is None) != (det.sigma_bearing is None):
+        raise InputError(path, None, "give both sigma_range and sigma_bearing, or neither")
+    sigmas = {}
+    if det.has_sigmas:
+        for name in SIGMA_COLUMNS:
+            check_shape(path, f"detections.{name}", getattr(det, name), (m,))
+            sigmas[name] = getattr(det, name)
     extra = [
         (det.range < 0, lambda i: f"negative range {_num(det.range[i])} m (a range is >= 0)"),
         (
@@ -442,6 +469,16 @@ def _check_detections(det: Detections, path: Path, tag_map: dict[int, Array] | N
             ),
         ),
     ]
+    for name, values in sigmas.items():  # a NaN is the finite check's, below
+        extra.append(
+            (
+                values <= 0,
+                lambda i, n=name, v=values: (
+                    f"{n} {_num(v[i])} is not positive (a sighting's noise is > 0; leave the "
+                    "columns out to use the replay's)"
+                ),
+            )
+        )
     if tag_map is not None:
         known = np.array(sorted(tag_map), dtype=np.int64)
         shown = ", ".join(map(str, known[:20])) + (", ..." if len(known) > 20 else "") or "none"
@@ -451,7 +488,7 @@ def _check_detections(det: Detections, path: Path, tag_map: dict[int, Array] | N
                 lambda i: f"tag {int(det.tag_id[i])} is not in run.json's tag_map (known: {shown})",
             )
         )
-    columns = {"t": det.t, "range": det.range, "bearing": det.bearing}
+    columns = {"t": det.t, "range": det.range, "bearing": det.bearing} | sigmas
     # times: the clock check (`check_time_spans`) names both files of a run on two clocks
     extra += _bounded(columns, {"range": (MAX_POSITION, "m", "a range")})
     _check_rows(path, det.t, columns, extra)
@@ -523,8 +560,7 @@ def write_run(
         CONTROLS_CSV: csv_text(CONTROL_COLUMNS[c.kind], [c.t, *np.asarray(c.values).T], decimals),
     }
     if with_detections:
-        detections = [d.t, d.tag_id, d.range, d.bearing]
-        texts[DETECTIONS_CSV] = csv_text(DETECTION_COLUMNS, detections, decimals)
+        texts[DETECTIONS_CSV] = _detections_text(d, decimals)
     if g is not None:
         texts[GROUNDTRUTH_CSV] = csv_text(
             GROUNDTRUTH_COLUMNS, [g.t, *np.asarray(g.pose).T], decimals
@@ -560,6 +596,16 @@ def write_detections(
     """Write detections.csv alone (validated against `tag_map`), e.g. for a run of camera frames."""
     path = Path(path)
     _check_detections(detections, path, tag_map)
-    d = detections
-    text = csv_text(DETECTION_COLUMNS, [d.t, d.tag_id, d.range, d.bearing])
-    return atomic_write_all({path: _text_writer(text)})[0]
+    return atomic_write_all({path: _text_writer(_detections_text(detections))})[0]
+
+
+def _detections_text(d: Detections, decimals: int | None = None) -> str:
+    """detections.csv's text: four columns, six when the sightings carry their own σ."""
+    columns = [d.t, d.tag_id, d.range, d.bearing]
+    if d.has_sigmas:
+        columns += [d.sigma_range, d.sigma_bearing]
+    return csv_text(
+        DETECTION_LAYOUTS["detections with noise" if d.has_sigmas else "detections"],
+        columns,
+        decimals,
+    )

@@ -1,89 +1,85 @@
-"""Write the student notebooks from the solution notebooks: ``python -m ekfslam.teaching.make_lab``.
+"""Write the student notebooks from the solution notebooks with nbgrader's assign step:
+``python -m ekfslam.teaching.make_lab``.
 
 The committed source of a notebook with exercises is its solved version,
-``notebooks/solutions/NN-title.ipynb``. The student version ``notebooks/NN-title.ipynb`` is
-generated from it and committed too (a student clones the repository and opens it), and a test
-holds it to the source (``--check`` does the same from the shell). The solution is the source
-because it is the one that runs as it is: an instructor edits and executes one file, and the
-markers are plain comments, so there is no third copy to keep in step.
+``notebooks/solutions/NN-title.ipynb``: an nbgrader source notebook. Its exercise cells are
+nbgrader solution cells, whose ``# BEGIN SOLUTION`` ... ``# END SOLUTION`` region nbgrader's
+``generate_assignment`` replaces by `STUB`; a value typed into a cell (checked by `check_answer`)
+or a prediction is a solution cell too, whose stub line (``x = None``) stands before its region.
+Each exercise's check cell is an nbgrader grade cell (locked, one point, its grade id the
+exercise's number: ``1a`` ... ``9``, ``predict-02`` ...) whose ``### BEGIN HIDDEN TESTS`` part
+calls the grader (`ekfslam.analysis.lab_key.grade`) and is removed from the students' copy.
 
-In a code cell of the source, the lines from ``# BEGIN SOLUTION exercise N`` to ``# END SOLUTION``
-become ``raise NotImplementedError("exercise N")`` at the marker's indentation. A block that
-opens with ``# BEGIN SOLUTION answer`` (a value typed into a cell, checked by `check_answer`)
-becomes instead its ``# STUB: ...`` lines, uncommented (``# STUB: x = None`` -> ``x = None``).
-The only other change is the path to the seed's runs: the source is one folder deeper.
+The student version ``notebooks/NN-title.ipynb`` is what nbgrader generates from it, committed
+too (a student clones the repository and opens it), and a test holds it to the source
+(``--check`` does the same from the shell). `generate_course` runs the same step for
+``python -m ekfslam lab release``, with nbgrader's gradebook, which grading needs.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import re
+import logging
+import shutil
 import sys
+import tempfile
 from pathlib import Path
+
+from nbgrader.converters import GenerateAssignment, NbGraderException
+from nbgrader.coursedir import CourseDirectory
+from traitlets.config import Config
 
 from ekfslam.errors import InputError
 
 NOTEBOOKS = Path(__file__).resolve().parents[2] / "notebooks"
 SOLUTIONS = NOTEBOOKS / "solutions"
-BEGIN = re.compile(r"^(\s*)# BEGIN SOLUTION (?:exercise (\w+)|(answer))\s*$")
-STUB = re.compile(r"^(\s*)# STUB: (.*)$")
-END = re.compile(r"^\s*# END SOLUTION\s*$")
-#: (in the source, in the student notebook): notebooks/solutions/ is one folder below notebooks/
-RUNS_LINE = (
-    'RUNS = Path("..") / ".." / "data" / "runs"  # solutions/ is one folder below notebooks/',
-    'RUNS = Path("..") / "data" / "runs"  # Jupyter runs a notebook in its own folder',
-)
+#: nbgrader's name of the assignment: the lab, notebooks 02-07
+ASSIGNMENT = "lab"
+#: What a solution region becomes in the students' copy: a function that is still the stub
+#: returns None (the check says "not done yet"); a typed-in value keeps the None before it.
+STUB = "# YOUR CODE HERE"
 
 
-def strip_solutions(source: str, where: str = "cell") -> str:
-    """A code cell's source with every marked solution block replaced by its stub."""
-    out: list[str] = []
-    block: str | None = None  # the exercise whose block we are in
-    stubs: list[str] = []
-    for number, line in enumerate(source.split("\n"), start=1):
-        begin = BEGIN.match(line)
-        if begin and block is not None:
-            raise InputError(where, number, f"BEGIN SOLUTION inside the block of {block}")
-        if begin:
-            indent, exercise, answer = begin.groups()
-            block, stubs = (exercise and f"exercise {exercise}") or answer, []
-            if exercise:
-                out.append(f'{indent}raise NotImplementedError("exercise {exercise}")')
-        elif END.match(line):
-            if block is None:
-                raise InputError(where, number, "END SOLUTION without a BEGIN")
-            if block == "answer" and not stubs:
-                raise InputError(where, number, "an answer block needs its # STUB: lines")
-            out += stubs
-            block = None
-        elif block is None:
-            out.append(line)
-        elif stub := STUB.match(line):
-            stubs.append(stub.group(1) + stub.group(2))
-    if block is not None:
-        raise InputError(where, None, f"{block} has no END SOLUTION")
-    return "\n".join(out).replace(*RUNS_LINE)
+def nbgrader_config(course: Path, *, database: bool) -> Config:
+    """nbgrader's settings for the lab in the course folder `course`."""
+    config = Config()
+    config.CourseDirectory.root = str(course)
+    config.CourseDirectory.assignment_id = ASSIGNMENT
+    config.CourseDirectory.db_url = f"sqlite:///{course / 'gradebook.db'}"
+    config.ClearSolutions.code_stub = {"python": STUB}
+    config.GenerateAssignment.no_database = not database
+    config.SaveCells.enabled = database
+    return config
 
 
-def student_notebook(solution: Path) -> str:
-    """The student version of one solution notebook, as the text of an .ipynb file."""
+def generate_course(course: Path, sources: list[Path], *, database: bool = True) -> Path:
+    """nbgrader's ``generate_assignment`` on the solution notebooks `sources` in the course
+    folder `course` (its ``source/lab/``, its gradebook); returns the students' copy it writes,
+    ``course/release/lab/``."""
+    source = course / "source" / ASSIGNMENT
+    source.mkdir(parents=True, exist_ok=True)
+    for path in sources:
+        shutil.copyfile(path, source / path.name)
+    config = nbgrader_config(course, database=database)
+    coursedir = CourseDirectory(config=config)
+    converter = GenerateAssignment(coursedir=coursedir, config=config)
+    converter.log.setLevel(logging.ERROR)
+    converter.force = True
     try:
-        nb = json.loads(solution.read_text(encoding="utf-8"))
-        cells = nb["cells"]
-    except (OSError, ValueError, KeyError, TypeError) as error:
-        raise InputError(solution.name, None, f"not a readable notebook ({error})") from None
-    for i, cell in enumerate(cells):
-        if cell.get("cell_type") == "code":
-            text = "".join(cell["source"]) if isinstance(cell["source"], list) else cell["source"]
-            stub = strip_solutions(text, f"{solution.name} cell {i}")
-            cell["source"] = stub.splitlines(keepends=True)  # as nbformat stores it
-    return json.dumps(nb, indent=1, ensure_ascii=False, sort_keys=True) + "\n"
+        converter.start()
+    except NbGraderException as error:
+        raise InputError(
+            str(source), None, f"nbgrader could not generate the lab: {error}"
+        ) from None
+    return course / "release" / ASSIGNMENT
 
 
 def generated() -> dict[Path, str]:
     """Every student notebook that the solution notebooks make: path -> its text."""
-    return {NOTEBOOKS / s.name: student_notebook(s) for s in sorted(SOLUTIONS.glob("*.ipynb"))}
+    sources = sorted(SOLUTIONS.glob("*.ipynb"))
+    with tempfile.TemporaryDirectory() as tmp:
+        release = generate_course(Path(tmp), sources, database=False)
+        return {NOTEBOOKS / p.name: (release / p.name).read_text("utf-8") for p in sources}
 
 
 def stale() -> list[str]:

@@ -26,15 +26,7 @@ from numpy.typing import ArrayLike
 from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.history import Outcome
 from ekfslam.core.invariant import INVARIANT_NEW_LANDMARK_POSE, error_map, noise_map, retract
-from ekfslam.core.models import (
-    MIN_RANGE_SQUARED,
-    inverse_observation,
-    inverse_observation_jacobians,
-    motion,
-    motion_jacobian,
-    observation,
-    observation_jacobians,
-)
+from ekfslam.core.models import MIN_RANGE_SQUARED, ODOMETRY, RANGE_BEARING
 from ekfslam.geometry import wrap_angle
 from ekfslam.teaching.derivations import landmark_lift_matrix_numeric, lift_matrix_numeric
 
@@ -62,10 +54,28 @@ class LiteralEKFSLAM:
         if self._invariant:  # Σ0 is given Cartesian: the invariant one is T⁻¹ Σ0 T⁻ᵀ
             T_inv = np.linalg.inv(error_map(self.mu))
             self.Sigma = T_inv @ self.Sigma @ T_inv.T
-        self._prior = self.mu[:2].copy()  # FEJ: the predicted position at the current step
+        self.motion = self.config.motion or ODOMETRY  # the models, as the filter takes them
+        self.sensor = self.config.sensor or RANGE_BEARING
+        self._prior = self.mu[:3].copy()  # FEJ: the pose predicted for the current step
         self._first: list[np.ndarray] = []  # FEJ: each landmark's first estimate
         self._rejected: list[list[np.ndarray]] = []  # per slot: rejected sightings' positions
         self._counts = dict.fromkeys((f.name for f in fields(FilterCounts)), 0)
+
+    @classmethod
+    def from_state(
+        cls, mu: ArrayLike, Sigma: ArrayLike, ids: list[int], config: FilterConfig | None = None
+    ) -> LiteralEKFSLAM:
+        """The reference holding a given state: mean (d,), covariance (d, d) (of ξ for the
+        invariant filter) and the landmarks' ids in slot order, each seen once, its first
+        estimate its mean. Growing one landmark at a time is itself O(n³) here."""
+        mu = np.array(mu, dtype=float)
+        lit = cls(mu[:3], None, config)
+        lit.mu, lit.Sigma = mu, np.array(Sigma, dtype=float)
+        lit.slot = {i: j for j, i in enumerate(ids)}
+        lit._sightings = [1] * len(ids)
+        lit._first = [mu[3 + 2 * j : 5 + 2 * j].copy() for j in range(len(ids))]
+        lit._rejected = [[] for _ in ids]
+        return lit
 
     @property
     def n_landmarks(self) -> int:
@@ -92,12 +102,12 @@ class LiteralEKFSLAM:
         F_x = lift_matrix_numeric(n)  # 3 x (2n+3)
         I = np.eye(3 + 2 * n)
         pose = self.mu[:3]
-        predicted = motion(pose, u)
-        g = motion_jacobian(pose, u)
+        predicted = self.motion.f(pose, u)
+        g = self.motion.F_x(pose, u)
         if self._fej:  # eq. (7) at the predicted positions p̂(k+1|k) and p̂(k|k-1)
             g[0, 2] = -(predicted[1] - self._prior[1])
             g[1, 2] = predicted[0] - self._prior[0]
-        self._prior = predicted[:2].copy()
+        self._prior = predicted.copy()
         G = I + F_x.T @ (g - np.eye(3)) @ F_x
         noise = F_x.T  # how the pose noise enters the state's error
         step = predicted - pose
@@ -130,9 +140,9 @@ class LiteralEKFSLAM:
     def _augment(self, landmark_id: int, z: np.ndarray, Q: np.ndarray) -> int:
         n = self.n_landmarks
         pose = self.mu[:3]
-        m = inverse_observation(pose, z)
+        m = self.sensor.g(pose, z)
         if self.config.init == "inverse":
-            G_p, G_z = inverse_observation_jacobians(pose, z)
+            G_p, G_z = self.sensor.G(pose, z)
             if self._invariant:  # ξ_m = ξ_p + G_z δz
                 G_p = INVARIANT_NEW_LANDMARK_POSE
             G_x = G_p @ lift_matrix_numeric(n)  # 2 x (2n+3): the new landmark against the state
@@ -154,10 +164,10 @@ class LiteralEKFSLAM:
         """Slot j from this sighting alone: eq. (12) again, its old rows and columns replaced."""
         n = self.n_landmarks
         pose = self.mu[:3]
-        m = inverse_observation(pose, z)
+        m = self.sensor.g(pose, z)
         rows = slice(3 + 2 * j, 5 + 2 * j)
         if self.config.init == "inverse":
-            G_p, G_z = inverse_observation_jacobians(pose, z)
+            G_p, G_z = self.sensor.G(pose, z)
             if self._invariant:
                 G_p = INVARIANT_NEW_LANDMARK_POSE
             G_x = G_p @ lift_matrix_numeric(n)
@@ -192,21 +202,19 @@ class LiteralEKFSLAM:
         pose = self.mu[:3]
         landmark = self.mu[3 + 2 * j : 5 + 2 * j]
         at_pose, at_landmark = pose, landmark
-        if self._fej:  # eq. (14) at the predicted position and the landmark's first estimate
-            at_pose = np.array([self._prior[0], self._prior[1], pose[2]])
-            at_landmark = self._first[j]
+        if self._fej:  # eq. (14) at the predicted pose and the landmark's first estimate
+            at_pose, at_landmark = self._prior, self._first[j]
         for p, m in ((pose, landmark), (at_pose, at_landmark)):
             d = m - p[:2]
             if not float(d @ d) > MIN_RANGE_SQUARED:
                 return self._count(Outcome.REFUSED)
-        z_hat = observation(pose, landmark)
-        H_p, H_l = observation_jacobians(at_pose, at_landmark)
+        z_hat = self.sensor.h(pose, landmark)
+        H_p, H_l = self.sensor.H(at_pose, at_landmark)
         H = np.hstack([H_p, H_l]) @ landmark_lift_matrix_numeric(n, j)  # eq. (14)
         if self._invariant:  # the Jacobian in ξ: H T(μ̂)
             H = H @ error_map(self.mu)
         S = H @ self.Sigma @ H.T + Q
-        nu = z - z_hat
-        nu[1] = wrap_angle(float(nu[1]))
+        nu = self.sensor.innovation(z, z_hat)
         if not np.all(np.linalg.eigvalsh(S) > 0):
             return self._count(Outcome.REFUSED)
         nis = float(nu @ np.linalg.solve(S, nu))
@@ -214,7 +222,7 @@ class LiteralEKFSLAM:
             k = self.config.reinit_after
             if k is not None:  # do the last k sightings, all rejected, agree on a new place?
                 k = max(k, self._sightings[j])  # as many as it has accepted, if more
-                self._rejected[j] = ([*self._rejected[j], inverse_observation(pose, z)])[-k:]
+                self._rejected[j] = ([*self._rejected[j], self.sensor.g(pose, z)])[-k:]
                 seen = np.array(self._rejected[j])
                 centre = seen.mean(axis=0)
                 others = [m for i, m in enumerate(self.mu[3:].reshape(-1, 2)) if i != j]
@@ -256,13 +264,12 @@ class LiteralEKFSLAM:
             x = retract(self.mu, delta) if self._invariant else self.mu + delta
             x[2] = wrap_angle(float(x[2]))
             landmark = x[3 + 2 * j : 5 + 2 * j]
-            H_p, H_l = observation_jacobians(x[:3], landmark)
+            H_p, H_l = self.sensor.H(x[:3], landmark)
             H = np.hstack([H_p, H_l]) @ landmark_lift_matrix_numeric(n, j)
             if self._invariant:
                 H = H @ error_map(x)
             S = H @ self.Sigma @ H.T + Q
-            residual = z - observation(x[:3], landmark)
-            residual[1] = wrap_angle(float(residual[1]))
+            residual = self.sensor.innovation(z, self.sensor.h(x[:3], landmark))
             cost = 0.5 * residual @ np.linalg.solve(Q, residual) + prior
             if i >= 2:
                 if not cost < best:

@@ -1,17 +1,35 @@
 """The lab's verdicts: how a check runs a student's function and says what is wrong.
 
-A check raises `Wrong` with a message that names where the answer differs (an entry, a block, a
-missing wrap) and never the right value; `attempt` turns that, a stub's NotImplementedError and a
-crash into one printed line.
+An exercise (`Exercise`) is its cases (inputs and the values a right answer gives, made from a
+random generator: the notebook's check draws them with a fixed seed, the grader with one drawn at
+release time, so the graded cases are ones the student never saw) and a judge that runs the
+student's function on one case and raises `Wrong` with a message that names where the answer
+differs (an entry, a block, a missing wrap), never the right value. `run_exercise` runs every
+case and turns the outcome into one `Verdict`: right on every case, not done yet (a stub), wrong
+(the first case's message; the score is the share of cases right), crashed, a constant answer
+(0), or a call into the package's own implementation of the exercise (0: the tripwire of
+`ekfslam.teaching.tripwire`). `attempt` prints the notebook's line for it.
+
+Every call of the student's function gets copies of its inputs; one it changed in place is named
+("your function changed the Σ it was given"). An answer of lower precision (float32) is compared
+within its own precision: the tolerances scale with its dtype's machine epsilon.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import contextlib
+import copy
+import io
+import warnings
+from collections.abc import Callable, Iterable, Iterator
+from contextvars import ContextVar
+from dataclasses import dataclass, field
 
 import numpy as np
 import sympy as sp
 from numpy.typing import ArrayLike, NDArray
+
+from ekfslam.teaching import tripwire
 
 Array = NDArray[np.float64]
 
@@ -19,45 +37,273 @@ WHEELS = ("ω1 (front-left)", "ω2 (front-right)", "ω3 (rear-left)", "ω4 (rear
 TWIST = ("vx", "vy", "ωz")
 POSE_NAMES = ("x", "y", "θ")
 CONTROL_NAMES = ("Δux", "Δuy", "Δθ")
-RNG_SEED = 15  # random cases are the same on every run: a verdict does not flicker
+RNG_SEED = 15  # the notebook's cases are the same on every run: a verdict does not flicker
+TOLERANCE = 1e-9  # relative and absolute, for a float64 answer
+ULPS = 1000  # a lower-precision answer may be off by this many of its own epsilons
+
+#: the machine epsilon of the least precise answer seen in the current exercise
+_EPSILON: ContextVar[float] = ContextVar("epsilon", default=float(np.finfo(np.float64).eps))
 
 
 class Wrong(Exception):
-    """An answer that disagrees with the package's; the message says where, not what."""
+    """An answer that disagrees with the right one; the message says where, not what."""
 
 
-def attempt(exercise: str, check: Callable[[], None]) -> bool:
-    """Run one check and print its verdict: done, not done yet, wrong (and where), or crashed."""
+class NotDone(Exception):
+    """The student's function is still the stub."""
+
+
+class Tripped(Wrong):
+    """The student's function called the package's own implementation of the exercise."""
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """One exercise's outcome: `score` is the share of cases right (0 after the tripwire or a
+    constant answer), `line` what the check prints."""
+
+    exercise: str
+    score: float
+    passed: int
+    total: int
+    line: str
+    done: bool = True
+
+    @property
+    def right(self) -> bool:
+        return self.done and self.passed == self.total and self.score == 1.0
+
+
+@dataclass(frozen=True)
+class Exercise:
+    """An exercise of the lab: `make_cases(rng)` gives its cases (dicts of inputs and right
+    values), `judge(call, case)` runs the student's function through `call` on one case and
+    raises `Wrong` where it differs. `allowed()` names what of the package the function may call
+    (functions, classes, modules); `numeric` answers must vary with their inputs;
+    `differentiates`: sympy must derive the answer (`.jacobian`, `.diff`); a function that
+    `returns` nothing (exercise 8) is judged by what it did; `session(fn)` wraps every case
+    (exercise 6b watches the student's `joseph`) and may raise `Wrong` when it ends."""
+
+    number: str
+    function: str
+    make_cases: Callable[[np.random.Generator], list[dict]]
+    judge: Callable[[Callable[..., object], dict], None]
+    allowed: Callable[[], Iterable[object]] = tuple
+    numeric: bool = True
+    differentiates: bool = False
+    returns: bool = True
+    session: Callable[[Callable], contextlib.AbstractContextManager] | None = None
+
+
+@dataclass(frozen=True)
+class Shared:
+    """An input the student's function gets as it is, not a copy (exercise 8's filter, which
+    the function is meant to drive)."""
+
+    value: object
+
+
+@dataclass
+class _Calls:
+    """The student's function as the judge calls it: copies in, tripwire on, results kept."""
+
+    fn: Callable
+    allowed: frozenset
+    returns: bool = True
+    results: list = field(default_factory=list)
+    differentiated: bool = False
+
+    def __call__(self, *named: tuple[str, object]) -> object:
+        originals = [value for _, value in named]
+        given = [v.value if isinstance(v, Shared) else copy.deepcopy(v) for v in originals]
+        with warnings.catch_warnings(), contextlib.redirect_stderr(io.StringIO()):
+            warnings.simplefilter("ignore")  # a warning on stderr would cost the grade
+            result, watch = tripwire.call_watched(self.fn, tuple(given), self.allowed)
+        if watch.forbidden:
+            raise Tripped(
+                f"you called the package's {watch.forbidden[0]}: write it yourself."
+            ) from None
+        self.differentiated |= watch.differentiated
+        for (name, original), after in zip(named, given, strict=True):
+            if not isinstance(original, Shared) and not _same(original, after):
+                raise Wrong(
+                    f"your function changed the {name} it was given: compute a new array "
+                    "(np.array(x) copies one) and leave its inputs as they were."
+                )
+        if result is None and self.returns:
+            raise NotDone
+        self.results.append(result)
+        return result
+
+
+def _same(a: object, b: object) -> bool:
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return np.shape(a) == np.shape(b) and bool(np.array_equal(a, b, equal_nan=True))
+    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if hasattr(a, "__dataclass_fields__") and type(a) is type(b):
+        return all(_same(getattr(a, f), getattr(b, f)) for f in a.__dataclass_fields__)
     try:
-        check()
-    except NotImplementedError:
-        print(
-            f"Exercise {exercise}: not done yet. Replace the `raise NotImplementedError` with your "
-            "code and run the cell again; until then the cells below use the package's version."
+        return bool(a == b)
+    except (TypeError, ValueError):
+        return True
+
+
+def _constant(results: list) -> bool:
+    """True when every result is the same numbers (a function that ignores its inputs)."""
+    try:
+        first = [np.asarray(r, dtype=float) for r in _flat(results[0])]
+        return all(
+            len(first) == len(_flat(r))
+            and all(
+                a.shape == np.shape(b) and np.array_equal(a, np.asarray(b, dtype=float))
+                for a, b in zip(first, _flat(r), strict=True)
+            )
+            for r in results[1:]
         )
+    except (TypeError, ValueError):
         return False
-    except Wrong as wrong:
-        print(f"Exercise {exercise}: not yet: {wrong} The cells below use the package's version.")
+
+
+def _zeros(result: object) -> bool:
+    try:
+        return all(not np.any(np.asarray(r, dtype=float)) for r in _flat(result))
+    except (TypeError, ValueError):
         return False
-    except Exception as error:  # the student's code crashed: say how, without a traceback
-        print(f"Exercise {exercise}: your function raised {type(error).__name__}: {error}")
-        return False
-    print(f"Exercise {exercise}: right on every test case. The cells below use your function.")
-    return True
+
+
+def _flat(result: object) -> list:
+    return list(result) if isinstance(result, tuple) else [result]
+
+
+@contextlib.contextmanager
+def _precision() -> Iterator[None]:
+    token = _EPSILON.set(float(np.finfo(np.float64).eps))
+    try:
+        yield
+    finally:
+        _EPSILON.reset(token)
+
+
+def run_exercise(exercise: Exercise, fn: Callable, cases: list[dict]) -> Verdict:
+    """Run `fn` on every case of `exercise` and judge it (see the module)."""
+    n = exercise.number
+    calls = _Calls(fn, tripwire.code_objects(exercise.allowed()), exercise.returns)
+    passed, wrong, crashed = 0, [], []
+    session = exercise.session(fn) if exercise.session else contextlib.nullcontext()
+    with _precision():
+        try:
+            with session:
+                for case in cases:
+                    try:
+                        exercise.judge(calls, case)
+                        passed += 1
+                    except Tripped:
+                        raise
+                    except (Wrong, NotDone) as outcome:
+                        if isinstance(outcome, NotDone) and not any(
+                            r is not None for r in calls.results
+                        ):
+                            raise
+                        wrong.append(str(outcome) or "your function returned None.")
+                    except NotImplementedError:
+                        raise NotDone from None
+                    except Exception as error:
+                        crashed.append(f"{type(error).__name__}: {error}")
+        except NotDone:
+            return Verdict(n, 0.0, 0, len(cases), _not_done(n), done=False)
+        except Tripped as tripped:
+            return Verdict(n, 0.0, 0, len(cases), f"Exercise {n}: {tripped}")
+        except Wrong as wrong_whole:  # the session's own verdict (exercise 6b's joseph)
+            return Verdict(n, 0.0, passed, len(cases), f"Exercise {n}: not yet: {wrong_whole}")
+    total = len(cases)
+    if exercise.differentiates and passed and not calls.differentiated:
+        return Verdict(
+            n,
+            0.0,
+            0,
+            total,
+            f"Exercise {n}: not yet: your matrices are typed in, not derived: let sympy "
+            "differentiate the model (its .jacobian([...]) or sp.diff).",
+        )
+    if exercise.numeric and len(calls.results) > 1 and _constant(calls.results):
+        zeros = _zeros(calls.results[0])
+        what = "zeros" if zeros else "the same answer"
+        return Verdict(
+            n,
+            0.0,
+            0,
+            total,
+            f"Exercise {n}: not yet: your function returns {what} whatever its inputs: compute "
+            "the answer from them.",
+        )
+    if crashed and not passed and not wrong:
+        return Verdict(n, 0.0, 0, total, f"Exercise {n}: your function raised {crashed[0]}")
+    if wrong or crashed:
+        message = wrong[0] if wrong else f"your function raised {crashed[0]}"
+        return Verdict(n, passed / total, passed, total, f"Exercise {n}: not yet: {message}")
+    return Verdict(n, 1.0, total, total, f"Exercise {n}: right on every test case.")
+
+
+def _not_done(n: str) -> str:
+    return (
+        f"Exercise {n}: not done yet. Write your code where the stub is and run the cell "
+        "again; until then the cells below use the package's version."
+    )
+
+
+def attempt(exercise: Exercise, fn: Callable, cases: list[dict] | None = None) -> bool:
+    """The notebook's check: run the exercise's cases (its fixed ones unless given) and print
+    one line; True when every case is right, so the next cells can use the student's function."""
+    if cases is None:
+        cases = exercise.make_cases(np.random.default_rng(RNG_SEED))
+    verdict = run_exercise(exercise, fn, cases)
+    if verdict.right:
+        print(f"{verdict.line} The cells below use your function.")
+    elif not verdict.done:
+        print(verdict.line)
+    elif verdict.line.split(": ", 1)[1].startswith("your function raised"):
+        print(verdict.line)
+    else:
+        print(f"{verdict.line} The cells below use the package's version.")
+    return verdict.right
+
+
+def _note_precision(dtype: np.dtype) -> None:
+    if np.issubdtype(dtype, np.floating) or np.issubdtype(dtype, np.complexfloating):
+        eps = float(np.finfo(dtype).eps)
+        if eps > _EPSILON.get():
+            _EPSILON.set(eps)
 
 
 def as_array(value: object, shape: tuple[int, ...], what: str) -> Array:
+    """`value` (an array of any float dtype, a list, a tuple, a sympy matrix) as a float64 array
+    of `shape`; a column or row where a vector belongs is taken as the vector."""
     try:
-        got = np.asarray(value, dtype=float)
+        raw = np.asarray(value)
+        if raw.dtype == object:
+            raw = np.asarray(np.asarray(value, dtype=object).tolist(), dtype=float)
+        _note_precision(raw.dtype)
+        got = np.asarray(raw, dtype=float)
     except (TypeError, ValueError):
         raise Wrong(f"{what} is {type(value).__name__}, not an array of numbers.") from None
+    if got.shape != shape and got.size == int(np.prod(shape)) and len(shape) == 1:
+        if got.squeeze().shape == shape:
+            got = got.reshape(shape)
     if got.shape != shape:
         raise Wrong(f"{what} has shape {got.shape}; it should have shape {shape}.")
     return got
 
 
-def close(a: ArrayLike, b: ArrayLike, atol: float = 1e-9) -> bool:
-    return bool(np.allclose(a, b, rtol=1e-9, atol=atol))
+def close(a: ArrayLike, b: ArrayLike, atol: float = TOLERANCE) -> bool:
+    """a and b agree to 1e-9 (relative and absolute), or within the precision of the least
+    precise answer of this exercise (float32: ULPS of its epsilon, relative to b's size)."""
+    eps = _EPSILON.get()
+    if eps <= float(np.finfo(np.float64).eps):
+        return bool(np.allclose(a, b, rtol=TOLERANCE, atol=atol))
+    loose = ULPS * eps
+    scale = float(np.max(np.abs(b))) if np.size(b) else 0.0
+    return bool(np.allclose(a, b, rtol=max(TOLERANCE, loose), atol=max(atol, loose * scale)))
 
 
 def entry_verdict(got: Array, want: Array, name: str, rows: tuple, cols: tuple) -> None:

@@ -28,6 +28,7 @@ from pathlib import Path
 from matplotlib.figure import Figure
 
 from ekfslam.analysis.evaluation import RunSummary, replay_and_summarize
+from ekfslam.analysis.noise_fit import NoiseFit, fit_noise
 from ekfslam.core.filter.config import CHI2_2DOF_99, FilterConfig, chi2_2dof_quantile
 from ekfslam.core.noise import NoiseConfig, default_noise
 from ekfslam.errors import InputError
@@ -102,7 +103,8 @@ class TunerSettings:
 
     run: str
     noise: NoiseConfig = field(default_factory=NoiseConfig)
-    config: FilterConfig = field(default_factory=FilterConfig)
+    # compiled: a slider's move replays the run, and the panel answers within tens of ms
+    config: FilterConfig = field(default_factory=lambda: FilterConfig(backend="numba"))
 
 
 def apply_changes(settings: TunerSettings, changes: Mapping[str, object]) -> TunerSettings:
@@ -224,6 +226,7 @@ class Tuner:
         self.compute = compute
         self.state: TunerState | None = None
         self.last_error: BaseException | None = None
+        self.last_fit: NoiseFit | None = None  # `fit`'s last result
         self._renders = self._changes = 0
         self._coalescer = Coalescer(self._render, schedule)
 
@@ -263,6 +266,15 @@ class Tuner:
         self._coalescer.cancel()
         self._render_now(self.settings)
         return self.state
+
+    def fit(self) -> NoiseFit:
+        """Fit R and Q to the current run's innovations (`ekfslam.analysis.noise_fit`, no ground
+        truth), starting from the current setting, and re-run with them now; the fit is also
+        kept in `last_fit`. A MRCLAM robot takes 10-60 s, a seed run a few."""
+        found = fit_noise(self.load(self.settings.run), self.settings.noise, self.settings.config)
+        self.last_fit = found
+        self.apply(**{name: getattr(found.noise, name) for name in NOISE_FIELDS})
+        return found
 
     def _set(self, changes: Mapping[str, object]) -> None:
         self._changes += 1

@@ -258,6 +258,7 @@ def status_text(summary: RunSummary, seed: Row | None = None) -> str:
         f"updates accepted {summary.accepted}, rejected {summary.rejected}, "
         f"initialised {summary.initialised}, refused {summary.refused}"
         + (f", singular S {summary.singular}" if summary.singular else "")
+        + ("" if summary.diagnosis is None else f"; diagnosis: {summary.diagnosis.verdict}")
     )
     if summary.ate_note is None:
         return "\n".join([*lines, counts])

@@ -111,6 +111,11 @@ class TuningPanel:
             style=wide,
         )
         self.reset = w.Button(description="reset R and Q", icon="undo")
+        self.fit = w.Button(
+            description="fit R and Q",
+            icon="magic",
+            tooltip="maximum likelihood of the innovations: no ground truth (10-60 s on MRCLAM)",
+        )
         self.status, self.errors = w.HTML(), w.Output()
         for name, widget in (
             *self.sliders.items(),
@@ -120,13 +125,14 @@ class TuningPanel:
         ):
             widget.observe(partial(self._changed, name), names="value")
         self.reset.on_click(self._reset)
+        self.fit.on_click(self._fit)
         canvas = tuner.figure.canvas
         if isinstance(canvas, w.DOMWidget):  # ipympl: the figure is itself a widget
             canvas.header_visible = False
             canvas.toolbar_position = "right"
         else:  # any other backend (tests): the controls still work, without a picture
             canvas = w.HTML("<i>(the figure needs <code>%matplotlib widget</code>)</i>")
-        pickers = w.VBox([self.run, self.init, self.gate, self.reset])
+        pickers = w.VBox([self.run, self.init, self.gate, self.reset, self.fit])
         controls = w.HBox([w.VBox(list(self.sliders.values())), pickers])
         self.widget = w.VBox([controls, canvas, self.status, self.errors])
         if tuner.state is not None:
@@ -192,6 +198,18 @@ class TuningPanel:
         self._show_values(values)
         self.tuner.set(**values)
 
+    def _fit(self, _button: object) -> None:
+        self.status.value = (
+            f'<pre style="{TABLE_STYLE}">fitting R and Q to the innovations...</pre>'
+        )
+        try:
+            self.tuner.fit()
+        except Exception as exc:
+            self._failed(exc)
+            return
+        self._follow_noise()
+        self._status.flush()
+
     def _show_values(self, values: Mapping[str, object]) -> None:
         self._quiet = True  # the widgets follow; their observers must not re-run the replay
         try:
@@ -220,7 +238,8 @@ class TuningPanel:
         self._table = html.escape(status_text(state.summary, seed))
         self.status.value = (
             f'<pre class="ekfslam-table1" style="{TABLE_STYLE}">{self._table}</pre>'
-            '<div class="ekfslam-timing" style="color:#666">'
+            + diagnosis_html(state)
+            + '<div class="ekfslam-timing" style="color:#666">'
             f"replay {state.replay_seconds * 1e3:.0f} ms, "
             f"with the figure update {state.update_seconds * 1e3:.0f} ms; "
             f"{self.tuner.renders} replays for {self.tuner.changes} changes so far</div>"
@@ -234,6 +253,22 @@ class TuningPanel:
             f"setting)</pre>"
         )
         self.errors.append_stderr("".join(traceback.format_exception(exc)))
+
+
+def diagnosis_html(state: TunerState) -> str:
+    """The replay's self-diagnosis under the table: green when ok, red with what it saw and
+    what to try when not (`ekfslam.core.diagnosis`)."""
+    d = state.summary.diagnosis
+    if d is None:
+        return ""
+    colour = "#070" if d.ok else "#b00"
+    text = (
+        d.line()
+        if d.ok
+        else f"diagnosis: {d.warning()}".replace("try --noise fit", "try 'fit R and Q'")
+    )
+    style = f"color:{colour};font:14px monospace"
+    return f'<div class="ekfslam-diagnosis" style="{style}">{html.escape(text)}</div>'
 
 
 def tuning_panel(

@@ -407,7 +407,7 @@ def update_figure(
         ax.grid(True, alpha=0.3)
     state(a, mu0, S0, "-", "prior")
     a.set_title("(a) prior: Σ after prediction (eq. 9)")
-    state(b, mu0, S0, "-", "prior", alpha=0.35)
+    state(b, mu0, S0, "-", "prior", alpha=0.9)  # the prior that z is weighed against
     r, phi = steps.z
     ang = mu0[2] + phi
     seen = mu0[:2] + r * np.array([math.cos(ang), math.sin(ang)])

@@ -2,10 +2,6 @@
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -70,29 +66,3 @@ def test_the_figure_draws_one_line_per_wrong_association(study):
 def test_runs_must_be_positive():
     with pytest.raises(ValueError, match="runs"):
         stress_study(runs=0)
-
-
-@pytest.mark.slow
-def test_cli_prints_both_methods_and_draws_the_picture(tmp_path):
-    plot = tmp_path / "wrong.png"
-    out = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "ekfslam",
-            "consistency",
-            "association",
-            "--json",
-            "--plot",
-            str(plot),
-        ],
-        cwd=REPO,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        env={**os.environ, "MPLBACKEND": "Agg"},
-    )
-    assert out.returncode == 0, out.stderr
-    d = json.loads(out.stdout)
-    assert d["nn"]["correct_fraction"] < 0.85 < 0.97 < d["jcbb"]["correct_fraction"]
-    assert d["plot"] == str(plot) and plot.stat().st_size > 20_000

@@ -9,13 +9,9 @@ with no linearisation at all: ungated, its mean NEES is the dof; gated, it is me
 
 from __future__ import annotations
 
-import inspect
-
 import numpy as np
 
-from ekfslam.analysis.consistency import STUDY_GATE, chi2_band, compare, monte_carlo
-from ekfslam.analysis.robustness import outlier_study
-from ekfslam.cli.main import build_parser
+from ekfslam.analysis.consistency import chi2_band
 from ekfslam.core.filter.config import CHI2_2DOF_99
 
 RUNS, STEPS, SETTLED = 2000, 300, 50
@@ -66,15 +62,3 @@ def test_a_99_percent_gate_lifts_the_nees_of_the_same_exact_filter():
     lo, hi = chi2_band(2, RUNS)
     per_step = gated.mean(axis=1)
     assert np.mean((per_step >= lo) & (per_step <= hi)) < 0.7  # measured 56%
-
-
-def test_the_outlier_free_study_runs_ungated_and_the_outlier_study_gated():
-    # the policy, the same for all three linearisations: no gate where there are no outliers
-    assert STUDY_GATE is None
-    assert inspect.signature(compare).parameters["gate"].default is None
-    assert inspect.signature(monte_carlo).parameters["gate"].default is None
-    assert inspect.signature(outlier_study).parameters["gate"].default == CHI2_2DOF_99
-    argv = ["consistency", "nees"]
-    assert build_parser(argv).parse_args(argv).gate == 0  # 0: off
-    argv = ["consistency", "outliers", "0.05"]
-    assert build_parser(argv).parse_args(argv).gate == CHI2_2DOF_99

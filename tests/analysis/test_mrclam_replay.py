@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from ekfslam.analysis.evaluation import summarize
-from ekfslam.analysis.mrclam_tuning import RobotScore, score_robots, scores_table, tune_noise
+from ekfslam.analysis.mrclam_tuning import RobotScore, score_robots, scores_table
 from ekfslam.cli.main import main
-from ekfslam.core.noise import NoiseConfig, default_noise
+from ekfslam.core.noise import default_noise
 from ekfslam.logs.mrclam.calibration import (
     MRCLAM_CALIBRATION,
     CommandCalibration,
@@ -124,16 +124,6 @@ def test_calibration_shifts_and_scales_only_the_commands() -> None:
     np.testing.assert_array_equal(out.controls.values[:, 0], 0.5 * run.controls.values[:, 0])
     np.testing.assert_array_equal(out.controls.values[:, 2], 2.0 * run.controls.values[:, 2])
     assert out.groundtruth is run.groundtruth and out.meta is run.meta
-
-
-def test_tuning_sorts_by_the_average_and_scores_each_robot_alike(mrclam7: Path) -> None:
-    grid = {"sigma_theta": (0.05, 0.5)}
-    rows = tune_noise(mrclam7, grid, robots=(4,))
-    assert [len(r.errors) for r in rows] == [1, 1]
-    assert rows[0].mean <= rows[1].mean
-    for row in rows:
-        noise = NoiseConfig(sigma_y=0.005, sigma_theta=row.noise["sigma_theta"])
-        assert row.errors[0] == score_robots(mrclam7, noise, robots=(4,))[0].aligned_error
 
 
 @pytest.mark.slow

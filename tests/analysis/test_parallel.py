@@ -7,11 +7,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ekfslam.analysis import association_stress, parallel, robustness
+from ekfslam.analysis import association_stress
 from ekfslam.analysis.consistency import compare
 from ekfslam.analysis.mrclam_consistency import mrclam_consistency
 from ekfslam.analysis.parallel import run_tasks
-from ekfslam.cli.main import main
 from ekfslam.errors import ConfigError
 
 
@@ -54,17 +53,6 @@ def test_monte_carlo_is_the_same_on_one_and_two_processes():
     assert len(set(one[0].map_nees.tolist())) == 3
 
 
-def test_outlier_study_is_the_same_on_one_and_two_processes():
-    one = robustness.outlier_study("octagon", 2, 0.1, first_seed=3, jobs=1)
-    two = robustness.outlier_study("octagon", 2, 0.1, first_seed=3, jobs=2)
-    labels = [c.label for c in two.cases]
-    assert labels == [k for k in ("clean", "wrong_id", "range", "mixed") for _ in range(2)]
-    assert [c.gate is None for c in two.cases] == [False, True] * 4
-    assert two.cases == one.cases
-    assert two.case("clean").ratio == 1.0
-    assert two.case("wrong_id").injected > 0
-
-
 def test_stress_study_is_the_same_on_one_and_two_processes():
     one = association_stress.stress_study(2, 2, jobs=1)
     two = association_stress.stress_study(2, 2, jobs=2)
@@ -75,14 +63,6 @@ def test_stress_study_is_the_same_on_one_and_two_processes():
     for m in two.wrong:
         np.testing.assert_array_equal(one.wrong[m], two.wrong[m])
     np.testing.assert_array_equal(one.path, two.path)
-
-
-def test_an_unreachable_scheduler_is_one_line_exit_2(monkeypatch, capsys):
-    monkeypatch.setattr(parallel, "DASK_TIMEOUT", 0.5)
-    code = main(["consistency", "nees", "--runs", "2", "--dask", "tcp://127.0.0.1:1"])
-    err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2
-    assert len(err) == 1 and "--dask tcp://127.0.0.1:1" in err[0], err
 
 
 @pytest.mark.slow

@@ -166,9 +166,9 @@ def test_the_invariant_filter_replays_a_seed_run_as_the_literal_reference():
     # the seed's octagon, event by event: the compiled filter (batched predictions, the owed
     # map-block noise) against the literal F_x form (a full-size step each), to 1e-9
     run = read_run(seed_runs_dir() / "octagon-2laps")
-    upto, us, dts, ends, M, R_fixed, ids, times, zs, Q_run = pipeline._schedule(
-        run, default_noise(run)
-    )
+    s = pipeline.schedule(run, default_noise(run))
+    upto, us, dts, ends, M, R_fixed = s.upto, s.u, s.dt, s.t, s.M, s.R
+    ids, times, zs, Q_run = s.ids, s.times, s.z, s.Q
     config = FilterConfig(linearization="invariant")
     start = run.meta.nominal_start
     fast, slow = EKFSLAM(start, None, config), LiteralEKFSLAM(start, None, config)

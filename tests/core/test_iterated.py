@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 
 from ekfslam import pipeline
-from ekfslam.core.filter import iterated
 from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.models import motion_noise, observation, observation_noise
 from ekfslam.core.noise import default_noise
@@ -73,7 +72,7 @@ def test_iterating_lowers_the_map_cost_and_keeps_the_first_innovation_in_the_his
         f.update(7, z, Q)
         costs.append(_map_cost(mu0, Sigma0, z, f.mu - mu0))
         nis.append(f.history().obs_nis[-1])
-        ran.append(f._res[iterated.RES_ITERATIONS])
+        ran.append(f._linearisations)
     assert costs[0] > costs[1] > costs[2] > costs[3]  # measured 6.034, 5.788, 5.787, 5.787
     assert costs[0] - costs[3] > 0.2
     assert ran[1:] == [2, 3, 8]  # converged after 8 linearisations
@@ -111,9 +110,9 @@ def test_the_gate_decides_on_the_first_linearisation():
 @pytest.mark.parametrize("linearization", ["standard", "invariant"])
 def test_the_iterated_filter_replays_a_seed_run_as_the_literal_reference(linearization):
     run = read_run(seed_runs_dir() / "octagon-2laps")
-    upto, us, dts, ends, M, R_fixed, ids, times, zs, Q_run = pipeline._schedule(
-        run, default_noise(run)
-    )
+    s = pipeline.schedule(run, default_noise(run))
+    upto, us, dts, ends, M, R_fixed = s.upto, s.u, s.dt, s.t, s.M, s.R
+    ids, times, zs, Q_run = s.ids, s.times, s.z, s.Q
     config = FilterConfig(linearization=linearization, iterations=3)
     start = run.meta.nominal_start
     fast, slow = EKFSLAM(start, None, config), LiteralEKFSLAM(start, None, config)

@@ -78,9 +78,9 @@ def test_a_replay_with_one_hypothesis_is_the_jcbb_replay(square):
 
 def test_the_replay_of_the_winners_decisions_is_the_winners_state(square):
     noise, config = default_noise(square), AssociationConfig("mht", hypotheses=4)
-    steps = pipeline._schedule(square, noise)
+    steps = pipeline.schedule(square, noise)
     bank = HypothesisBank(EKFSLAM(square.meta.nominal_start, record=False), config)
-    pipeline._feed_hidden(bank, *steps)
+    pipeline._feed_hidden(bank, steps)
     _, winner, options = bank.finish()
     assert len(options) == len(set(square.detections.t.tolist()))  # one per time
     result = pipeline.replay(square, noise, association=config)

@@ -3,7 +3,7 @@
 Hypothesis draws the *kind* of run (filter options, noise levels, how many landmarks, how wild
 the controls and observations are, a seed); numpy draws the thousands of steps from that seed,
 so one example is a whole run and shrinking still names a reproducible case. The 10^5-step run
-is a benchmark, not a test: ``python -m ekfslam consistency long-run``.
+is a benchmark, not a test: ``python -m studies consistency long-run``.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""Tests of ekfslam.core.steps, the one readable statement of eqs. (13)-(16): by hand, and the
-compiled kernel and the literal F_x,j reference held to it on random states."""
+"""Tests of ekfslam.core.steps, the filter's steps on plain arrays (eqs. 13-16): by hand, and the
+compiled steps and the literal F_x,j reference held to them on random states."""
 
 from __future__ import annotations
 
@@ -9,9 +9,11 @@ import numpy as np
 import pytest
 
 from ekfslam import EKFSLAM, FilterConfig
-from ekfslam.core.filter import kernels
-from ekfslam.core.filter.history import Outcome
-from ekfslam.core.models import observation
+from ekfslam.core.filter.backend import steps_for
+from ekfslam.core.filter.history import OBS_NIS, OBS_NU, OBS_ROW, OBS_S, OBS_Z_HAT, Outcome
+from ekfslam.core.filter.steps import Linearization
+from ekfslam.core.filter.symmetric import mirror
+from ekfslam.core.models import ODOMETRY, RANGE_BEARING, observation
 from ekfslam.core.steps import update_steps
 from ekfslam.geometry import wrap_angle
 from ekfslam.teaching.reference import LiteralEKFSLAM
@@ -90,37 +92,21 @@ def test_the_compiled_correction_is_the_block_form(seed: int, invariant: bool) -
     mu, Sigma, j, z, Q = random_state(seed)
     steps = update_steps(mu, Sigma, j, z, Q, invariant=invariant)
     d, l, capacity = len(mu), 3 + 2 * j, len(mu) + 4  # storage larger than the state, as in EKFSLAM
-    m, S = np.zeros(capacity), np.zeros((capacity, capacity))
-    m[:d], S[:d, :d] = mu, Sigma
-    out = np.full(kernels.OUT_SIZE, math.nan)
-    outcome = kernels.correct(
-        mu=m,
-        S=S,
-        d=d,
-        l=l,
-        z0=z[0],
-        z1=z[1],
-        q00=Q[0, 0],
-        q01=Q[0, 1],
-        q11=Q[1, 1],
-        jx=mu[l] - mu[0],
-        jy=mu[l + 1] - mu[1],
-        invariant=invariant,
-        rho=0.0,
-        dp=d,
-        gate=math.inf,
-        work=np.zeros((2, capacity)),
-        out=out,
-    )
-    assert outcome == kernels.ACCEPTED == Outcome.ACCEPTED
-    kernels.mirror(S, d)  # the kernel keeps the lower triangle
-    z_hat, nu, s = kernels.OUT_Z_HAT, kernels.OUT_NU, kernels.OUT_S
-    np.testing.assert_allclose(out[z_hat : z_hat + 2], steps.z_hat, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(out[nu : nu + 2], steps.nu, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(out[s : s + 3], steps.S[[0, 0, 1], [0, 1, 1]], rtol=0, atol=1e-9)
-    assert out[kernels.OUT_NIS] == pytest.approx(steps.nis, rel=0, abs=1e-9)
-    np.testing.assert_allclose(m[:d], steps.mu_post, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(S[:d, :d], steps.Sigma_joseph, rtol=0, atol=1e-9)
+    lin = Linearization.INVARIANT if invariant else Linearization.STANDARD
+    storage = (np.zeros(capacity), np.zeros((capacity, capacity)), np.zeros(capacity), np.zeros(2))
+    storage[0][:d], storage[1][:d, :d] = mu, Sigma
+    obs = np.full(len(OBS_ROW), math.nan)
+    point = np.concatenate([mu[:3], mu[l : l + 2]])
+    compiled = steps_for(ODOMETRY, RANGE_BEARING, "numba")
+    outcome = compiled.correct((*storage, int(lin)), d, l, (z, Q, math.inf, point), obs)
+    assert outcome == Outcome.ACCEPTED
+    mirror(storage[1], d)  # the steps keep the lower triangle
+    np.testing.assert_allclose(obs[OBS_Z_HAT : OBS_Z_HAT + 2], steps.z_hat, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(obs[OBS_NU : OBS_NU + 2], steps.nu, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(obs[OBS_S : OBS_S + 4], steps.S.ravel(), rtol=0, atol=1e-9)
+    assert obs[OBS_NIS] == pytest.approx(steps.nis, rel=0, abs=1e-9)
+    np.testing.assert_allclose(storage[0][:d], steps.mu_post, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(storage[1][:d, :d], steps.Sigma_joseph, rtol=0, atol=1e-9)
 
 
 @pytest.mark.parametrize("linearization", ["standard", "invariant"])

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from ekfslam.core.association import UNPAIRED, AssociationConfig, chi2_even_quantile, joint_nis
-from ekfslam.core.filter import jcbb_kernels
 from ekfslam.core.filter.associating import AMBIGUOUS, AssociatingFilter
-from ekfslam.core.filter.ekf import EKFSLAM
+from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.filter.mapping import MappingFilter
+from ekfslam.core.filter.predictions import Rate
 from ekfslam.core.models import observation, observation_noise
 from ekfslam.core.timestamp import shared_sighting_noise, sighting_noise, time_shift
 
@@ -23,10 +23,10 @@ B = 3.0 * np.array([math.cos(0.05), math.sin(0.05)])  # 0.15 m from A, 0.05 rad 
 TURN = 0.5  # rad/s: with time_sigma 0.2 s, ω σt = 0.1 rad, ten times σb
 
 
-def mapped(shared: bool) -> AssociatingFilter:
+def mapped(shared: bool, backend: str = "python") -> AssociatingFilter:
     """A and B mapped by a robot standing still at the origin."""
     config = AssociationConfig(method="jcbb", time_sigma=0.2, time_shared=shared)
-    f = AssociatingFilter(EKFSLAM(POSE), config)
+    f = AssociatingFilter(EKFSLAM(POSE, config=FilterConfig(backend=backend)), config)
     for t in (0.0, 1.0):
         f.observe(np.array([observation(POSE, A), observation(POSE, B)]), Q, t)
     assert f.ekf.n_landmarks == 2
@@ -90,18 +90,15 @@ def test_one_sighting_while_turning_has_the_independent_terms_noise():
     assert (moved - z) / 1e-6 == pytest.approx(g, rel=1e-4)
 
 
-def test_the_compiled_shared_term_is_the_readable_one():
-    f = mapped(True)
+@pytest.mark.parametrize("backend", ["python", "numba"])
+def test_the_filters_shared_term_is_the_readable_one(backend):
+    f = mapped(True, backend)
     zs = image(0.02, -0.01)
     rate = (0.3, -0.1, 0.4)
     nu, P = f.predicted(zs, rate)
-    e, (q00, q01), (_, q11) = f.ekf, Q[0].tolist(), Q[1].tolist()
-    got_nu, got_P, nis = np.empty((2, 2, 2)), np.empty((4, 4)), np.empty((2, 2))
-    jcbb_kernels.predict_all(
-        e._mu, e._Sigma, e._dim, zs, q00, q01, q11, False, *rate, 0.04, got_nu, got_P, nis
-    )
-    np.testing.assert_allclose(got_nu, nu, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(got_P, P, rtol=1e-9, atol=1e-15)
+    got = f.ekf.predictions(zs, Q, Rate(np.array(rate[:2]), rate[2], 0.04))
+    np.testing.assert_allclose(got.nu, nu, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(got.P, P, rtol=1e-9, atol=1e-15)
     assert not np.allclose(P, f.predicted(zs)[1])  # the term is there
 
 

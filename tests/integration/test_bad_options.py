@@ -2,8 +2,10 @@
 
 Every case must end at parse time, before any work: exit status 2, ONE line on stderr that names
 the option (or the path) and hints at --help, no traceback, nothing on stdout, and no output
-file left behind. The cases run as concurrent subprocesses (``python -m ekfslam ...``) from one
-module-scoped fixture with a thread pool, so the file costs a few interpreter starts per core.
+file left behind. The cases run as concurrent subprocesses (``python -m ekfslam ...``, and for the
+repository's studies and benchmarks ``python -m studies ...`` and ``python -m benchmarks ...``,
+which parse with the same option types) from one module-scoped fixture with a thread pool, so
+the file costs a few interpreter starts per core.
 """
 
 from __future__ import annotations
@@ -30,6 +32,17 @@ BAD_RUN = "run {run}"
 SIM = "simulate --trajectory square --out {tmp}/sim"
 BAG = "convert rosbag {tmp}/bag --out {tmp}/bagrun --twist-topic /odom --detections-topic /tf"
 DETECT = "detect {run}"
+
+#: The commands run by ``python -m studies`` and ``python -m benchmarks``; the rest are ekfslam's.
+MODULE_OF = {
+    "consistency": "studies",
+    "vision-eval": "studies",
+    "score-mrclam": "studies",
+    "tune-mrclam": "studies",
+    "budget": "studies",
+    "bench": "benchmarks",
+    "tune": "benchmarks",
+}
 
 #: name -> (arguments, a word the one line must contain, outputs that must not exist afterwards)
 CASES: dict[str, tuple[str, str, tuple[str, ...]]] = {
@@ -344,7 +357,7 @@ def outcomes(scratch) -> dict[str, subprocess.CompletedProcess]:
     def run(args: str) -> subprocess.CompletedProcess:
         argv = shlex.split(args.format(**{k: str(v) for k, v in scratch.items()}))
         return subprocess.run(
-            [sys.executable, "-m", "ekfslam", *argv],
+            [sys.executable, "-m", MODULE_OF.get(argv[0], "ekfslam"), *argv],
             cwd=root,
             env=env,
             text=True,

@@ -6,9 +6,9 @@ is written, not even by autosave). Playwright drives ``/usr/bin/chromium`` headl
 background networking off (the machine has no network but the package registries); Playwright's
 own browser download is never used. The test moves the Q slider (σr) with the keyboard and checks
 that the Table 1 text and the figure's pixels both change; then it times `MOVES` single key
-presses to the figure's new pixels (`ekfslam.ui.browser_latency`), prints the median and p90 and
+presses to the figure's new pixels (`benchmarks.browser`), prints the median and p90 and
 checks that the figure changed for each (no timing assertion: the machine is shared; the
-benchmark is ``python -m ekfslam tune --browser``). Screenshots go to ``artifacts/browser/``.
+benchmark is ``python -m benchmarks tune --browser``). Screenshots go to ``artifacts/browser/``.
 Where Chromium or Playwright is missing the tests skip with a reason; with ``CI=true`` that is a
 failure.
 """
@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ekfslam.ui.browser_latency import (
+from benchmarks.browser import (
     CHROMIUM,
     CHROMIUM_ARGS,
     free_port,

@@ -15,7 +15,6 @@ import pytest
 from PIL import Image
 
 from ekfslam import files, read_run
-from ekfslam.analysis.bench import BenchConfig
 from ekfslam.cli import animate as animate_args
 from ekfslam.cli import args as ca
 from ekfslam.cli.main import build_parser, main
@@ -180,9 +179,6 @@ def test_save_figure_writes_the_format_its_suffix_names(tmp_path):
         lambda: FilterConfig(reinit_after=1),
         lambda: SimulationConfig(laps=0),
         lambda: SimulationConfig(size=-1.0),
-        lambda: BenchConfig(sizes=(-5,)),
-        lambda: BenchConfig(sizes=()),
-        lambda: BenchConfig(replay_repeats=0),
     ],
 )
 def test_config_errors_are_ours_and_still_value_errors(make):

@@ -114,9 +114,6 @@ def test_a_bad_number_of_passes_is_one_line():
         bad = cli("run", str(OCTAGON), *words)
         assert bad.returncode == 2, words
         assert bad.stderr.count("\n") == 1 and "--passes" in bad.stderr, bad.stderr
-    bad = cli("score-mrclam", "7", "--passes", "2")
-    assert bad.returncode == 2
-    assert bad.stderr.count("\n") == 1 and "--passes" in bad.stderr, bad.stderr
 
 
 def test_run_passes_the_time_error_and_the_founding_rule_to_the_replay(monkeypatch, capsys):

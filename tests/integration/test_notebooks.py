@@ -321,3 +321,16 @@ def test_a_notebook_without_its_data_stops_in_one_line_and_skips(
     monkeypatch.setenv("CI", "true")
     with pytest.raises(pytest.fail.Exception, match="CI must have it"):
         judge_execution(path.name, nb, seconds, data_missing)
+
+
+@pytest.mark.slow
+def test_a_notebook_copied_out_of_the_repository_finds_its_data(monkeypatch, tmp_path) -> None:
+    """The notebooks read the seed's runs through the package (`ekfslam.places.seed_run`), not
+    a path beside them: copied anywhere (a lab release, Colab), a notebook runs."""
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    copy = tmp_path / "elsewhere" / "02-robot-and-arena.ipynb"
+    copy.parent.mkdir()
+    copy.write_bytes((NOTEBOOK_DIR / copy.name).read_bytes())
+    nb, _ = execute_notebook(copy)
+    assert notebook_errors(nb) == []
+    assert [v.split(":")[0] for v in exercise_verdicts(nb)] == ["Exercise 1a", "Exercise 1b"]

@@ -1,8 +1,11 @@
-"""The repository keeps its promises: lint clean, README commands = CI, equations mapped."""
+"""The repository keeps its promises: lint clean, README commands = CI, the README a front door
+(short, its example runs), equations mapped."""
 
 from __future__ import annotations
 
+import contextlib
 import importlib
+import io
 import re
 import subprocess
 import sys
@@ -43,8 +46,62 @@ def test_readme_main_command_replays_a_run_that_exists():
     assert main.startswith("python -m pip install -r requirements.txt")
 
 
-def test_every_equation_reference_in_the_readme_names_real_code():
-    table = README.split("## Where the seed's equations live")[1].split("##")[0]
+def test_the_readme_is_a_front_door_of_at_most_250_lines():
+    lines = README.splitlines()
+    assert len(lines) <= 250, f"README.md has {len(lines)} lines: move the rest into docs/"
+
+
+def test_ci_builds_the_book_with_the_readmes_command_before_the_tests():
+    book = next(b for b in _bash_blocks(README) if "sphinx" in b)
+    assert book == "python -m sphinx -W -b html docs docs/_build/html"
+    ci = (REPO / ".ci" / "run").read_text().splitlines()
+    assert book in ci, f"{book!r} is not a line of .ci/run"
+    test_command = next(b for b in _bash_blocks(README) if "pytest" in b)
+    assert ci.index(book) < ci.index(test_command)  # the tests check the book CI built
+
+
+def test_every_link_of_the_readme_into_the_repository_leads_to_a_file():
+    links = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", README)
+    local = [link for link in links if "://" not in link]
+    assert len(local) >= 20  # the README is a front door: it links into the documentation
+    missing = [link for link in local if not (REPO / link).exists()]
+    assert not missing, f"README links to files that do not exist: {missing}"
+
+
+def _python_blocks(text: str) -> list[str]:
+    return re.findall(r"```python\n(.*?)```", text, flags=re.S)
+
+
+def _run(code: str, monkeypatch) -> str:
+    monkeypatch.chdir(REPO)  # the examples read data/runs/ as a user in a checkout would
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        exec(compile(code, "example", "exec"), {"__name__": "__example__"})
+    return out.getvalue()
+
+
+def test_the_readmes_example_maps_a_log_from_arrays_in_at_most_15_lines(monkeypatch):
+    (example,) = _python_blocks(README.split("## Your own robot's log")[1].split("\n## ")[0])
+    assert len(example.splitlines()) <= 15
+    assert "run_from_arrays" in example and "np.loadtxt" in example
+    printed = _run(example, monkeypatch).splitlines()
+    # the octagon's eight tags where the filter put them (before eq. 17's alignment)
+    assert [line.split(":")[0] for line in printed] == [f"tag {i}" for i in range(8)]
+    assert printed[0] == "tag 0: x +0.867 m, y +0.176 m"
+
+
+def test_the_guides_arrays_example_scores_its_map(monkeypatch):
+    page = (REPO / "docs" / "guide" / "replaying.md").read_text(encoding="utf-8")
+    (example,) = _python_blocks(page.split("<!-- tested:")[1])
+    printed = _run(example, monkeypatch).strip()
+    match = re.fullmatch(r"8 landmarks, map error (\d\.\d{3}) m \(eq\. 17\)", printed)
+    assert match, printed
+    assert 0.003 <= float(match[1]) <= 0.008  # the square's Table 1 row: about 5 mm
+
+
+def test_every_equation_reference_in_the_docs_names_real_code():
+    page = (REPO / "docs" / "equations.md").read_text(encoding="utf-8")
+    table = page.split("| eq. |")[1]
     names = re.findall(r"`(ekfslam\.[\w.]+)`", table)
     assert len(names) >= 12
     for dotted in names:

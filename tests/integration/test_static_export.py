@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from ekfslam.ui.browser_latency import jupyter_home
+from benchmarks.browser import jupyter_home
 
 pytestmark = pytest.mark.slow
 

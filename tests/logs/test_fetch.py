@@ -240,7 +240,7 @@ def test_dataset_number_must_be_1_to_9(cache: Path, n) -> None:
 
 
 def test_help_and_readme_name_the_cache_the_code_uses(monkeypatch, tmp_path: Path) -> None:
-    """Regression: --help said ~/.cache, the README ~/.cache/ekfslam."""
+    """Regression: --help said ~/.cache, the README ~/.cache/ekfslam (now the MRCLAM guide)."""
     import argparse
 
     from ekfslam.cli import fetch as fetch_command
@@ -251,8 +251,8 @@ def test_help_and_readme_name_the_cache_the_code_uses(monkeypatch, tmp_path: Pat
     fetch = next(a for a in parser._subparsers._group_actions[0].choices.values())
     cache_help = next(a.help for a in fetch._actions if "--cache" in a.option_strings)
     assert cache_help == f"cache folder (default: {CACHE_DEFAULT_HELP})"
-    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
-    assert CACHE_DEFAULT_HELP in " ".join(readme.replace("`", "").split())
+    guide = (Path(__file__).resolve().parents[2] / "docs" / "guide" / "mrclam.md").read_text()
+    assert CACHE_DEFAULT_HELP in " ".join(guide.replace("`", "").split())
     # ... and that is what the code does, in that order
     monkeypatch.delenv("EKFSLAM_CACHE", raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))

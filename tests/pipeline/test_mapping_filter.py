@@ -67,7 +67,7 @@ def test_the_barcodes_ids_as_decisions_are_the_known_replay():
     ekf = EKFSLAM(run.meta.nominal_start, None, config)
     mapper = MappingFilter(ekf, log, time_sigma=0.0)
     with np.errstate(all="ignore"):
-        pipeline._feed_hidden(mapper, *pipeline._schedule(run, noise))
+        pipeline._feed_hidden(mapper, pipeline.schedule(run, noise))
     assert mapper.finish() is log
     known = replay(run, noise, config)
     mapped = pipeline._result(run, ekf, 0.0, noise, config)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -12,7 +13,7 @@ from ekfslam.core.filter.history import OBSERVE, PREDICT
 from ekfslam.core.kinematics import MecanumGeometry, twist_to_wheels
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta
-from ekfslam.pipeline import replay
+from ekfslam.pipeline import _feed, replay, schedule
 
 
 def make_run(ctrl_t, twist, det_t, det_id, det_z, kind="twist", robot=None):
@@ -189,3 +190,50 @@ def test_a_huge_start_pose_through_the_api_is_an_error_not_a_nan_table(square_ru
     for pose in [(1e308, 0.0, 0.0), (0.0, 0.0, math.nan), (0.0, 0.0, 90.0)]:
         with pytest.raises(ValueError, match="not a plausible"):
             replay(square_run, start_pose=pose)
+
+
+# --- one Q per detection through the feed loop (issue 26; the lead's rewrite keeps this) ------
+
+
+def _random_run(seed: int, n_det: int = 60) -> RunLog:
+    rng = np.random.default_rng(seed)
+    ctrl_t = np.cumsum(rng.uniform(0.02, 0.08, 200))
+    twist = np.column_stack(
+        [rng.uniform(0, 0.2, 200), rng.uniform(-0.05, 0.05, 200), rng.uniform(-0.5, 0.5, 200)]
+    )
+    det_t = np.sort(rng.uniform(ctrl_t[0], ctrl_t[-1], n_det))
+    det_id = rng.integers(0, 5, n_det)
+    det_z = np.column_stack([rng.uniform(0.5, 2.0, n_det), rng.uniform(-1, 1, n_det)])
+    return make_run(ctrl_t, twist, det_t, det_id, det_z)
+
+
+def test_feed_gives_each_detection_its_own_q_when_given_one_per_detection() -> None:
+    """`_feed` with Q of shape (N, 2, 2) updates detection i with Q[i]: the same state as a
+    hand-written loop over `EKFSLAM.update` with those Q; N copies of one Q give the same state,
+    bit for bit, as that Q alone."""
+    run = _random_run(3)
+    noise = NoiseConfig(sigma_range=0.05, sigma_bearing=0.02)
+    steps = schedule(run, noise)
+    upto, us, dts, ends, M, R = steps.upto, steps.u, steps.dt, steps.t, steps.M, steps.R
+    det_id, det_time, det_z, Q = steps.ids, steps.times, steps.z, steps.Q
+    n = len(det_id)
+    each = np.array([np.diag([(0.01 + 0.02 * k) ** 2, (0.005 * (k + 1)) ** 2]) for k in range(n)])
+    fed = EKFSLAM(run.meta.nominal_start)
+    _feed(fed, dataclasses.replace(steps, Q=each))
+    by_hand = EKFSLAM(run.meta.nominal_start)
+    done = 0
+    for i, p in enumerate(upto):
+        if p > done:
+            by_hand.predict_many(us[done:p], dts[done:p], ends[done:p], M, R)
+            done = p
+        by_hand.update(det_id[i], det_z[i], each[i], det_time[i])
+    if done < len(us):
+        by_hand.predict_many(us[done:], dts[done:], ends[done:], M, R)
+    np.testing.assert_array_equal(fed.mu, by_hand.mu)
+    np.testing.assert_array_equal(fed.Sigma, by_hand.Sigma)
+    one, copies = EKFSLAM(run.meta.nominal_start), EKFSLAM(run.meta.nominal_start)
+    _feed(one, steps)
+    _feed(copies, dataclasses.replace(steps, Q=np.repeat(Q[None], n, 0)))
+    np.testing.assert_array_equal(one.mu, copies.mu)
+    np.testing.assert_array_equal(one.Sigma, copies.Sigma)
+    assert not np.array_equal(fed.mu, one.mu)  # the Q given did change the estimate

@@ -4,12 +4,18 @@ ask for a number read off a table."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
+import os
+import tempfile
 from pathlib import Path
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
-from ekfslam.teaching.exercises import check_prediction
+from ekfslam.teaching.exercises import PREDICTIONS, check_prediction, recorded_predictions
 
 CHOICES = ["larger", "smaller"]
 WHY = "Σ follows the assumed noise."
@@ -65,3 +71,59 @@ def test_the_exercises_that_read_a_number_now_ask_for_a_prediction(name: str) ->
     code = "\n".join("".join(c["source"]) for c in cells if c["cell_type"] == "code")
     text = "\n".join("".join(c["source"]) for c in cells if c["cell_type"] == "markdown")
     assert "check_prediction(" in code and "Predict" in text
+
+
+# --- the first prediction is recorded beside the notebook, and is the one that counts ----------
+
+
+def test_the_first_prediction_is_recorded_and_a_rerun_cannot_change_it(
+    tmp_path, monkeypatch, capsys
+) -> None:
+    monkeypatch.chdir(tmp_path)  # Jupyter runs a notebook in its own folder
+    monkeypatch.delenv("NBGRADER_EXECUTION", raising=False)
+    assert check_prediction("smaller", "larger", CHOICES, WHY, key="06-sigma") is False
+    assert json.loads((tmp_path / PREDICTIONS).read_text()) == {"06-sigma": "smaller"}
+    capsys.readouterr()
+    # the outcome seen, the cell changed and run again: still the first guess
+    assert check_prediction("larger", "larger", CHOICES, WHY, key="06-sigma") is False
+    out = capsys.readouterr().out
+    assert "Your first prediction, 'smaller', is recorded" in out
+    assert "you predicted 'smaller'" in out
+    assert json.loads((tmp_path / PREDICTIONS).read_text()) == {"06-sigma": "smaller"}
+
+
+def test_nothing_is_recorded_before_a_valid_prediction_and_keys_are_apart(
+    tmp_path, monkeypatch, capsys
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("NBGRADER_EXECUTION", raising=False)
+    check_prediction(None, "larger", CHOICES, WHY, key="a")
+    check_prediction("bigger", "larger", CHOICES, WHY, key="a")
+    assert not (tmp_path / PREDICTIONS).exists()
+    assert check_prediction("larger", "larger", CHOICES, WHY, key="a") is True
+    assert check_prediction("smaller", "smaller", CHOICES, WHY, key="b") is True
+    assert recorded_predictions(tmp_path) == {"a": "larger", "b": "smaller"}
+
+
+def test_while_grading_only_a_recorded_prediction_counts(tmp_path, monkeypatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("NBGRADER_EXECUTION", "autograde")
+    assert check_prediction("larger", "larger", CHOICES, WHY, key="06-sigma") is False
+    assert "No prediction was recorded for 06-sigma" in capsys.readouterr().out
+    assert not (tmp_path / PREDICTIONS).exists()
+    (tmp_path / PREDICTIONS).write_text(json.dumps({"06-sigma": "larger"}))
+    assert check_prediction("smaller", "larger", CHOICES, WHY, key="06-sigma") is True
+
+
+@given(st.lists(st.sampled_from(CHOICES), min_size=1, max_size=6))
+def test_whatever_is_run_after_it_the_first_answer_stands(answers: list[str]) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        cwd = os.getcwd()
+        os.chdir(tmp)
+        try:
+            with contextlib.redirect_stdout(io.StringIO()):
+                for answer in answers:
+                    check_prediction(answer, "larger", CHOICES, WHY, key="k")
+            assert recorded_predictions(Path(tmp)) == {"k": answers[0]}
+        finally:
+            os.chdir(cwd)

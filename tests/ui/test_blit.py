@@ -21,7 +21,6 @@ from ekfslam.logs.runlog import read_run
 from ekfslam.ui import blit
 from ekfslam.ui.blit import PNG_COMPRESS_LEVEL, png_bytes, png_from_rows, png_rows, transparent
 from ekfslam.ui.coalescer import COALESCE_DELAY, Coalescer
-from ekfslam.ui.latency import benchmark
 from ekfslam.ui.tuning import DEFAULT_FIGSIZE, RUNS_DIR, Tuner
 
 
@@ -108,13 +107,6 @@ def test_after_an_idle_spell_a_change_runs_at_once():
     started = asyncio.run(main())
     assert [v for v, _ in done] == [1]
     assert done[0][1] - started < COALESCE_DELAY  # no waiting: nothing else was queued
-
-
-def test_the_in_process_benchmark_times_the_blitted_move(runs):
-    report = benchmark({"square": runs["square"]}, repeats=2)["square"]
-    assert 0 < report["replay_ms"] < report["blit_ms"]
-    assert 0 < report["frame_ms"] < report["blit_ms"]
-    assert 10 < report["frame_kib"] < 500  # a diff frame: the changed pixels of 900 x 600
 
 
 def _frame(canvas, get_diff_image) -> tuple[str, np.ndarray]:

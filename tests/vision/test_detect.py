@@ -83,7 +83,7 @@ def test_distort_and_undistort_are_inverse() -> None:
 
 
 def test_a_small_sample_meets_the_targets() -> None:
-    # The targets on 15 random poses (``python -m ekfslam vision-eval`` runs 200+).
+    # The targets on 15 random poses (``python -m studies vision-eval`` runs 200+).
     ev = evaluate_vision(15, seed=11)
     assert ev.in_view >= 10
     assert ev.detection_rate >= 0.98
@@ -228,15 +228,6 @@ def test_frames_with_other_render_settings_still_read_well() -> None:
     ev = evaluate_vision(6, seed=3, render=render)
     assert ev.detection_rate >= 0.9 and ev.wrong_ids == 0
     assert abs(np.median(ev.range_error)) < 0.002
-
-
-def test_vision_eval_command_prints_the_targets(capsys) -> None:
-    from ekfslam.cli.main import main
-
-    assert main(["vision-eval", "--poses", "3", "--seed", "2"]) == 0
-    out = capsys.readouterr().out
-    assert "3 random poses" in out and "targets:" in out and "range median" in out
-    assert "wrong ids passed on: 0" in out
 
 
 def test_optical_axes_is_a_rotation_for_any_yaw_and_pitch():

@@ -1,30 +1,29 @@
 """The filter's correction when sightings carry no id: associate, then update (issue 16).
 
 `AssociatingFilter` wraps an `ekfslam.core.filter.ekf.EKFSLAM`. For the sightings taken at one
-time it predicts every mapped landmark's observation and the joint covariance of those
-predictions from the filter's state, lets compiled kernels choose the pairing (``nn`` or
-``jcbb``, deciding as `ekfslam.core.association`'s readable forms), and feeds each paired
-sighting to `EKFSLAM.update` under the landmark's estimated id (0, 1, 2 ... in the order they
-become permanent), one after the other as the replay does with known ids. ``nn`` needs only each
-landmark's own 2x2 block of that covariance, so it runs compiled
-(`ekfslam.core.filter.nearest.nearest`, O(m n)) and costs about what the updates do; ``jcbb``
-needs the cross blocks too: H Σ Hᵀ and the search run compiled
-(`ekfslam.core.filter.jcbb_kernels`), deciding as `ekfslam.core.association.jcbb` over
-`predicted`, the readable forms. The EKF itself is unchanged: its gate and re-initialisation
-still apply to each update.
+time the filter predicts every mapped landmark's observation and the joint covariance of those
+predictions (`EKFSLAM.predictions`, `EKFSLAM.nearest`: `ekfslam.core.filter.predictions`), the
+pairing is chosen (``nn`` or ``jcbb``, deciding as `ekfslam.core.association`'s readable forms),
+and each paired sighting is fed to `EKFSLAM.update` under the landmark's estimated id (0, 1, 2
+... in the order they become permanent), one after the other as the replay does with known ids.
+``nn`` needs only each landmark's own 2x2 block of that covariance (O(m n)) and costs about what
+the updates do; ``jcbb`` needs the cross blocks too, and its branch and bound
+(`ekfslam.core.filter.jcbb_search`) decides as `ekfslam.core.association.jcbb` over
+`predicted`, the readable form; both run as the filter's steps do, compiled or not. The EKF
+itself is unchanged: its gate and re-initialisation still apply to each update.
 
-Two sightings of one time never come from one landmark (the assumption JCBB's pairing makes):
-a sighting JCBB left unpaired is judged ambiguous only against the landmarks no other sighting
-of its time took (`AssociatingFilter._jcbb`). A time stamp that may be off by
-`AssociationConfig.time_sigma` makes a sighting taken while turning uncertain in bearing, and
-its Q says so. With `AssociationConfig.time_shared` that error is one per image: all its
-sightings were taken from the pose at t + δt, off by u δt (u the pose's rate, eq. 6), so
-``jcbb``'s joint test (and ``mht``'s likelihood) carry the cross-correlated term σt² g gᵀ,
-g_j = H_pose,j u (eq. 14): a common shift of the image's bearings passes, a relative one does
-not (`jcbb_kernels.predict_all`). The updates still run one sighting at a time through
-`EKFSLAM.update`, each with its own share σt² g gᵀ of that term (`shared_sighting_noise`): an
-exact joint update would need δt in the state for the image's updates. Measured on MRCLAM
-Dataset 7, updating with the independent (ω σt)² instead moves the maps by at most 0.04x known.
+Two sightings of one time never come from one landmark (the assumption JCBB's pairing makes): a
+sighting JCBB left unpaired is judged ambiguous only against the landmarks no other sighting of its
+time took (`AssociatingFilter._jcbb`). A time stamp that may be off by
+`AssociationConfig.time_sigma` makes a sighting taken while turning uncertain in bearing, and its Q
+says so. With `AssociationConfig.time_shared` that error is one per image: all its sightings were
+taken from the pose at t + δt, off by u δt (u the pose's rate, eq. 6), so ``jcbb``'s joint test (and
+``mht``'s likelihood) carry the cross-correlated term σt² g gᵀ, g_j = H_pose,j u (eq. 14): a common
+shift of the image's bearings passes, a relative one does not
+(`ekfslam.core.filter.predictions.predict_all`). The updates still run one sighting at a time
+through `EKFSLAM.update`, each with its own share σt² g gᵀ of that term (`shared_sighting_noise`):
+an exact joint update would need δt in the state for the image's updates. Measured on MRCLAM Dataset
+7, updating with the independent (ω σt)² instead moves the maps by at most 0.04x known.
 
 A sighting paired with nothing:
 
@@ -59,11 +58,10 @@ from ekfslam.core.association import (
     JcbbResult,
     chi2_even_quantile,
 )
-from ekfslam.core.filter import jcbb_kernels
-from ekfslam.core.filter import nearest as nearest_kernel
 from ekfslam.core.filter.ekf import EKFSLAM
-from ekfslam.core.models import inverse_observation, inverse_observation_jacobians
-from ekfslam.core.timestamp import image_noises, time_shift
+from ekfslam.core.filter.jcbb_search import Limits
+from ekfslam.core.filter.predictions import Predicted, Rate
+from ekfslam.core.timestamp import TimeError, image_noises, time_shift
 
 Array = NDArray[np.float64]
 
@@ -193,8 +191,9 @@ class AssociatingFilter:
         shares among the image's sightings (None: none) for sightings taken at body velocity
         (m/s) and turn rate omega (rad/s), after `AssociationConfig.time_sigma` and
         ``time_shared`` (``nn`` tests one sighting at a time: the independent term)."""
-        cfg = self.config
-        return image_noises(Q, zs, omega, velocity, cfg.time_sigma, shares_image_error(cfg))
+        cfg, rate = self.config, (velocity[0], velocity[1], omega)
+        error = TimeError(cfg.time_sigma, shares_image_error(cfg))
+        return image_noises(Q, zs, rate, error, self.ekf.sensor)
 
     def observe(
         self,
@@ -274,27 +273,8 @@ class AssociatingFilter:
         return [UNPAIRED if j == UNPAIRED else ids[j] for j in pairing]
 
     def _nearest(self, zs: Array, Q: Array) -> tuple[list[int], list[float]]:
-        """`nearest_neighbour` over `individual_nis`, compiled: pairing and smallest NIS."""
-        ekf = self.ekf
-        (q00, q01), (_, q11) = Q.tolist()
-        pairing = np.empty(len(zs), dtype=np.int64)
-        smallest = np.empty(len(zs))
-        ekf._settle()  # the invariant filter's owed heading noise, before Σ is read
-        # positional, each argument named as the kernel's parameter (see `EKFSLAM._propagate`)
-        nearest_kernel.nearest(
-            ekf._mu,
-            ekf._Sigma,
-            ekf._dim,
-            zs,
-            q00,
-            q01,
-            q11,
-            self.config.gate,
-            ekf._invariant,
-            pairing,
-            smallest,
-        )
-        return pairing.tolist(), smallest.tolist()
+        """`nearest_neighbour` over `individual_nis`, by the filter: pairing and smallest NIS."""
+        return self.ekf.nearest(zs, Q, self.config.gate)
 
     def _jcbb(self, zs: Array, Q: Array, rate=None) -> tuple[JcbbResult, Array]:
         """`jcbb` over `predicted` and `individual_nis`, compiled (`jcbb_kernels`): the same
@@ -307,21 +287,14 @@ class AssociatingFilter:
         """
         return self._search(*self._predict_all(zs, Q, rate), Q)
 
-    def _predict_all(self, zs: Array, Q: Array, rate=None) -> tuple[Array, Array, Array]:
-        """ν (m, n, 2), P = H Σ Hᵀ (2n, 2n) and the individual NIS (m, n), compiled; with a
+    def _predict_all(self, zs: Array, Q: Array, rate=None) -> Predicted:
+        """ν (m, n, 2), P = H Σ Hᵀ (2n, 2n) and the individual NIS (m, n), by the filter; with a
         rate (vx, vy, ω) from `noises`, P holds the image's shared time-stamp term too."""
-        ekf, m, n = self.ekf, len(zs), self.ekf.n_landmarks
-        ekf._settle()  # the invariant filter's owed heading noise, before Σ is read
-        mu, S, d = ekf._mu, ekf._Sigma, ekf._dim
-        nu, P, nis = np.empty((m, n, 2)), np.empty((2 * n, 2 * n)), np.empty((m, n))
-        (q00, q01), (_, q11) = Q.tolist()
-        # positional, each argument named as the kernel's parameter (see `EKFSLAM._propagate`)
-        vx, vy, w = rate if rate is not None else (0.0, 0.0, 0.0)
-        s2 = 0.0 if rate is None else self.config.time_sigma**2
-        jcbb_kernels.predict_all(
-            mu, S, d, zs, q00, q01, q11, ekf._invariant, vx, vy, w, s2, nu, P, nis
-        )
-        return nu, P, nis
+        shared = None
+        if rate is not None:
+            vx, vy, w = rate
+            shared = Rate(np.array([vx, vy]), float(w), self.config.time_sigma**2)
+        return self.ekf.predictions(zs, Q, shared)
 
     def joint_gates(self, m: int) -> Array:
         """χ²(2k) at the joint probability for k = 0..m pairs (index 0 unused), cached."""
@@ -334,42 +307,39 @@ class AssociatingFilter:
     def _search(self, nu: Array, P: Array, nis: Array, Q: Array) -> tuple[JcbbResult, Array]:
         """JCBB's branch and bound over `_predict_all`'s arrays (see `_jcbb`)."""
         m = len(nis)
-        chi2, gate, budget = self.joint_gates(m), self.config.gate, self.config.node_budget
-        Qs = np.empty((m, 2, 2))  # each sighting's noise: the kernel takes a stack
+        limits = Limits(self.config.gate, self.joint_gates(m), self.config.node_budget)
+        Qs = np.empty((m, 2, 2))  # each sighting's noise: the search takes a stack
         Qs[:] = Q
         pairing, unclaimed = np.empty(m, dtype=np.int64), np.empty(m)
-        value, nodes, hit = jcbb_kernels.search(
-            nu, P, Qs, nis, gate, chi2, budget, pairing, unclaimed
+        value, nodes, hit = self.ekf.steps.search(
+            (nu, P, nis), Qs, tuple(limits), pairing, unclaimed
         )
-        if self.config.new_rule != "threshold":  # the kernel's figure is the threshold's
+        if self.config.new_rule != "threshold":  # the search's figure is the threshold's
             unclaimed = free_nis(nis, P, Q, pairing, self.config)
         return JcbbResult(pairing, value, nodes, hit), unclaimed
 
     def predicted(self, zs: Array, rate=None) -> tuple[Array, Array]:
-        """Innovations ν (m, n, 2) of every sighting against every landmark, and P = H Σ Hᵀ;
-        with a body rate (vx, vy, ω), plus the image's shared time-stamp term time_sigma² g gᵀ,
-        g_j = H_pose,j u (`jcbb_kernels.predict_all`; `time_shift` of landmark j's prediction)."""
-        ekf = self.ekf
+        """Innovations ν (m, n, 2) of every sighting against every landmark, and P = H Σ Hᵀ,
+        written out with the whole H (2n, d): the readable form `_predict_all` is tested
+        against. With a body rate (vx, vy, ω), plus the image's shared time-stamp term
+        time_sigma² g gᵀ, g_j = H_pose,j u (`ekfslam.core.timestamp.time_shift`)."""
+        ekf, sensor = self.ekf, self.ekf.sensor
         mu, n = ekf.mu, ekf.n_landmarks
-        d = 3 + 2 * n
-        x, y, th = mu[0], mu[1], mu[2]
-        L = mu[3:d].reshape(n, 2)
-        dx, dy = L[:, 0] - x, L[:, 1] - y
-        q = np.maximum(dx * dx + dy * dy, 1e-12)  # a landmark on the robot: a huge NIS, no NaN
-        r = np.sqrt(q)
-        zh = np.column_stack([r, np.arctan2(dy, dx) - th])
-        nu = zs[:, None, :] - zh[None, :, :]
-        nu[..., 1] = (nu[..., 1] + math.pi) % (2.0 * math.pi) - math.pi
+        pose, d = mu[:3], 3 + 2 * n
+        nu = np.zeros((len(zs), n, 2))
         H = np.zeros((2 * n, d))  # eq. (14) for each landmark, stacked
-        a, b, c, e = dx / r, dy / r, dy / q, dx / q
-        rows = np.arange(n)
-        H[2 * rows, 0], H[2 * rows, 1] = -a, -b
-        H[2 * rows + 1, 0], H[2 * rows + 1, 1], H[2 * rows + 1, 2] = c, -e, -1.0
-        H[2 * rows, 3 + 2 * rows], H[2 * rows, 4 + 2 * rows] = a, b
-        H[2 * rows + 1, 3 + 2 * rows], H[2 * rows + 1, 4 + 2 * rows] = -c, e
+        g = np.zeros(2 * n)
+        for j in range(n):
+            landmark = mu[3 + 2 * j : 5 + 2 * j]
+            z_hat = sensor.h(pose, landmark)
+            for i, z in enumerate(zs):
+                nu[i, j] = sensor.innovation(z, z_hat)
+            H_r, H_l = sensor.H(pose, landmark)
+            H[2 * j : 2 * j + 2, :3], H[2 * j : 2 * j + 2, 3 + 2 * j : 5 + 2 * j] = H_r, H_l
+            if rate is not None:
+                g[2 * j : 2 * j + 2] = time_shift(z_hat, rate, sensor)
         P = H @ ekf.Sigma @ H.T
         if rate is not None and n:
-            g = np.concatenate([time_shift(z, rate) for z in zh])
             P = P + self.config.time_sigma**2 * np.outer(g, g)
         return nu, P
 
@@ -382,9 +352,9 @@ class AssociatingFilter:
         through G_p: with the whole pose covariance twice, a drifted robot would confirm one
         landmark with its neighbour's sighting.
         """
-        pose = self.ekf.mu[:3]
-        G_p, G_z = inverse_observation_jacobians(pose, z)
-        p = inverse_observation(pose, z)
+        pose, sensor = self.ekf.mu[:3], self.ekf.sensor
+        G_p, G_z = sensor.G(pose, z)
+        p = sensor.g(pose, z)
         C = G_z @ Q @ G_z.T
         P_now = self.ekf.pose_covariance
         for k, (t0, p0, C0, P0) in enumerate(self._tentative):

@@ -24,9 +24,8 @@ PREDICT, OBSERVE = 0, 1
 class Outcome(IntEnum):
     """What the filter did with one observation: the code in `History.obs_outcome`.
 
-    The compiled kernels (`ekfslam.core.filter.kernels`) write the same codes as plain ints,
-    checked against these when they are imported. `label` is the lower-case name that
-    `FilterCounts` fields, JSON keys and printed counts use.
+    The filter's steps (`ekfslam.core.filter.steps`) return these, compiled or not. `label` is
+    the lower-case name that `FilterCounts` fields, JSON keys and printed counts use.
 
     INITIALISED: a new landmark entered the map (eq. 12). ACCEPTED: an update (eqs. 13-16).
     REJECTED: the NIS failed the gate. REFUSED: the landmark, or the observation, sits on the
@@ -228,6 +227,11 @@ OBS_COLUMNS = ObsColumns(
     landmark=_span(OBS_ROW, "mx", "my"),
     landmark_cov=_span(OBS_ROW, "Mxx", "Myy"),
 )
+#: Where the steps write (`ekfslam.core.filter.steps`): each part's first column in a row.
+ROW_T, ROW_POSE, ROW_COV = ROW.index("t"), ROW.index("x"), ROW.index("xx")
+OBS_T, OBS_EVENT, OBS_ID, OBS_Z = (OBS_ROW.index(c) for c in ("t", "event", "id", "r"))
+OBS_Z_HAT, OBS_NU, OBS_S, OBS_NIS = (OBS_ROW.index(c) for c in ("r_hat", "nu_r", "S00", "nis"))
+OBS_OUTCOME, OBS_LANDMARK, OBS_LANDMARK_COV = (OBS_ROW.index(c) for c in ("outcome", "mx", "Mxx"))
 #: Where each entry of the 3x3 pose covariance sits in a row's covariance part (`ROW_COLUMNS.cov`).
 _COV_INDEX = np.array([0, 1, 2, 1, 3, 4, 2, 4, 5])
 
@@ -236,8 +240,8 @@ class Recorder:
     """Collects events in pre-allocated arrays that double when full, and freezes them at the end.
 
     An event is its kind and one row laid out as `ROW`: 10 floats, O(1) per event whatever the
-    map size; an observation adds one row laid out as `OBS_ROW`. The filter's compiled kernels
-    (`ekfslam.core.filter.kernels`) write the rows in place: `reserve` says where.
+    map size; an observation adds one row laid out as `OBS_ROW`. The filter's steps
+    (`ekfslam.core.filter.steps`) write the rows in place: `reserve` says where.
     """
 
     def __init__(self, capacity: int = 1024) -> None:

@@ -21,159 +21,111 @@ no inverse of Σ needed); otherwise the last step that did is committed (at wors
 EKF's). The iterations stop once a step moves no entry of δ by `TOLERANCE` or more: below it a
 cost difference is lost in rounding.
 
-Only five entries of δ move h and H (the pose and the landmark seen), so the iterations run on
-the 5x5 block of Σ they need, O(1) each; this module returns the linearisation to take as an
-equivalent observation z' = h(x̂) + r_N and the relative position at which to evaluate H, and
-`ekfslam.core.filter.kernels.correct` then commits it in its usual O(n²) pass. The gate, and the
-innovation, S and NIS recorded in the history, are the first linearisation's: the iterations
-change where the filter ends, not which sightings it takes or the χ² test of them.
-"""
+Only five entries of δ move h and H (the pose and the landmark seen), so the iterations run on the
+5x5 block of Σ they need, O(1) each; this module returns the linearisation to take as an equivalent
+observation z' = h(x̂) + r_N and the point at which to evaluate H, and
+`ekfslam.core.filter.steps.correct` then commits it in its usual O(n²) pass. Like the steps, it runs
+as written or compiled (`ekfslam.core.filter.backend`), with the filter's sensor model. The gate,
+and the innovation, S and NIS recorded in the history, are the first linearisation's: the iterations
+change where the filter ends, not which sightings it takes or the χ² test of them."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-from numba import njit
+from numpy.typing import NDArray
 
-from ekfslam.core.filter import kernels
+from ekfslam.core.filter.history import OBS_NIS, OBS_NU, OBS_S, OBS_Z_HAT
+from ekfslam.core.filter.predictions import indices
+from ekfslam.core.filter.steps import (
+    Linearization,
+    Storage,
+    Update,
+    apart,
+    cholesky,
+    jacobians,
+    owed_direction,
+    positive,
+    sensor,
+    solve_lower,
+    solve_upper,
+)
+from ekfslam.core.filter.symmetric import block
+from ekfslam.core.invariant import retract
 
-# numba's cache is keyed on this file alone: the constants are written here and checked.
-MIN_RANGE_SQUARED = 1e-12
-OUT_Z_HAT, OUT_NU, OUT_S, OUT_NIS = 0, 2, 4, 7
-#: where `linearise` writes in its result: z' (2), the relative position (2), iterations run
-RES_Z, RES_J, RES_ITERATIONS, RES_SIZE = 0, 2, 4, 5
+Array = NDArray[np.float64]
+
 #: the iterations stop early when a step moves no entry of δ by this much (m, rad): 0.1 µm is
 #: far below any noise, and smaller steps change the cost by less than it can resolve
 TOLERANCE = 1e-7
-USE, PLAIN = 0, 1  # `linearise`'s verdicts
-if (MIN_RANGE_SQUARED, OUT_Z_HAT, OUT_NU, OUT_S, OUT_NIS) != (
-    kernels.MIN_RANGE_SQUARED,
-    kernels.OUT_Z_HAT,
-    kernels.OUT_NU,
-    kernels.OUT_S,
-    kernels.OUT_NIS,
-):
-    raise ImportError("ekfslam.core.filter.iterated's constants disagree with kernels")
 
 
-@njit(cache=True)
-def _wrap(a):
-    a = (a + math.pi) % (2.0 * math.pi) - math.pi
-    return -math.pi if a >= math.pi else a
-
-
-@njit(cache=True)
-def linearise(mu, S, l, z0, z1, q00, q01, q11, invariant, rho, dp, iterations, gate, first, res):
+def linearise(
+    storage: Storage, d: int, l: int, update: Update, iterations: int, obs: Array
+) -> Array:
     """Iterate the linearisation point of one observation of the landmark at l (see the module).
 
-    mu, S, l, z, q, invariant, rho, dp: as `kernels.correct`. gate: the NIS test of the first
-    linearisation. first (OUT_SIZE,): receives the first linearisation's ẑ, ν, S and NIS, laid
-    out as `kernels.correct`'s `out`. res (RES_SIZE,): z' and the relative position (jx, jy) to
-    hand `kernels.correct`, and the linearisations run up to the one taken.
-
-    Returns USE (res holds the linearisation to take: call `correct` with z', (jx, jy), no gate),
-    or PLAIN (the first linearisation is refused, singular or gated: call `correct` as without
-    iterations, which finds the same verdict).
+    obs (`OBS_ROW`) receives the first linearisation's ẑ, ν, S and NIS, as `correct` writes them.
+    Returns (8,): the point (5,) at which to evaluate H and the equivalent observation z' (2,),
+    for `correct` with no gate, and how many linearisations were run up to the one taken; or NaN
+    when the first linearisation is refused, singular or gated (`correct` as without iterations
+    then finds the same verdict).
     """
-    idx = (0, 1, 2, l, l + 1)
-    P = np.empty((5, 5))
-    for i in range(5):
-        for k in range(5):
-            a, b = idx[i], idx[k]
-            P[i, k] = S[a, b] if b <= a else S[b, a]
-    if invariant and rho != 0.0 and l < dp:  # the heading noise still owed, v = -J m̂ (rows l)
-        v3, v4 = mu[l + 1], -mu[l]
-        P[3, 3] += rho * v3 * v3
-        P[3, 4] += rho * v3 * v4
-        P[4, 3] += rho * v3 * v4
-        P[4, 4] += rho * v4 * v4
-    x0, y0, th0, mx0, my0 = mu[0], mu[1], mu[2], mu[l], mu[l + 1]
-    hth = 0.0 if invariant else 1.0
-    d = np.zeros(5)  # δ on (x, y, θ, mx, my)
-    h = np.zeros((2, 5))
-    HP = np.zeros((2, 5))
-    zh00 = zh01 = prior = best = c0 = c1 = cx = cy = 0.0
-    qdet = q00 * q11 - q01 * q01
-    ran = 0
+    mu, Sigma, _, owed, lin = storage
+    z, Q, gate, _ = update
+    invariant = lin == Linearization.INVARIANT
+    P = block(Sigma, indices(l), indices(l))  # Σ on (pose, landmark)
+    if owed[0] != 0.0:  # the heading noise the invariant filter still owes
+        v = owed_direction(storage, d)[l : l + 2]
+        P[3:, 3:] += owed[0] * np.outer(v, v)
+    x_hat = np.concatenate((mu[:3], mu[l : l + 2]))
+    C_Q = cholesky(Q)
+    result = np.full(8, np.nan)
+    delta = np.zeros(5)  # δ on (x, y, θ, mx, my)
+    z_hat_0 = np.zeros(2)  # h(x̂)
+    on_probation = np.full(8, np.nan)  # linearisation it - 1: taken if its step lowers the cost
+    prior = best = 0.0
     for it in range(iterations + 1):  # the last pass only scores where the last step landed
-        if invariant:  # x(δ) = exp(δ) x̂ (`kernels.retract`)
-            w = d[2]
-            c, s = math.cos(w), math.sin(w)
-            if abs(w) < 1e-6:
-                va, vb = 1.0 - w * w / 6.0, 0.5 * w
-            else:
-                va, vb = s / w, (1.0 - c) / w
-            px = c * x0 - s * y0 + va * d[0] - vb * d[1]
-            py = s * x0 + c * y0 + vb * d[0] + va * d[1]
-            mx = c * mx0 - s * my0 + va * d[3] - vb * d[4]
-            my = s * mx0 + c * my0 + vb * d[3] + va * d[4]
-            th = th0 + w
-        else:
-            px, py, th, mx, my = x0 + d[0], y0 + d[1], th0 + d[2], mx0 + d[3], my0 + d[4]
-        rx, ry = mx - px, my - py
-        q = rx * rx + ry * ry
-        if not q > MIN_RANGE_SQUARED:
+        x = retract(x_hat, delta) if invariant else x_hat + delta  # x(δ)
+        if not apart(x[:3], x[3:]):
             break  # keep the last linearisation that could be made
-        jr = math.sqrt(q)
-        a, b, e, f = rx / jr, ry / jr, ry / q, rx / q
-        # eq. (14) on (x, y, θ, mx, my); the invariant one has no heading column
-        h[0, 0], h[0, 1], h[0, 2], h[0, 3], h[0, 4] = -a, -b, 0.0, a, b
-        h[1, 0], h[1, 1], h[1, 2], h[1, 3], h[1, 4] = e, -f, -hth, -e, f
-        zh0, zh1 = jr, _wrap(math.atan2(ry, rx) - th)
-        hd0 = hd1 = s00 = s01 = s11 = 0.0
-        for k in range(5):  # H δ, H Σ and S = H Σ Hᵀ + Q, written out (no BLAS in the kernel)
-            hd0 += h[0, k] * d[k]
-            hd1 += h[1, k] * d[k]
-            t0 = t1 = 0.0
-            for i in range(5):
-                t0 += h[0, i] * P[i, k]
-                t1 += h[1, i] * P[i, k]
-            HP[0, k], HP[1, k] = t0, t1
-            s00 += t0 * h[0, k]
-            s01 += t0 * h[1, k]
-            s11 += t1 * h[1, k]
-        s00, s01, s11 = s00 + q00, s01 + q01, s11 + q11
-        r0 = z0 - zh0 + hd0
-        r1 = _wrap(z1 - zh1) + hd1
-        det = s00 * s11 - s01 * s01
-        if not (0.0 < s00 < math.inf and 0.0 < det < math.inf):
+        H_r, H_l = jacobians(storage, x)
+        H = np.hstack((H_r, H_l))  # eq. (14) on (x, y, θ, mx, my)
+        z_hat = sensor.h(x[:3], x[3:])
+        HP = H @ P
+        S = HP @ H.T + Q
+        r = sensor.innovation(z, z_hat) + H @ delta  # r_i = z - h(x_i) + H_i δ_i
+        C = cholesky(S)
+        if not positive(C):
             break
         if it == 0:
-            nis = (s11 * r0 * r0 - 2.0 * s01 * r0 * r1 + s00 * r1 * r1) / det
-            first[OUT_Z_HAT], first[OUT_Z_HAT + 1] = zh0, zh1
-            first[OUT_NU], first[OUT_NU + 1] = r0, r1
-            first[OUT_S], first[OUT_S + 1], first[OUT_S + 2] = s00, s01, s11
-            first[OUT_NIS] = nis
-            if nis > gate or not qdet > 0.0:
-                return PLAIN
-            zh00, zh01 = zh0, zh1
-            res[RES_Z], res[RES_Z + 1], res[RES_J], res[RES_J + 1] = zh0 + r0, zh1 + r1, rx, ry
-            ran = 1  # the plain EKF's step, always taken
+            w = solve_lower(C, r)
+            nis = w @ w
+            obs[OBS_Z_HAT : OBS_Z_HAT + 2] = z_hat
+            obs[OBS_NU : OBS_NU + 2] = r
+            obs[OBS_S], obs[OBS_S + 1], obs[OBS_S + 2] = S[0, 0], S[1, 0], S[1, 0]
+            obs[OBS_S + 3], obs[OBS_NIS] = S[1, 1], nis
+            if nis > gate or not positive(C_Q):
+                return result
+            z_hat_0 = z_hat
+            result[:5], result[5:7], result[7] = x, z_hat_0 + r, 1  # the plain EKF's, always taken
         else:  # the MAP cost at δ_it, where the last step landed
-            t0, t1 = z0 - zh0, _wrap(z1 - zh1)
-            cost = 0.5 * (q11 * t0 * t0 - 2.0 * q01 * t0 * t1 + q00 * t1 * t1) / qdet + prior
+            t = solve_lower(C_Q, sensor.innovation(z, z_hat))
+            cost = 0.5 * t @ t + prior  # ½ tᵀ Q⁻¹ t + the prior's
             if it >= 2:  # did linearisation it - 1's step lower it? Then it is the one to take
                 if not cost < best:
                     break
-                res[RES_Z], res[RES_Z + 1], res[RES_J], res[RES_J + 1] = c0, c1, cx, cy
-                ran = it
+                result[:7], result[7] = on_probation[:7], it
             best = cost
             if it == iterations:
                 break
-            c0, c1, cx, cy = zh00 + r0, zh01 + r1, rx, ry  # linearisation it, on probation
-        w0 = (s11 * r0 - s01 * r1) / det  # S⁻¹ r
-        w1 = (s00 * r1 - s01 * r0) / det
+            on_probation[:5], on_probation[5:7] = x, z_hat_0 + r
+        w = solve_upper(C, solve_lower(C, r))  # S⁻¹ r = C⁻ᵀ C⁻¹ r
         # ½ δᵀ Σ⁻¹ δ at the next point, δ = Σ Hᵀ w: ½ wᵀ (S - Q) w, no inverse of Σ needed
-        prior = 0.5 * ((s00 - q00) * w0 * w0 + 2.0 * (s01 - q01) * w0 * w1 + (s11 - q11) * w1 * w1)
-        moved = 0.0
-        for k in range(5):  # δ <- K r = (H Σ)ᵀ S⁻¹ r
-            new = HP[0, k] * w0 + HP[1, k] * w1
-            moved = max(moved, abs(new - d[k]))
-            d[k] = new
+        prior = 0.5 * w @ (S - Q) @ w
+        step = HP.T @ w  # δ <- K r = (H Σ)ᵀ S⁻¹ r
+        moved = np.max(np.abs(step - delta))
+        delta = step
         if it > 0 and moved < TOLERANCE:  # converged: this step lands where it started
-            res[RES_Z], res[RES_Z + 1], res[RES_J], res[RES_J + 1] = c0, c1, cx, cy
-            ran = it + 1
+            result[:7], result[7] = on_probation[:7], it + 1
             break
-    res[RES_ITERATIONS] = ran
-    return USE if ran > 0 else PLAIN
+    return result

@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.filter.associating import ASSOCIATED, CONFIRMED, AssociationLog
 from ekfslam.core.filter.ekf import EKFSLAM
-from ekfslam.core.timestamp import image_noises
+from ekfslam.core.timestamp import TimeError, image_noises
 
 Array = NDArray[np.float64]
 
@@ -67,7 +67,11 @@ class MappingFilter:
         k, m = self._next, len(zs)
         if k + m > len(self.log.estimated):
             raise ValueError(f"{len(self.log.estimated)} decisions for more sightings ({k + m})")
-        _, Qs, _ = image_noises(Q, zs, omega, velocity, self.time_sigma, self.time_shared)
+        rate, error = (
+            (velocity[0], velocity[1], omega),
+            TimeError(self.time_sigma, self.time_shared),
+        )
+        _, Qs, _ = image_noises(Q, zs, rate, error, self.ekf.sensor)
         Qs = np.broadcast_to(Qs, (m, 2, 2))
         used = self.log.estimated[k : k + m].tolist()
         what = self.log.decision[k : k + m]

@@ -80,7 +80,7 @@ def _same(a: AssociatingFilter, b: AssociatingFilter, radius: float) -> bool:
     """Do two hypotheses hold one state: the same landmarks and tentatives, every mean within
     `radius` (m; rad for the heading)? A sighting made a tentative and one dropped leave the
     same filter state, yet only the first can found a landmark: they are different."""
-    if a.ekf._dim != b.ekf._dim or len(a._tentative) != len(b._tentative):
+    if len(a.ekf.mu) != len(b.ekf.mu) or len(a._tentative) != len(b._tentative):
         return False
     if np.abs(a.ekf.mu - b.ekf.mu).max() > radius:
         return False

@@ -64,7 +64,7 @@ def prior_map(ekf: EKFSLAM) -> PriorMap:
     return PriorMap(
         means=ekf.mu[3:].reshape(n, 2).copy(),
         covariance=0.5 * (C + C.T),
-        sightings=tuple(ekf._sightings),
+        sightings=ekf.accepted_sightings(),
     )
 
 
@@ -72,26 +72,9 @@ def start_with(ekf: EKFSLAM, prior: PriorMap) -> EKFSLAM:
     """Put `prior`'s landmarks into `ekf`, a filter that has taken no step yet; returns it.
 
     Landmark j gets slot j and id j, its mean and covariance the prior's, and no correlation with
-    the pose (eq. 2's Σ0 block stays the filter's own).
+    the pose (eq. 2's Σ0 block stays the filter's own): `EKFSLAM.start_with_map`.
     """
-    if ekf.n_landmarks or ekf.counts.predictions:
-        raise ValueError("a prior map goes into a filter that has taken no step")
-    if ekf._invariant:
-        raise ValueError("a prior map needs the standard or FEJ filter (not 'invariant')")
-    n = len(prior.means)
-    while 3 + 2 * n > ekf._mu.shape[0]:
-        ekf._grow()
-    ekf._dim = 3 + 2 * n
-    ekf._mu[3 : 3 + 2 * n] = np.asarray(prior.means, dtype=float).ravel()
-    ekf._Sigma[3 : 3 + 2 * n, :3] = 0.0
-    ekf._Sigma[:3, 3 : 3 + 2 * n] = 0.0
-    ekf._Sigma[3 : 3 + 2 * n, 3 : 3 + 2 * n] = prior.covariance
-    for j in range(n):
-        ekf._ids.append(j)
-        ekf.slot[j] = j
-        ekf._sightings.append(int(prior.sightings[j]))
-        ekf._first.append((float(prior.means[j, 0]), float(prior.means[j, 1])))
-        ekf._rejected.append([])
+    ekf.start_with_map(prior.means, prior.covariance, prior.sightings)
     return ekf
 
 

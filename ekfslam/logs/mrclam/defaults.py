@@ -15,13 +15,13 @@ from ekfslam.core.noise import NoiseConfig
 #: The name `ekfslam.logs.runjson.RunMeta.defaults` holds for these.
 NAME = "mrclam"
 #: The grid table `MRCLAM_NOISE` was chosen on: every robot of Datasets 7, 1 and 4 at every
-#: grid point (`ekfslam.analysis.mrclam_crossval.GridTable`; ``tune-mrclam --out`` writes one).
+#: grid point (`studies.mrclam_crossval.GridTable`; ``tune-mrclam --out`` writes one).
 CROSSVAL_TABLE = Path(__file__).with_name("crossval.json")
 
 #: Noise for MRCLAM robots, one setting for all five, chosen by leave-one-dataset-out
-#: cross-validation over Datasets 7, 1 and 4 (`ekfslam.analysis.mrclam_crossval`; the table is
-#: `CROSSVAL_TABLE`, ``python -m ekfslam tune-mrclam --cross-validate``): a grid of
-#: 81 points (`ekfslam.analysis.mrclam_tuning.TUNING_GRID`: sigma_x 0.005/0.01/0.02,
+#: cross-validation over Datasets 7, 1 and 4 (`studies.mrclam_crossval`; the table is
+#: `CROSSVAL_TABLE`, ``python -m studies tune-mrclam --cross-validate``): a grid of
+#: 81 points (`studies.mrclam_tuning.TUNING_GRID`: sigma_x 0.005/0.01/0.02,
 #: sigma_theta 0.03/0.05/0.1, sigma_range 0.15/0.2/0.3, sigma_bearing 0.01/0.02/0.05; sigma_y
 #: 0.005, a differential drive does not slip sideways), every robot replayed on its logged
 #: commands. Each fold tunes on two datasets and is scored on the third; tuning by the training
@@ -38,8 +38,8 @@ MRCLAM_NOISE = NoiseConfig(
 
 #: Noise for consistency on MRCLAM (the noise a replay with hidden ids uses, since association
 #: trusts Σ), one setting for all five robots, chosen by
-#: `ekfslam.analysis.mrclam_consistency.tune_for_consistency` on Dataset 7 with the standard
-#: EKF: a grid of 96 points (`ekfslam.analysis.mrclam_consistency.CONSISTENCY_GRID`: sigma_x
+#: `studies.mrclam_consistency.tune_for_consistency` on Dataset 7 with the standard
+#: EKF: a grid of 96 points (`studies.mrclam_consistency.CONSISTENCY_GRID`: sigma_x
 #: 0.02/0.05/0.1/0.2, sigma_y 0.005/0.05, sigma_theta 0.05/0.1/0.2, sigma_range 0.3/0.5,
 #: sigma_bearing 0.01/0.03), minimising the robots' average
 #: |log(mean pose NEES / 3)| among the settings that keep the map within the MRCLAM issue's
@@ -66,7 +66,7 @@ MRCLAM_CONSISTENT_NOISE = NoiseConfig(
 #: 2.70/2.20/2.03/1.34/2.49x to about 1.9/1.5/1.0/1.3/1.3x (mean 2.15x -> 1.41x), Dataset 1's
 #: mean from 2.61x to about 1.87x and Dataset 4's from 1.58x to about 1.22x; robust (Huber,
 #: Cauchy) updates on top changed little. The README's table is the measured one
-#: (``python -m ekfslam score-mrclam 7 --association jcbb mht``).
+#: (``python -m studies score-mrclam 7 --association jcbb mht``).
 MRCLAM_MAP_NOISE = NoiseConfig(
     sigma_x=0.005, sigma_y=0.005, sigma_theta=0.05, sigma_range=0.5, sigma_bearing=0.03
 )

@@ -18,8 +18,9 @@ Nothing is dropped silently: every sighting that does not become a detection is 
 Beside loading, in `ekfslam.logs.mrclam.calibration`: `calibrate_commands` (an optional correction
 of the logged commands, `MRCLAM_CALIBRATION`, off by default); in `ekfslam.analysis.mrclam_tuning`:
 `score_robots`, `scores_table` and
-``python -m ekfslam score-mrclam N`` (the per-robot table); `tune_noise` (the grid search that
-chose `ekfslam.logs.mrclam.defaults.MRCLAM_NOISE`, one setting for all robots).
+``python -m studies score-mrclam N`` (the per-robot table); in the repository's studies,
+`studies.mrclam_tuning.tune_noise` (the grid search behind
+`ekfslam.logs.mrclam.defaults.MRCLAM_NOISE`, one setting for all robots).
 
 ``python -m ekfslam convert mrclam DATASET --robot N --out DIR`` writes a robot as a run folder.
 """

@@ -1,0 +1,21 @@
+"""``python -m benchmarks COMMAND ...`` from a checkout's root: the project's benchmarks.
+
+The same lazy table of commands as ``python -m ekfslam`` (`ekfslam.cli.main`), with the same
+one-line refusals of bad input; only the chosen command's module is imported.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from ekfslam.cli.main import main
+
+#: command -> (its module, its one line in ``--help``), in the order ``--help`` lists them.
+COMMANDS: dict[str, tuple[str, str]] = {
+    "bench": ("benchmarks.cli.bench", "time replays and per-step costs against map size"),
+    "tune": ("benchmarks.cli.tune", "time the live tuning panel's change-to-figure latency"),
+}
+DESCRIPTION = "The ekfslam project's benchmarks: the filter, the commands, the live panel."
+
+if __name__ == "__main__":
+    sys.exit(main(commands=COMMANDS, prog="python -m benchmarks", description=DESCRIPTION))

@@ -1,0 +1,1 @@
+"""``python -m benchmarks COMMAND``: one module per command, each with ``add_command``."""

@@ -1,0 +1,230 @@
+"""The filter's fast path: numba compiles the readable steps themselves, for the chosen models.
+
+`ekfslam.core.filter.steps` (and the iterated update, the association's predictions, JCBB's
+search) are written once, as plain numpy in block form. Run as they are, they are the filter a
+reader steps through in a debugger. `compiled` hands back the same functions compiled by numba:
+
+1. Each function's source is parsed and every ``a @ b`` becomes ``small_matmul(a, b)``: numba
+   implements ``@`` with a BLAS call, whose overhead is ten times the arithmetic of the 2x3 and
+   3x3 products a step is made of; compiled, `small_matmul` is three loops, and interpreted it
+   is ``@`` itself.
+2. The names ``motion`` and ``sensor`` in the steps are bound to the chosen models'
+   functions (`ekfslam.core.models.MotionModel`, `SensorModel`), compiled the same way, and so
+   is every other function of ekfslam that a compiled function calls, down to the models.
+3. One primitive has a compiled form of its own: `ekfslam.core.filter.symmetric.
+   subtract_products`, a loop over Σ's lower triangle instead of numpy's d x d temporary.
+4. numba caches the machine code beside the source files (``cache=True``), under a name that
+   carries a digest of every source involved and of the models' parameters: a changed model or
+   step is compiled afresh, and only the first run on a machine pays the compilation.
+
+This module is the only one that imports numba; the filter imports it when asked for the
+compiled backend (`ekfslam.core.filter.config.FilterConfig.backend`).
+"""
+
+from __future__ import annotations
+
+import ast
+import hashlib
+import importlib
+import importlib.metadata
+import importlib.util
+import inspect
+import os
+import sys
+import textwrap
+import types
+from collections.abc import Callable
+from pathlib import Path
+
+import numba
+import numpy as np
+from numba import njit
+from numba.extending import overload
+
+from ekfslam.core.filter import symmetric
+from ekfslam.core.filter.rebinding import called, closure, rebind
+
+#: The module that writes straight-line code from a step's lines (it loads sympy: imported only
+#: when a step's code is not in the cache yet).
+GENERATOR = "ekfslam.core.filter.generate"
+
+#: numba's options for every compiled function: errors as numpy gives them (inf and NaN, which
+#: the steps test for), never a Python exception raised from inside a division.
+OPTIONS = {"cache": True, "error_model": "numpy", "nogil": True}
+
+
+def small_matmul(A, B):
+    """``A @ B``: what ``@`` becomes in compiled code (see the module)."""
+    return A @ B
+
+
+#: functions compiled by a form of their own, not from their source
+PRIMITIVES = frozenset({small_matmul, symmetric.subtract_products})
+
+
+@overload(small_matmul, jit_options=OPTIONS)
+def _small_matmul(A, B):
+    if A.ndim == 2 and B.ndim == 2:
+        return _matrix_matrix
+    if A.ndim == 2:
+        return _matrix_vector
+    if B.ndim == 2:
+        return _vector_matrix
+    return _dot
+
+
+def _matrix_matrix(A, B):
+    n, k = A.shape
+    C = np.empty((n, B.shape[1]))
+    for i in range(n):
+        for j in range(B.shape[1]):
+            total = 0.0
+            for t in range(k):
+                total += A[i, t] * B[t, j]
+            C[i, j] = total
+    return C
+
+
+def _matrix_vector(A, B):
+    n, k = A.shape
+    c = np.empty(n)
+    for i in range(n):
+        total = 0.0
+        for t in range(k):
+            total += A[i, t] * B[t]
+        c[i] = total
+    return c
+
+
+def _vector_matrix(A, B):
+    k, m = B.shape
+    c = np.empty(m)
+    for j in range(m):
+        total = 0.0
+        for t in range(k):
+            total += A[t] * B[t, j]
+        c[j] = total
+    return c
+
+
+def _dot(A, B):
+    total = 0.0
+    for t in range(A.shape[0]):
+        total += A[t] * B[t]
+    return total
+
+
+@overload(symmetric.subtract_products, jit_options=OPTIONS, inline="always")
+def _subtract_products(Sigma, d, A, B):
+    def one_pass(Sigma, d, A, B):  # Σ[i, k] -= Σ_a A[a, i] B[a, k] for k <= i
+        for i in range(d):
+            row = Sigma[i]
+            for a in range(A.shape[0]):
+                x, b = A[a, i], B[a]
+                for k in range(i + 1):
+                    row[k] -= x * b[k]
+
+    return one_pass
+
+
+class _MatMulToCall(ast.NodeTransformer):
+    def visit_BinOp(self, node: ast.BinOp) -> ast.AST:
+        self.generic_visit(node)
+        if isinstance(node.op, ast.MatMult):
+            call = ast.Call(ast.Name("small_matmul", ast.Load()), [node.left, node.right], [])
+            return ast.copy_location(call, node)
+        return node
+
+
+def _digest(functions: list[Callable], models: dict[str, object]) -> str:
+    """A name for this set of sources, the constants they read and the models' parameters (see
+    the module, point 4): numba bakes a global's value into the machine code, so a changed
+    constant must change the name as a changed line does."""
+    h = hashlib.sha256(numba.__version__.encode())
+    h.update(inspect.getsource(inspect.getmodule(_digest)).encode())
+    h.update(importlib.metadata.version("sympy").encode())  # the generator's (and its code)
+    h.update(Path(importlib.util.find_spec(GENERATOR).origin).read_bytes())
+    for fn in functions:
+        h.update(f"{fn.__module__}.{fn.__qualname__}".encode())
+        h.update(inspect.getsource(fn).encode())
+        for cell in fn.__closure__ or ():
+            h.update(repr(cell.cell_contents).encode())
+        for name, value in called(fn, models).items():
+            if not isinstance(value, types.FunctionType | types.ModuleType) and name not in models:
+                h.update(f"{name}={value!r}".encode())
+    return h.hexdigest()[:16]
+
+
+def compiled(roots: dict[str, Callable], models: dict[str, object]) -> types.SimpleNamespace:
+    """The functions `roots` ({name: function}) compiled by numba, with each name of `models`
+    ({"motion": MotionModel, "sensor": SensorModel}) bound to that model (see the module).
+
+    Returns a namespace of numba dispatchers, one per root, by the roots' names.
+    """
+    functions = closure(roots.values(), models, primitives=PRIMITIVES)
+    tag = _digest(functions, models)
+    replace = {fn: _generated(fn, models, tag) for fn in functions if _straight_line(fn)}
+
+    outermost = set(roots.values())
+
+    def build(fn: Callable, env: dict) -> Callable:
+        env["small_matmul"] = small_matmul
+        tree = ast.parse(textwrap.dedent(inspect.getsource(fn)))
+        tree = ast.fix_missing_locations(_MatMulToCall().visit(tree))
+        ast.increment_lineno(tree, fn.__code__.co_firstlineno - 1)
+        exec(compile(tree, inspect.getfile(fn), "exec"), env)
+        source = env[fn.__name__]
+        source.__qualname__ = f"{fn.__qualname__}_{tag}"
+        source.__module__ = fn.__module__
+        if fn in outermost:
+            return njit(**OPTIONS)(source)
+        # inlined where it is called: one machine-code library per root to cache and load
+        return njit(inline="always", error_model="numpy")(source)
+
+    return rebind(roots, models, build, primitives=PRIMITIVES, replace=replace)
+
+
+def _straight_line(fn: Callable) -> dict | None:
+    """The argument shapes fn's module declares for it in ``STRAIGHT_LINE``, or None."""
+    return getattr(sys.modules[fn.__module__], "STRAIGHT_LINE", {}).get(fn.__name__)
+
+
+def _generated(fn: Callable, models: dict[str, object], tag: str) -> Callable:
+    """The straight-line stand-in for fn (`ekfslam.core.filter.generate`): read from the cache
+    if it was generated for these sources before, else generated (sympy, about a second) and
+    written there. The file is plain Python, to read beside the lines it was made from."""
+    name = f"ekfslam_generated_{fn.__name__}_{tag}"
+    path = _cache_dir() / f"{name}.py"
+    if not path.is_file():
+        source = importlib.import_module(GENERATOR).straight_line(
+            fn, _straight_line(fn), models, fn.__name__
+        )
+        header = (
+            f'"""{fn.__module__}.{fn.__qualname__} as straight-line code, generated by '
+            f"{GENERATOR} from its lines and the models'.\n\nDo not edit: it is made again "
+            'whenever any of them changes (its name carries their digest)."""\n\n'
+            "import math\n\nfrom ekfslam.geometry import wrap_angle\n\n\n"
+        )
+        partial = path.with_suffix(f".{os.getpid()}.partial")
+        partial.write_text(header + source, encoding="utf-8")
+        partial.replace(path)  # atomic: another process may be writing the same file
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return getattr(module, fn.__name__)
+
+
+def _cache_dir() -> Path:
+    """Where generated sources go: the package's own ``__pycache__`` when it can be written to
+    (a checkout, a user's environment), else the user's cache folder."""
+    here = Path(__file__).resolve().parent / "__pycache__"
+    for folder in (here, Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache"))):
+        folder = folder if folder == here else folder / "ekfslam" / "generated"
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError:
+            continue
+        if os.access(folder, os.W_OK):
+            return folder
+    raise OSError("no folder to keep the generated steps in: set XDG_CACHE_HOME")

@@ -1,0 +1,39 @@
+"""``python -m studies COMMAND ...`` from a checkout's root: the project's studies.
+
+The same lazy table of commands as ``python -m ekfslam`` (`ekfslam.cli.main`), with the same
+one-line refusals of bad input; only the chosen command's module is imported.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from ekfslam.cli.main import main
+
+#: command -> (its module, its one line in ``--help``), in the order ``--help`` lists them.
+COMMANDS: dict[str, tuple[str, str]] = {
+    "score-mrclam": (
+        "studies.cli.score_mrclam",
+        "replay every robot of a MRCLAM dataset with one noise setting; print the scores",
+    ),
+    "tune-mrclam": (
+        "studies.cli.tune_mrclam",
+        "tune the MRCLAM noise over datasets; --cross-validate: leave one dataset out",
+    ),
+    "consistency": (
+        "studies.cli.consistency",
+        "NEES/NIS over Monte Carlo runs; outlier gating; a long Σ run; MRCLAM against Vicon",
+    ),
+    "budget": (
+        "studies.cli.budget",
+        "the realistic robot's error budget: each error source alone and all but it",
+    ),
+    "vision-eval": (
+        "studies.cli.vision_eval",
+        "score range and bearing from rendered frames against the truth",
+    ),
+}
+DESCRIPTION = "The ekfslam project's studies: what chose the defaults, what the README reports."
+
+if __name__ == "__main__":
+    sys.exit(main(commands=COMMANDS, prog="python -m studies", description=DESCRIPTION))
