@@ -25,10 +25,6 @@ from sympy.printing.pycode import PythonCodePrinter
 
 from ekfslam.core.filter.rebinding import rebind
 
-#: What a step takes, by argument: a shape (a tuple: an array of symbols), () (one symbol) or a
-#: list of the values a flag takes (one branch of code each).
-Spec = dict[str, tuple | list]
-
 #: The angle wrap, kept as a call in the generated code (it is not a smooth function to expand).
 WRAP = sympy.Function("wrap_angle")
 
@@ -56,9 +52,15 @@ def _symbols(name: str, shape: tuple) -> object:
     return np.array(flat, dtype=object).reshape(shape)
 
 
-def straight_line(fn: Callable, spec: Spec, models: dict[str, object], name: str) -> str:
+def straight_line(
+    fn: Callable, spec: dict[str, tuple | list], models: dict[str, object], name: str
+) -> str:
     """The source of a function `name` with fn's arguments that writes into its array arguments
-    what fn writes, as straight-line code (see the module)."""
+    what fn writes, as straight-line code (see the module).
+
+    spec : what fn takes, by argument: a shape (a tuple: an array of symbols), () (one symbol)
+        or a list of the values a flag takes (one branch of code each).
+    """
     traced = rebind({"fn": fn}, models, _symbolic).fn
     arrays = {a: s for a, s in spec.items() if isinstance(s, tuple) and s}
     scalars = [a for a, s in spec.items() if s == ()]
