@@ -16,6 +16,6 @@ def _ended(signum: int, frame: object) -> None:
 signal.signal(signal.SIGTERM, _ended)
 signal.signal(signal.SIGINT, _ended)
 
-from ekfslam.cli.main import main  # noqa: E402  (after the handlers: importing takes a while)
+from ekfslam.cli.main import exit_with, main  # noqa: E402  (after the handlers: importing takes a while)
 
-sys.exit(main())
+exit_with(main())

@@ -24,6 +24,7 @@ import argparse
 import concurrent.futures
 import contextlib
 import dataclasses
+import importlib
 import io
 import json
 import math
@@ -35,7 +36,7 @@ import subprocess
 import sys
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -113,9 +114,7 @@ def cli(*argv: str, cwd: Path = REPO, timeout: float = 300, pre: str = "") -> Ra
         if pre
         else ["-m", module]
     )
-    # the repository's benchmarks/ is imported from the checkout, as its README runs it
-    path = os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))
-    env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": path}
+    env = _env()
     try:
         p = subprocess.run(
             [sys.executable, *code, *argv],
@@ -130,10 +129,21 @@ def cli(*argv: str, cwd: Path = REPO, timeout: float = 300, pre: str = "") -> Ra
     return Ran(p.returncode, p.stdout, p.stderr)
 
 
-def _module(argv: tuple[str, ...]) -> str:
+def _module(argv: Sequence[str]) -> str:
     """The command line a command belongs to: the package's, or the repository's benchmarks
-    (``bench`` and ``tune`` moved there, issue 24)."""
-    return "benchmarks" if argv[:1] in (("bench",), ("tune",)) else "ekfslam"
+    or studies (they moved out of the package, issue 24)."""
+    from benchmarks.__main__ import COMMANDS as BENCHMARKS
+    from studies.__main__ import COMMANDS as STUDIES
+
+    command = argv[0] if argv else ""
+    return "benchmarks" if command in BENCHMARKS else "studies" if command in STUDIES else "ekfslam"
+
+
+def _env() -> dict[str, str]:
+    """The environment a command runs in: no display, and the checkout on the path (the
+    repository's benchmarks/ and studies/ run from it, as their READMEs say)."""
+    path = os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))
+    return {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": path}
 
 
 def _in_process(argv: tuple[str, ...], cwd: Path) -> Ran:
@@ -142,10 +152,10 @@ def _in_process(argv: tuple[str, ...], cwd: Path) -> Ran:
     from ekfslam.cli.main import main
 
     table = {}
-    if _module(argv) == "benchmarks":
-        import benchmarks.__main__ as b
-
-        table = {"commands": b.COMMANDS, "prog": "python -m benchmarks"}
+    module = _module(argv)
+    if module != "ekfslam":
+        commands = importlib.import_module(f"{module}.__main__").COMMANDS
+        table = {"commands": commands, "prog": f"python -m {module}"}
     out, err = io.StringIO(), io.StringIO()
     with contextlib.chdir(cwd), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         try:
@@ -998,9 +1008,9 @@ SLOW_RENAME = (
     "_mf.Figure.savefig = _slow_sf\n"
 )
 BENCH_STUB = SLOW_BENCH = (
-    "import benchmarks.cli.bench as b\n"
+    "import benchmarks.cli.bench as b, benchmarks.report as br\n"
     "b.run_benchmarks = lambda config, command: {}\n"
-    "b.markdown_table = lambda r: 'table'\n"
+    "br.markdown_table = b.markdown_table = lambda r: 'table'\n"
     "b.plot_costs = lambda r, path: None\n"
 )
 
@@ -1017,15 +1027,16 @@ def _interrupt(
 
     def check(folder: Path) -> str | None:
         args = argv(folder)
+        module = _module(args)
         code = [
             "-c",
-            f"{pre}\nimport sys, runpy; sys.argv = ['ekfslam', *sys.argv[1:]]; "
-            "runpy.run_module('ekfslam', run_name='__main__')",
+            f"{pre}\nimport sys, runpy; sys.argv = ['{module}', *sys.argv[1:]]; "
+            f"runpy.run_module('{module}', run_name='__main__')",
         ]
         p = subprocess.Popen(
             [sys.executable, *code, *args],
             cwd=folder,
-            env={**os.environ, "MPLBACKEND": "Agg"},
+            env=_env(),
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,

@@ -163,7 +163,7 @@ def test_a_signal_in_the_middle_of_a_write_leaves_nothing_and_ends_in_one_line(t
             files.atomic_write({str(tmp_path / "out.txt")!r}, slow)
             return 0
 
-        m._run = lambda argv: command(None)
+        m._run = lambda *args: command(None)
         sys.exit(main([]))
         """
     )

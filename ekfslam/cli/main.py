@@ -19,6 +19,7 @@ import os
 import signal
 import sys
 import warnings
+from typing import NoReturn
 
 from ekfslam.cli import args as ca
 from ekfslam.errors import (
@@ -126,6 +127,19 @@ def main(
         name = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
         print(f"interrupted ({name}): stopped; no file was left half-written", file=sys.stderr)
         return 128 + signum
+
+
+def exit_with(code: int) -> NoReturn:
+    """End the process with `code`, as ``python -m ekfslam`` (and the repository's studies and
+    benchmarks) do after `main`. After a signal every clean-up has already run, and the
+    interpreter's teardown is skipped: a native library interrupted mid-call (OpenCV's video
+    writer) has been seen to crash there (exit -11 after the one line), which would turn a
+    clean 143 into a segfault."""
+    if code in (128 + signal.SIGINT, 128 + signal.SIGTERM):
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)
 
 
 def _signal_in(exc: BaseException | None) -> int | None:

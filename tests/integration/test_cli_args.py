@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from benchmarks.__main__ import COMMANDS as BENCHMARKS
 from ekfslam import files, read_run
 from ekfslam.cli import animate as animate_args
 from ekfslam.cli import args as ca
@@ -315,9 +316,11 @@ def test_run_animate_with_hidden_ids_labels_landmarks_by_true_id(tmp_path, monke
 )
 def test_contradicting_options_are_refused_not_resolved_silently(argv, line, capsys) -> None:
     argv = [str(RUN) if a == "RUN" else a for a in argv]
-    assert main(argv) == 2
+    prog = "python -m benchmarks" if argv[0] in BENCHMARKS else "python -m ekfslam"
+    table = {"commands": BENCHMARKS, "prog": prog} if argv[0] in BENCHMARKS else {}
+    assert main(argv, **table) == 2
     err = capsys.readouterr().err
-    assert f": error: {line} (see python -m ekfslam {argv[0]} --help)" in err, err
+    assert f": error: {line} (see {prog} {argv[0]} --help)" in err, err
 
 
 def test_an_option_repeated_with_the_same_value_is_harmless() -> None:
