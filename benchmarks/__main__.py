@@ -6,9 +6,7 @@ one-line refusals of bad input; only the chosen command's module is imported.
 
 from __future__ import annotations
 
-import sys
-
-from ekfslam.cli.main import main
+from ekfslam.cli.main import exit_with, main
 
 #: command -> (its module, its one line in ``--help``), in the order ``--help`` lists them.
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -18,4 +16,4 @@ COMMANDS: dict[str, tuple[str, str]] = {
 DESCRIPTION = "The ekfslam project's benchmarks: the filter, the commands, the live panel."
 
 if __name__ == "__main__":
-    sys.exit(main(commands=COMMANDS, prog="python -m benchmarks", description=DESCRIPTION))
+    exit_with(main(commands=COMMANDS, prog="python -m benchmarks", description=DESCRIPTION))

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam import checks
 from ekfslam.core.association import AssociationConfig
 from ekfslam.core.diagnosis import Diagnosis, diagnose
 from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog, shares_image_error
@@ -34,10 +35,13 @@ from ekfslam.core.noise import NoiseConfig, default_config, default_noise, sight
 from ekfslam.core.recovery import Recovery, RecoveryConfig
 from ekfslam.errors import ConfigError, EkfSlamError
 from ekfslam.logs.edit import truncate
-from ekfslam.logs.runlog import RunLog
+from ekfslam.logs.runlog import RunLog, check_replayable
 from ekfslam.plausibility import MAX_HEADING, MAX_POSITION
 
 Array = NDArray[np.float64]
+
+#: The most keyframes `replay` keeps: each is a copy of the whole state (μ and Σ).
+MAX_KEYFRAMES = 100_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -131,17 +135,34 @@ def replay(
         (`ekfslam.core.recovery`), so a filter that has lost its pose relocalises against its
         map; the times are in ``result.diagnosis.recoveries``. None (the default): never.
     """
+    check_replayable(run, "replay: run")
+    for name, value, kind, hint in (
+        ("noise", noise, NoiseConfig, "e.g. NoiseConfig(sigma_range=0.05)"),
+        ("config", config, FilterConfig, "e.g. FilterConfig(gate=None)"),
+        ("association", association, AssociationConfig, 'e.g. AssociationConfig(method="jcbb")'),
+        ("map_noise", map_noise, NoiseConfig, "e.g. NoiseConfig(sigma_x=0.005)"),
+    ):
+        if value is not None:
+            checks.instance(value, kind, f"replay: {name}", hint)
+    if start_pose is not None:  # its plausibility below, with the run's nominal start's
+        checks.array(start_pose, "replay: start_pose", (3,), "a pose (x, y, theta)", finite=False)
+    if start_covariance is not None:
+        checks.covariance(start_covariance, "replay: start_covariance", 3)
     whole = isinstance(keyframes, int | np.integer) and not isinstance(keyframes, bool)
-    if keyframes is not None and not (whole and keyframes >= 2):
-        raise ConfigError(f"keyframes must be a whole number >= 2, got {keyframes!r}")
+    if keyframes is not None and not (whole and 2 <= keyframes <= MAX_KEYFRAMES):
+        raise ConfigError(
+            f"keyframes must be a whole number from 2 to {MAX_KEYFRAMES} (each is a copy of the "
+            f"whole state), got {checks.shown(keyframes)}"
+        )
     noise = noise or default_noise(run)
     config = config or default_config(run)
     pose0 = run.meta.nominal_start if start_pose is None else start_pose
     p = np.asarray(pose0, dtype=float)
     if p.shape != (3,) or not (np.all(np.abs(p[:2]) <= MAX_POSITION) and abs(p[2]) <= MAX_HEADING):
         # a finite 1e308 start overflows in the alignment: a table of NaN, not an error
+        whose = "replay: start_pose" if start_pose is not None else "the run's nominal_start"
         raise ConfigError(
-            f"start pose {p.tolist()} is not a plausible (x, y, theta): |x|, |y| <= "
+            f"{whose} {p.tolist()} is not a plausible (x, y, theta): |x|, |y| <= "
             f"{MAX_POSITION:g} m, |theta| <= 2 pi rad"
         )
     hidden = association is not None and association.method != "known"

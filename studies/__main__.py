@@ -6,9 +6,7 @@ one-line refusals of bad input; only the chosen command's module is imported.
 
 from __future__ import annotations
 
-import sys
-
-from ekfslam.cli.main import main
+from ekfslam.cli.main import exit_with, main
 
 #: command -> (its module, its one line in ``--help``), in the order ``--help`` lists them.
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -36,4 +34,4 @@ COMMANDS: dict[str, tuple[str, str]] = {
 DESCRIPTION = "The ekfslam project's studies: what chose the defaults, what the README reports."
 
 if __name__ == "__main__":
-    sys.exit(main(commands=COMMANDS, prog="python -m studies", description=DESCRIPTION))
+    exit_with(main(commands=COMMANDS, prog="python -m studies", description=DESCRIPTION))

@@ -30,6 +30,8 @@ REPO = Path(__file__).resolve().parents[1]
 # the floor of each top-level name under the package
 FLOOR_OF = {
     "errors": "leaves",
+    "checks": "leaves",
+    "fieldtypes": "leaves",
     "geometry": "leaves",
     "files": "leaves",
     "plausibility": "leaves",

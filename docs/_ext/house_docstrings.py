@@ -242,7 +242,7 @@ def process_signature(app, what, name, obj, options, signature, return_annotatio
 
 def skip_foreign(app, what, name, obj, skip, options):
     """A matplotlib artist's generated ``set`` is matplotlib's to document, not ours."""
-    if what == "class" and getattr(obj, "__module__", "").startswith("matplotlib"):
+    if what == "class" and (getattr(obj, "__module__", None) or "").startswith("matplotlib"):
         return True
     return None
 

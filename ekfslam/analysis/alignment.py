@@ -19,7 +19,6 @@ explicitly instead of hoping a generic optimiser gets there.
 
 from __future__ import annotations
 
-import operator
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Any, Literal
@@ -27,11 +26,15 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam import checks
 from ekfslam.analysis._alignment_solver import distances, minimise, weighted_kabsch
 from ekfslam.errors import AlignmentError
 from ekfslam.geometry import compose, rotation, transform_points, wrap_angle
+from ekfslam.plausibility import MAX_POSITION
 
 Method = Literal["mean_distance", "least_squares"]
+#: The objectives `align` knows (`Method`).
+METHODS: tuple[str, ...] = ("mean_distance", "least_squares")
 Array = NDArray[np.float64]
 
 
@@ -85,6 +88,7 @@ class Alignment:
 
     def apply(self, points: ArrayLike) -> Array:
         """Map points (M, 2) from the estimate's frame to the world: R(θ0) p + (x0, y0)."""
+        points = checks.rows(points, "Alignment.apply: points", 2, bound=MAX_POSITION)
         return transform_points(self.transform, points)
 
     def apply_pose(self, pose: ArrayLike) -> Array:
@@ -93,7 +97,7 @@ class Alignment:
         The position is rotated by θ0 and translated by (x0, y0); θ0 is added to the heading,
         which is then wrapped to [-π, π).
         """
-        return compose(self.transform, pose)
+        return compose(self.transform, checks.pose(pose, "Alignment.apply_pose: pose"))
 
     def start_pose(self, nominal_start: ArrayLike) -> Array:
         """The robot's true start pose (x, y, θ), shape (3,), given the start it believed in.
@@ -102,7 +106,7 @@ class Alignment:
         same transform that lays the map onto the world carries that pose to where the robot
         really stood.
         """
-        return self.apply_pose(nominal_start)
+        return compose(self.transform, checks.pose(nominal_start, "Alignment.start_pose: pose"))
 
 
 def mean_distance_objective(params: ArrayLike, X: ArrayLike, Y: ArrayLike) -> float:
@@ -171,6 +175,8 @@ def align_mean_distance(
         between them is equally good); we return the least-squares one, which is among them.
     """
     X, Y = _check_pair(estimated, truth)
+    checks.real(tol, "align_mean_distance: tol", lo=0.0)
+    checks.whole(max_iterations, "align_mean_distance: max_iterations", lo=1)
     x_bar, y_bar = X.mean(axis=0), Y.mean(axis=0)
     size = _spread(Y) or _spread(X) or 1.0
     tol = max(tol, 1e-15)  # it is also the IRLS weight cap, 1/tol: it must stay finite
@@ -201,18 +207,17 @@ def align(
         When fewer than two landmarks are in common, or `method` is unknown.
     """
     solvers = {"mean_distance": align_mean_distance, "least_squares": align_least_squares}
-    if method not in solvers:
-        raise AlignmentError(f"unknown alignment method {method!r}; use one of {sorted(solvers)}")
-    est = {_as_id(key): value for key, value in estimated.items()}
-    true = {_as_id(key): value for key, value in truth.items()}
+    checks.choice(method, "align: method", METHODS)
+    est = checks.points_by_id(estimated, "align: estimated")
+    true = checks.points_by_id(truth, "align: truth")
     common = sorted(est.keys() & true.keys())
     if len(common) < 2:
         raise AlignmentError(
             f"map alignment needs at least 2 landmarks in common, found {len(common)}: "
             f"estimated ids {_brief(est)}, true ids {_brief(true)}"
         )
-    X = np.array([np.asarray(est[i], dtype=float).reshape(2) for i in common])
-    Y = np.array([np.asarray(true[i], dtype=float).reshape(2) for i in common])
+    X = np.array([est[i] for i in common])
+    Y = np.array([true[i] for i in common])
     result = solvers[method](X, Y)
     ids = np.array(common, dtype=int)
     ids.setflags(write=False)
@@ -259,7 +264,11 @@ def _points(P: ArrayLike) -> Array:
 
 
 def _check_pair(estimated: ArrayLike, truth: ArrayLike) -> tuple[Array, Array]:
-    X, Y = np.asarray(estimated, dtype=float), np.asarray(truth, dtype=float)
+    what = "landmark positions (x, y) in m"
+    X = checks.array(
+        estimated, "align: estimated", (None, 2), what, finite=False, bound=MAX_POSITION
+    )
+    Y = checks.array(truth, "align: truth", (None, 2), what, finite=False, bound=MAX_POSITION)
     if X.ndim != 2 or X.shape[1:] != (2,) or X.shape != Y.shape:
         raise AlignmentError(
             f"estimated and true landmarks must both have shape (N, 2); got {X.shape} and {Y.shape}"
@@ -268,19 +277,22 @@ def _check_pair(estimated: ArrayLike, truth: ArrayLike) -> tuple[Array, Array]:
         raise AlignmentError(f"map alignment needs at least 2 landmarks, got {len(X)}")
     if not (np.isfinite(X).all() and np.isfinite(Y).all()):
         raise AlignmentError("landmark positions must be finite; found NaN or infinity")
+    for name, P in (("true", Y), ("estimated", X)):
+        if _spread(P) <= ONE_POINT * max(1.0, float(np.abs(P).max())):
+            raise AlignmentError(
+                f"the {len(P)} {name} landmarks all lie at one point {P[0].tolist()}: eq. (17) "
+                "cannot find the map's rotation from them (it is undetermined)"
+            )
     return X, Y
+
+
+#: A map whose points spread less than this (relative to their size) is at one point.
+ONE_POINT = 1e-9
 
 
 def _spread(P: Array) -> float:
     """Size of a map (m): the RMS distance of its points from their centroid."""
     return float(np.sqrt(np.mean(np.sum((P - P.mean(axis=0)) ** 2, axis=1))))
-
-
-def _as_id(key: Any) -> int:
-    try:
-        return operator.index(key)  # ints and numpy ints; not 3.7 or "3"
-    except TypeError:
-        raise AlignmentError(f"landmark ids must be integers; got {key!r}") from None
 
 
 def _brief(mapping: Mapping[int, Any], limit: int = 10) -> str:

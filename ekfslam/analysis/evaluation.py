@@ -12,7 +12,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from ekfslam.analysis.alignment import Alignment, align
+from ekfslam import checks
+from ekfslam.analysis.alignment import METHODS, Alignment, align
 from ekfslam.core.filter.history import Outcome
 from ekfslam.errors import AlignmentError
 from ekfslam.geometry import wrap_angle
@@ -65,6 +66,15 @@ def ate_rmse(result: ReplayResult, groundtruth: GroundTruth) -> float:
     Evaluated at every event time of the history that falls inside the ground truth's span, with
     no alignment (the estimate and the truth must share a frame).
     """
+    checks.instance(
+        result, ReplayResult, "ate_rmse: result", "replay a run first: ekfslam.replay(run)"
+    )
+    checks.instance(
+        groundtruth,
+        GroundTruth,
+        "ate_rmse: groundtruth",
+        "pass the run's ground truth, run.groundtruth (a run without one has no trajectory error)",
+    )
     h = result.history
     truth, inside = interpolate_poses(groundtruth, h.t)
     if not inside.any():
@@ -147,7 +157,14 @@ class RunSummary:
 
 
 def summarize(run: RunLog, result: ReplayResult, method: str = "mean_distance") -> RunSummary:
-    """Score a replay against what the run knows: its tag map and its ground truth, if any."""
+    """Score a replay against what the run knows: its tag map and its ground truth, if any.
+
+    method : eq. (17)'s objective, "mean_distance" (the seed's) or "least_squares"; anything
+        else is refused (it never means "no alignment").
+    """
+    checks.instance(run, RunLog, "summarize: run", "the run that was replayed")
+    checks.instance(result, ReplayResult, "summarize: result", "what ekfslam.replay(run) returned")
+    checks.choice(method, "summarize: method", METHODS)
     alignment = start_pose = None
     unaligned = None
     note = "the run has no known tag map"

@@ -5,24 +5,26 @@ line on stderr and exit status 2::
 
     python -m ekfslam run: error: argument --sigma-range: must be > 0, got 0 (see ... --help)
 
-Output paths (``--plot``, ``--out``) are checked the same way: the format is known, the path is
-not a folder, it does not lie under a regular file, and its nearest existing folder is writable.
-Missing parent folders are created when the file is written, and every file is written to a
-temporary file beside it and renamed into place (`atomic_write`), so a failed or interrupted
-write never leaves half a file and keeps the old one (`ekfslam.files`).
+Output paths (``--plot``, ``--out``, ``--animate``) are checked the same way: the format is
+known and the target is probed (`ekfslam.files.output_problem`: not empty, no name too long, not a
+folder where a file belongs, only folders on the way, a folder that takes a new file). Missing
+parent folders are created when the file is written, and every file is written to a temporary
+file beside it and renamed into place (`atomic_write`), so a failed or interrupted write never
+leaves half a file and keeps the old one (`ekfslam.files`).
 """
 
 from __future__ import annotations
 
 import argparse
 import math
-import os
 import re
+import sys
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any, NoReturn
 
 from ekfslam.core.filter.config import CHI2_2DOF_99, LINEARIZATIONS
+from ekfslam.files import not_a_file, output_problem, user_path
 
 #: What ``--plot`` writes (matplotlib infers the format from the suffix; these need no extras).
 PLOT_FORMATS: tuple[str, ...] = (".png", ".pdf", ".svg")
@@ -52,17 +54,92 @@ class Parser(argparse.ArgumentParser):
         self._checks.append(check)
 
     def parse_known_args(self, args=None, namespace=None):  # type: ignore[no-untyped-def]
-        namespace, extras = super().parse_known_args(args, namespace)
+        words = list(sys.argv[1:] if args is None else args)
+        namespace, extras = super().parse_known_args(words, namespace)
+        conflict = self._conflict(words)
+        if conflict is not None:
+            self.error(conflict)
         for check in self._checks:
             problem = check(namespace)
             if problem is not None:
                 self.error(problem)
         return namespace, extras
 
+    def _conflict(self, words: list[str]) -> str | None:
+        """An option given twice with different values, or ``--X`` beside ``--no-X``: argparse
+        would keep the last one silently; we say so instead. Repeating an option with the same
+        value is harmless; options that collect (append, count) may repeat."""
+        given: dict[str, tuple[str, tuple[str, ...]]] = {}  # dest -> (as typed, values)
+        typed: dict[str, str] = {}  # every full option string given -> as typed
+        for i, word in enumerate(words):
+            if word == "--":
+                break
+            if not word.startswith("--"):
+                continue
+            head, eq, value = word.partition("=")
+            action = self._option_action(head)
+            if action is None or isinstance(action, _REPEATABLE):
+                continue
+            full = next(o for o in action.option_strings if o.startswith(head))
+            typed[full] = head
+            values = (value,) if eq else _values_after(words, i + 1, action.nargs)
+            if action.dest in given and given[action.dest][1] != values:
+                first, before = given[action.dest]
+                shown = " and ".join(
+                    f"{o} {' '.join(v)}".strip() for o, v in ((first, before), (head, values))
+                )
+                return f"argument {head}: given twice with different values ({shown}); give it once"
+            given[action.dest] = (head, values)
+        for full, head in typed.items():
+            if full.startswith("--no-") and f"--{full[5:]}" in typed:
+                return (
+                    f"argument {head}: contradicts {typed[f'--{full[5:]}']}, given too; "
+                    "give one of them"
+                )
+        return None
+
+    def _option_action(self, head: str) -> argparse.Action | None:
+        """The action `head` names: exactly, or as the unique abbreviation argparse accepts."""
+        actions = self._option_string_actions
+        if head in actions:
+            return actions[head]
+        if not self.allow_abbrev:
+            return None
+        found = {actions[o] for o in actions if o.startswith(head)}
+        return found.pop() if len(found) == 1 else None
+
     def error(self, message: str) -> NoReturn:
         # argparse prints the whole usage first; one line that points at --help reads better
         one_line = " ".join(message.split())
         self.exit(2, f"{self.prog}: error: {one_line} (see {self.prog} --help)\n")
+
+
+#: Options that collect their values and so may be given more than once.
+_REPEATABLE = (
+    argparse._AppendAction,
+    argparse._AppendConstAction,
+    argparse._CountAction,
+    argparse._ExtendAction,
+    argparse._HelpAction,
+    argparse._VersionAction,
+)
+_NUMBER = re.compile(r"-\d+(\.\d*)?([eE][+-]?\d+)?|-\.\d+|-inf|-nan", re.IGNORECASE)
+
+
+def _values_after(words: list[str], start: int, nargs: int | str | None) -> tuple[str, ...]:
+    """The words an option with `nargs` takes after it (a negative number is a value)."""
+    if nargs == 0:
+        return ()
+    if isinstance(nargs, int):
+        return tuple(words[start : start + nargs])
+    taken = []
+    for word in words[start:]:
+        if word.startswith("-") and not _NUMBER.fullmatch(word) and word != "-":
+            break
+        taken.append(word)
+        if nargs in (None, "?"):
+            break
+    return tuple(taken)
 
 
 # ------------------------------------------------------------------------------- value types
@@ -206,25 +283,15 @@ def non_empty(text: str) -> str:
 
 
 # ------------------------------------------------------------------------------ output paths
-def check_output_path(path: Path, *, folder: bool = False) -> str | None:
-    """Why `path` cannot be written (as a file, or as a folder to fill), or None if it can.
-
-    Missing parents are fine (they are created on writing) as long as the nearest existing
-    ancestor is a writable folder.
-    """
-    if folder:
-        if path.exists() and not path.is_dir():
-            return f"{path} exists and is not a folder"
-    elif path.is_dir():
-        return f"{path} is a folder; name a file"
-    ancestor = path if folder and path.is_dir() else path.parent
-    while not ancestor.exists() and ancestor != ancestor.parent:
-        ancestor = ancestor.parent
-    if not ancestor.is_dir():
-        return f"{path} lies under {ancestor}, which is a file, not a folder"
-    if not os.access(ancestor, os.W_OK | os.X_OK):
-        return f"cannot write into {ancestor} (permission denied)"
-    return None
+def check_output_path(path: Path | str, *, folder: bool = False) -> str | None:
+    """Why `path` cannot be written (as a file, or as a folder to fill), or None if it can: the
+    probe of `ekfslam.files.output_problem`, its message starting with the path the user gave."""
+    problem = output_problem(path, folder=folder)
+    if problem is None:
+        return None
+    text = str(path) or repr(str(path))
+    shown = text if len(text) <= 160 else f"{text[:80]}...{text[-60:]}"  # a 300-byte name, clipped
+    return f"{shown}: {problem}"
 
 
 def output_file(suffixes: Iterable[str] | None = None) -> Callable[[str], Path]:
@@ -236,7 +303,9 @@ def output_file(suffixes: Iterable[str] | None = None) -> Callable[[str], Path]:
     allowed = tuple(suffixes) if suffixes is not None else None
 
     def parse(text: str) -> Path:
-        path = Path(text).expanduser()
+        if not text.strip():
+            raise argparse.ArgumentTypeError(f"an empty path {text!r}; name a file")
+        path = user_path(text)
         if allowed is not None and path.suffix.lower() not in allowed:
             listed = ", ".join(allowed)
             got = f"{path.suffix!r} in {text!r}" if path.suffix else f"no extension in {text!r}"
@@ -251,18 +320,30 @@ def output_file(suffixes: Iterable[str] | None = None) -> Callable[[str], Path]:
 
 def output_folder(text: str) -> Path:
     """A folder to write into (created if missing)."""
-    path = Path(text).expanduser()
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"an empty path {text!r}; name a folder")
+    path = user_path(text)
     problem = check_output_path(path, folder=True)
     if problem is not None:
         raise argparse.ArgumentTypeError(problem)
     return path
 
 
+def given_path(text: str) -> Path:
+    """A path to read, as typed (its existence is the reader's to judge); not empty: ``''``
+    would mean the current folder."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"an empty path {text!r}; name a file or folder")
+    return user_path(text)
+
+
 def input_path(text: str) -> Path:
     """An existing file or folder to read."""
-    path = Path(text).expanduser()
+    path = user_path(text)
     if not path.exists():
         raise argparse.ArgumentTypeError(f"{text} does not exist")
+    if not path.is_dir() and not_a_file(path) is not None:  # a FIFO would block the reader
+        raise argparse.ArgumentTypeError(f"{text} {not_a_file(path)}")
     return path
 
 
@@ -293,7 +374,7 @@ def mrclam_dataset(text: str) -> Path | int:
     A number is returned as an int, found later by `ekfslam.logs.mrclam.load.find_dataset`
     (the shared data, then the download cache), so parsing stays free of numpy.
     """
-    path = Path(text).expanduser()
+    path = user_path(text)
     if path.is_dir():
         return path
     if text.strip().isdigit():

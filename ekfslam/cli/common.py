@@ -20,6 +20,7 @@ from ekfslam.core.association import NEW_RULES, AssociationConfig
 from ekfslam.core.filter.config import MAX_PASSES, FilterConfig
 from ekfslam.core.noise import NoiseConfig, default_config, default_noise
 from ekfslam.errors import InputError
+from ekfslam.files import not_a_file
 from ekfslam.logs.frames import has_frames_only
 from ekfslam.logs.mrclam.load import BARCODES, MrclamLoadReport, find_dataset, load_mrclam
 from ekfslam.logs.runlog import RunLog, read_run
@@ -51,10 +52,9 @@ def load_run(args: argparse.Namespace) -> tuple[RunLog, FramesReport | MrclamLoa
         and ((folder / "Landmark_Groundtruth.dat").exists() or any(folder.glob("Robot*_*.dat")))
     )
     if mrclam:
-        if not (folder / BARCODES).is_file():
-            raise InputError(
-                folder / BARCODES, None, "missing file; this MRCLAM dataset folder needs it"
-            )
+        problem = not_a_file(folder / BARCODES)
+        if problem is not None:
+            raise InputError(folder / BARCODES, None, f"{problem}; this MRCLAM dataset needs it")
         if args.robot is None:
             raise InputError(folder, None, "a MRCLAM dataset needs --robot N (1-5)")
         max_range = getattr(args, "max_range", None)

@@ -8,7 +8,6 @@ from __future__ import annotations
 import argparse
 import math
 import re
-from pathlib import Path
 
 from ekfslam.cli import args as ca
 from ekfslam.cli.common import mrclam_folder
@@ -75,7 +74,9 @@ def _add_rosbag(formats: argparse._SubParsersAction) -> None:
         help="a ROS 1 .bag or ROS 2 bag folder -> a run folder",
         description=rosbag.__doc__.split("\n\n")[0],
     )
-    p.add_argument("bag", type=Path, nargs="+", help="ROS 2 bag folder, or ROS 1 .bag file(s)")
+    p.add_argument(
+        "bag", type=ca.given_path, nargs="+", help="ROS 2 bag folder, or ROS 1 .bag file(s)"
+    )
     ca.add_run_folder_arguments(p)
     p.add_argument(
         "--detections-topic",

@@ -11,6 +11,7 @@ import math
 from pathlib import Path
 
 from ekfslam.cli import args as ca
+from ekfslam.errors import InputError
 from ekfslam.logs.runlog import DETECTIONS_CSV, read_run, write_detections
 from ekfslam.vision.detect import VisionConfig
 from ekfslam.vision.frames_run import detect_run, with_camera, write_frames_run
@@ -24,7 +25,9 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
 
 def _add_render_frames(subparsers: argparse._SubParsersAction, name: str, help: str) -> None:
     p = subparsers.add_parser(name, help=help)
-    p.add_argument("run", type=Path, help="a run folder with ground truth (e.g. from simulate)")
+    p.add_argument(
+        "run", type=ca.given_path, help="a run folder with ground truth (e.g. from simulate)"
+    )
     ca.add_run_folder_arguments(p)
     p.add_argument("--name", type=ca.non_empty, help="the new run's name (default: the run's)")
     p.add_argument(
@@ -51,7 +54,9 @@ def _detect_out(text: str) -> Path:
 
 def _add_detect(subparsers: argparse._SubParsersAction, name: str, help: str) -> None:
     p = subparsers.add_parser(name, help=help)
-    p.add_argument("run", type=Path, help="a run folder with frames (run.json, frames.csv, ...)")
+    p.add_argument(
+        "run", type=ca.given_path, help="a run folder with frames (run.json, frames.csv, ...)"
+    )
     p.add_argument(
         "--out",
         type=_detect_out,
@@ -77,6 +82,13 @@ def _add_detect(subparsers: argparse._SubParsersAction, name: str, help: str) ->
 
 def cmd_render_frames(args: argparse.Namespace) -> int:
     source = read_run(args.run)
+    if source.groundtruth is None:
+        raise InputError(
+            args.run,
+            None,
+            "has no ground truth (groundtruth.csv): render-frames draws what the camera saw "
+            "from the true poses (a simulated run has them: python -m ekfslam simulate)",
+        )
     kind = "images" if args.images else "video"
     run = with_camera(source, mounting=args.mounting, kind=kind, name=args.name)
     index = write_frames_run(

@@ -8,17 +8,30 @@ no numpy, no numba, no cv2, and ``run`` loads what a replay needs and nothing el
 Bad input ends with one line on stderr that names the file, the line and the problem, and exit
 status 2; never a traceback. A bad option value or output path is refused the same way while
 the command line is parsed, before any work (the types and checks are in `ekfslam.cli.args`).
+Ctrl-C (SIGINT) and SIGTERM end a command with one line and exit status 130 and 143 (128 + the
+signal), after every temporary file is removed (`ekfslam.files.interrupts_raise`).
 """
 
 from __future__ import annotations
 
 import importlib
 import os
+import signal
 import sys
 import warnings
+from typing import NoReturn
 
 from ekfslam.cli import args as ca
-from ekfslam.errors import ConfigError, EkfSlamError, InputError
+from ekfslam.errors import (
+    MAX_MESSAGE,
+    ConfigError,
+    EkfSlamError,
+    InputError,
+    Interrupted,
+    OutputError,
+    one_line,
+)
+from ekfslam.files import interrupts_raise
 
 EXIT_BAD_INPUT = 2
 
@@ -103,7 +116,49 @@ def main(
     description: str = DESCRIPTION,
 ) -> int:
     """Run one command of `commands`; returns its exit status (2: a bad option, path or input,
-    one line)."""
+    one line; 130 or 143: ended by Ctrl-C or SIGTERM)."""
+    try:
+        with interrupts_raise():
+            return _run(argv, commands, prog, description)
+    except BaseException as exc:
+        signum = _signal_in(exc)
+        if signum is None:
+            raise
+        name = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+        print(f"interrupted ({name}): stopped; no file was left half-written", file=sys.stderr)
+        return 128 + signum
+
+
+def exit_with(code: int) -> NoReturn:
+    """End the process with `code`, as ``python -m ekfslam`` (and the repository's studies and
+    benchmarks) do after `main`. After a signal every clean-up has already run, and the
+    interpreter's teardown is skipped: a native library interrupted mid-call (OpenCV's video
+    writer) has been seen to crash there (exit -11 after the one line), which would turn a
+    clean 143 into a segfault."""
+    if code in (128 + signal.SIGINT, 128 + signal.SIGTERM):
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)
+
+
+def _signal_in(exc: BaseException | None) -> int | None:
+    """The signal that ended the command, if `exc` is an interrupt or was caused by one: an
+    interrupt while a C extension initialises reaches us as an ImportError, say."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, Interrupted):
+            return exc.signum
+        if isinstance(exc, KeyboardInterrupt):  # Ctrl-C before our handlers were set
+            return int(signal.SIGINT)
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
+def _run(
+    argv: list[str] | None, commands: dict[str, tuple[str, str]], prog: str, description: str
+) -> int:
     parser = build_parser(argv, commands, prog, description)
     try:
         args = parser.parse_args(argv)  # a bad option ends here, before any work
@@ -117,11 +172,11 @@ def main(
         # Python would complain again when it flushes stdout at exit
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
-    except (InputError, ConfigError) as exc:
-        print(f"error: {' '.join(str(exc).split())}", file=sys.stderr)
+    except (InputError, ConfigError, OutputError) as exc:
+        print(f"error: {one_line(str(exc), MAX_MESSAGE)}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except EkfSlamError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {one_line(str(exc), MAX_MESSAGE)}", file=sys.stderr)
         return 1
 
 

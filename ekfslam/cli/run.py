@@ -6,7 +6,6 @@ import argparse
 import importlib
 import json
 import sys
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ekfslam import pipeline
@@ -42,7 +41,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     """Register ``run`` (`help` is the one line of `ekfslam.cli.main.COMMANDS`)."""
     run = subparsers.add_parser(name, help=help)
     run.add_argument(
-        "run", type=Path, help="a run folder (run.json ...) or a MRCLAM dataset folder"
+        "run", type=ca.given_path, help="a run folder (run.json ...) or a MRCLAM dataset folder"
     )
     ca.add_robot_argument(run)
     ca.add_replay_start_arguments(run)

@@ -59,6 +59,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     ca.add_run_folder_arguments(sim)
     sim.add_check(_check_path_in_arena)
     sim.add_check(ca.triple_check("--start-error", (0.5, 0.5, math.pi), ("DX", "DY", "DTHETA")))
+    sim.add_check(_check_start_in_arena)
     sim.set_defaults(func=cmd_simulate)
 
 
@@ -77,6 +78,21 @@ def _check_path_in_arena(args: argparse.Namespace) -> str | None:
             f"got {args.size:g}"
         )
     return None
+
+
+def _check_start_in_arena(args: argparse.Namespace) -> str | None:
+    """The robot's true start (the nominal start plus ``--start-error``) must be inside the arena:
+    a start through a wall gives a run no real robot could have made."""
+    if args.start_error is None:
+        return None
+    x, y = (n + e for n, e in zip(SEED_ARENA.nominal_start[:2], args.start_error[:2], strict=True))
+    if SEED_ARENA.contains((x, y)):
+        return None
+    return (
+        f"argument --start-error: the robot would start at ({x:g}, {y:g}) m, outside the arena "
+        f"(walls at ±{SEED_ARENA.half_size:g} m; the nominal start is "
+        f"({SEED_ARENA.nominal_start[0]:g}, {SEED_ARENA.nominal_start[1]:g}))"
+    )
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:

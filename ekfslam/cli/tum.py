@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from ekfslam.cli import args as ca
 from ekfslam.cli.common import add_iterations_argument, load_run, noise_from_args
@@ -15,7 +14,7 @@ from ekfslam.pipeline import replay
 def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) -> None:
     """Register ``tum`` (`help` is the one line of `ekfslam.cli.main.COMMANDS`)."""
     p = subparsers.add_parser(name, help=help, description=tum.__doc__.split("\n\n")[0])
-    p.add_argument("run", type=Path, help="a run folder or a MRCLAM dataset folder")
+    p.add_argument("run", type=ca.given_path, help="a run folder or a MRCLAM dataset folder")
     ca.add_robot_argument(p)
     ca.add_replay_start_arguments(p)
     p.add_argument(

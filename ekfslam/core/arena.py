@@ -13,15 +13,15 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam import checks
 from ekfslam.errors import ConfigError
+from ekfslam.fieldtypes import field_types, finite
 
 Array = NDArray[np.float64]
 
 
 def _frozen_array(values: ArrayLike, shape: tuple[int, ...], name: str) -> Array:
-    a = np.array(values, dtype=float)
-    if a.shape != shape or not np.all(np.isfinite(a)):
-        raise ConfigError(f"{name} must be finite with shape {shape}, got {values!r}")
+    a = checks.array(values, name, shape, f"{shape[0]} finite numbers").copy()
     a.flags.writeable = False  # the dataclasses are frozen; their arrays should be too
     return a
 
@@ -38,6 +38,7 @@ class Tag:
     normal: Array
 
     def __post_init__(self) -> None:
+        field_types(self)
         object.__setattr__(self, "position", _frozen_array(self.position, (2,), "Tag.position"))
         normal = _frozen_array(self.normal, (2,), "Tag.normal")
         if not np.isclose(np.hypot(*normal), 1.0):
@@ -59,7 +60,8 @@ class Arena:
     nominal_start: Array = field(default_factory=lambda: np.zeros(3))
 
     def __post_init__(self) -> None:
-        if not np.isfinite(self.half_size) or self.half_size <= 0:
+        field_types(self)
+        if not finite(self.half_size) or self.half_size <= 0:
             raise ConfigError(f"Arena.half_size must be a positive length, got {self.half_size!r}")
         ids = [tag.id for tag in self.tags]
         if len(set(ids)) != len(ids):

@@ -31,7 +31,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam import checks
 from ekfslam.errors import ConfigError
+from ekfslam.fieldtypes import field_types, finite
+from ekfslam.plausibility import MAX_SPEED, MAX_TURN_RATE, MAX_WHEEL_SPEED
 
 
 @dataclass(frozen=True)
@@ -46,9 +49,10 @@ class MecanumGeometry:
     ly: float = 0.054
 
     def __post_init__(self) -> None:
+        field_types(self)
         for name in ("wheel_radius", "lx", "ly"):
             value = getattr(self, name)
-            if not np.isfinite(value) or value <= 0:
+            if not finite(value) or value <= 0:
                 raise ConfigError(
                     f"MecanumGeometry.{name} must be a positive length, got {value!r}"
                 )
@@ -93,17 +97,21 @@ def wheels_to_twist(wheels: ArrayLike, geometry: MecanumGeometry) -> NDArray[np.
     array (3,) or (N, 3)
         (vx, vy, ωz) in m/s, m/s, rad/s, in the body frame.
     """
-    w = np.asarray(wheels, dtype=float)
-    if w.shape[-1] != 4:
-        raise ValueError(f"wheel speeds need 4 columns (FL, FR, RL, RR), got shape {w.shape}")
+    what = "wheel speeds (w1, w2, w3, w4) in rad/s"
+    w = checks.rows(wheels, "wheels_to_twist: wheels", 4, what, bound=MAX_WHEEL_SPEED)
+    checks.instance(
+        geometry, MecanumGeometry, "wheels_to_twist: geometry", "e.g. MecanumGeometry()"
+    )
     return w @ geometry.wheels_to_twist_matrix.T
 
 
 def twist_to_wheels(twist: ArrayLike, geometry: MecanumGeometry) -> NDArray[np.float64]:
     """Wheel speeds (rad/s; FL, FR, RL, RR) for a body twist (vx, vy, ωz), shape (3,) or (N, 3)."""
-    v = np.asarray(twist, dtype=float)
-    if v.shape[-1] != 3:
-        raise ValueError(f"a body twist has 3 components (vx, vy, wz), got shape {v.shape}")
+    what = "a body twist (vx, vy, wz) in m/s, m/s, rad/s"
+    v = checks.rows(twist, "twist_to_wheels: twist", 3, what, bound=max(MAX_SPEED, MAX_TURN_RATE))
+    checks.instance(
+        geometry, MecanumGeometry, "twist_to_wheels: geometry", "e.g. MecanumGeometry()"
+    )
     return v @ geometry.twist_to_wheels_matrix.T
 
 

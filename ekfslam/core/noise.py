@@ -17,7 +17,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.models import observation_noise
-from ekfslam.errors import ConfigError
+from ekfslam.errors import ConfigError, WrongTypeError
+from ekfslam.fieldtypes import field_types, finite, shown
 
 Array = NDArray[np.float64]
 
@@ -56,10 +57,11 @@ class NoiseConfig:
     per_sighting: bool = True
 
     def __post_init__(self) -> None:
+        field_types(self)
         sigmas = ("sigma_x", "sigma_y", "sigma_theta", "sigma_range", "sigma_bearing")
         for name in (*sigmas, "sigma_range_per_m"):
             value = getattr(self, name)
-            if not (np.isfinite(value) and value >= 0):
+            if not (finite(value) and value >= 0):
                 raise ConfigError(f"NoiseConfig.{name} must be a finite non-negative number")
             if not math.isfinite(value * value):
                 raise ConfigError(f"NoiseConfig.{name} = {value!r}: its square overflows")
@@ -139,6 +141,7 @@ def default_config(run: Any) -> FilterConfig:
 
     run : a `ekfslam.logs.runlog.RunLog` (anything whose ``meta`` has ``filter_defaults``).
     """
+    _require_run(run, "default_config")
     return run.meta.filter_defaults or FilterConfig()
 
 
@@ -148,4 +151,15 @@ def default_noise(run: Any) -> NoiseConfig:
 
     run : a `ekfslam.logs.runlog.RunLog` (anything whose ``meta`` has ``noise_defaults``).
     """
+    _require_run(run, "default_noise")
     return run.meta.noise_defaults or NoiseConfig()
+
+
+def _require_run(run: Any, function: str) -> None:
+    """A run log (core cannot name `RunLog`: anything whose meta has the defaults)."""
+    meta = getattr(run, "meta", None)
+    if not (hasattr(meta, "noise_defaults") and hasattr(meta, "filter_defaults")):
+        raise WrongTypeError(
+            f"{function}: run must be a RunLog, got {shown(run)}: read a run folder first "
+            "(ekfslam.read_run(folder))"
+        )

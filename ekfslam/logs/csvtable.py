@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ekfslam.errors import InputError
+from ekfslam.files import not_a_file
 
 INTEGER_COLUMNS = ("tag_id", "frame")  # parsed as int64; every other column is a float
 
@@ -22,6 +23,9 @@ INTEGER_COLUMNS = ("tag_id", "frame")  # parsed as int64; every other column is 
 def read_lines(path: str | os.PathLike) -> list[str]:
     """The file's lines without BOM, line endings or trailing blank lines."""
     path = Path(path)
+    problem = not_a_file(path)  # before reading: a FIFO would block for ever
+    if problem is not None:
+        raise InputError(path, None, problem)
     try:
         data = path.read_bytes()
     except OSError as err:

@@ -18,11 +18,13 @@ import math
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.errors import InputError
+from ekfslam.files import atomic_write, atomic_write_text, not_a_file
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.csvtable import read_columns
 from ekfslam.logs.runjson import FramesSpec, RunMeta, read_meta
@@ -47,8 +49,9 @@ class FrameIndex:
 def read_frame_index(folder: str | Path) -> FrameIndex:
     """Read and check ``folder/frames.csv``; errors name the line."""
     path = Path(folder) / FRAMES_CSV
-    if not path.is_file():
-        raise InputError(path, None, "missing file; a run with frames needs frames.csv (t,frame)")
+    problem = not_a_file(path)
+    if problem is not None:
+        raise InputError(path, None, f"{problem}; a run with frames needs frames.csv (t,frame)")
     t, frame = read_columns(path, FRAME_COLUMNS)
     bad = [
         (~np.isfinite(t), lambda i: f"t is {float(t[i])!r}: times must be finite"),
@@ -101,8 +104,9 @@ def iter_frames(
             yield checked(cv2.imread(str(path), cv2.IMREAD_GRAYSCALE), path, k)
         return
     path = folder / spec.file
-    if not path.is_file():
-        raise InputError(path, None, "missing video file named by run.json's frames.file")
+    problem = not_a_file(path)
+    if problem is not None:
+        raise InputError(path, None, f"{problem}; run.json's frames.file names this video")
     capture = cv2.VideoCapture(str(path))
     if not capture.isOpened():
         raise InputError(path, None, "OpenCV cannot open this video")
@@ -137,34 +141,43 @@ def write_frames(
 
     folder = Path(folder)
     times = np.asarray(t, dtype=float)
-    writer = None
-    count = 0
-    try:
+    written = [0]
+
+    def video(tmp: Path) -> None:  # to a temporary file, renamed once whole (`atomic_write`)
+        writer = None
+        try:
+            for image in frames:
+                if writer is None:
+                    height, width = image.shape
+                    fourcc = cv2.VideoWriter_fourcc(*VIDEO_FOURCC)
+                    writer = cv2.VideoWriter(str(tmp), fourcc, fps, (width, height), False)
+                    if not writer.isOpened():
+                        raise OSError(f"OpenCV cannot write {VIDEO_FOURCC} video")
+                writer.write(image)
+                written[0] += 1
+        finally:
+            if writer is not None:
+                writer.release()
+
+    if spec.kind == "images":
         for count, image in enumerate(frames, start=1):
-            if spec.kind == "images":
-                path = folder / spec.path(count - 1)
-                path.parent.mkdir(parents=True, exist_ok=True)
-                if not cv2.imwrite(str(path), image):
-                    raise OSError(f"cannot write {path}")
-                continue
-            if writer is None:
-                height, width = image.shape
-                fourcc = cv2.VideoWriter_fourcc(*VIDEO_FOURCC)
-                writer = cv2.VideoWriter(
-                    str(folder / spec.file), fourcc, fps, (width, height), False
-                )
-                if not writer.isOpened():
-                    raise OSError(f"OpenCV cannot write {VIDEO_FOURCC} video to {spec.file}")
-            writer.write(image)
-    finally:
-        if writer is not None:
-            writer.release()
-    if count != len(times):
-        raise ValueError(f"{count} frames but {len(times)} times")
-    index = FrameIndex(times, np.arange(count, dtype=np.int64))
+            path = folder / spec.path(count - 1)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write(path, lambda tmp, im=image: _imwrite(cv2, tmp, im))
+            written[0] = count
+    else:
+        atomic_write(folder / spec.file, video)
+    if written[0] != len(times):
+        raise ValueError(f"{written[0]} frames but {len(times)} times")
+    index = FrameIndex(times, np.arange(written[0], dtype=np.int64))
     rows = [f"{ti!r},{k}" for ti, k in zip(times.tolist(), index.frame.tolist(), strict=True)]
-    (folder / FRAMES_CSV).write_text("\n".join([",".join(FRAME_COLUMNS), *rows]) + "\n")
+    atomic_write_text(folder / FRAMES_CSV, "\n".join([",".join(FRAME_COLUMNS), *rows]) + "\n")
     return index
+
+
+def _imwrite(cv2: Any, path: Path, image: NDArray[np.uint8]) -> None:
+    if not cv2.imwrite(str(path), image):
+        raise OSError(f"OpenCV cannot write the image {path.name}")
 
 
 # ---------------------------------------------------------------------------------------------

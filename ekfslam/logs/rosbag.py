@@ -40,6 +40,7 @@ from typing import Any, Literal
 import numpy as np
 
 from ekfslam.errors import InputError
+from ekfslam.files import not_a_file
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.rosbag_spec import RosbagSpec
 from ekfslam.logs.runlog import Controls, Detections, RunLog, RunMeta
@@ -105,12 +106,16 @@ def read_rosbag(
     for path in paths:
         if not path.exists():
             raise InputError(path, None, "bag not found (a ROS 1 .bag file or a ROS 2 bag folder)")
-        if path.is_dir() and not (path / "metadata.yaml").is_file():
+        if path.is_dir() and not (path / "metadata.yaml").exists():
             raise InputError(
                 path,
                 None,
                 "not a ROS 2 bag: the folder has no metadata.yaml (a ROS 1 bag is a .bag file)",
             )
+        for file in [path / "metadata.yaml"] if path.is_dir() else [path]:
+            problem = not_a_file(file)  # a FIFO would block the reader for ever
+            if problem is not None:
+                raise InputError(file, None, f"{problem}; a bag is read from regular files")
     motion_topic = spec.twist_topic or spec.wheels_topic
     try:
         with AnyReader(paths, default_typestore=get_typestore(Stores.LATEST)) as reader:
@@ -131,8 +136,14 @@ def read_rosbag(
                     motion.add(msg, bag_ns)
                 else:
                     sightings.add(msg, bag_ns)
+    except InputError:
+        raise
     except (AnyReaderError, OSError) as exc:
         raise InputError(first, None, f"cannot read the bag: {exc}") from None
+    except Exception as exc:  # a damaged bag fails anywhere inside rosbags, sqlite3 or yaml
+        raise InputError(
+            first, None, f"cannot read the bag (damaged?): {type(exc).__name__}: {exc}"
+        ) from None
 
     if not motion.t:
         raise InputError(first, None, f"no messages on {motion_topic}")

@@ -15,6 +15,7 @@ import json
 import math
 import os
 import re
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal, NoReturn
@@ -31,6 +32,7 @@ from ekfslam.logs import realistic_defaults
 from ekfslam.logs.csvtable import read_lines
 from ekfslam.logs.jsonsafe import dump_json, is_number, line_of, load_json, shown
 from ekfslam.logs.mrclam import defaults as mrclam_defaults
+from ekfslam.plausibility import beyond_map, coincident
 from ekfslam.plausibility import implausible_pose as _implausible
 
 FORMAT = "ekfslam-run"
@@ -171,6 +173,11 @@ def check_meta(meta: RunMeta, path: Path) -> None:
     require(meta.tags is None or isinstance(meta.tags, TagSpec), "tags must be a TagSpec")
     require(meta.frames is None or isinstance(meta.frames, FramesSpec), "frames: FramesSpec")
     require(meta.defaults is None or meta.defaults in TUNED_DEFAULTS, _DEFAULTS_PROBLEM)
+    if meta.tag_map:
+        problem, _ = _map_problem(meta.tag_map)
+        require(problem is None, str(problem))
+        far = _start_problem(np.asarray(meta.nominal_start, dtype=float), meta.tag_map)
+        require(far is None, str(far))
     require(
         meta.frames is None or (meta.camera is not None and meta.tags is not None),
         'a run with "frames" needs "camera" (intrinsics) and "tags" (the printed size)',
@@ -326,12 +333,26 @@ def read_meta(path: str | os.PathLike) -> RunMeta:
     defaults = doc.get("defaults")
     if defaults is not None and (not isinstance(defaults, str) or defaults not in TUNED_DEFAULTS):
         fail("defaults", f'"defaults" is {shown(defaults)}: {_DEFAULTS_PROBLEM}')
+    if tag_map is not None:
+        problem, pairs = _map_problem(tag_map)
+        if problem is not None:
+            fail("tag_map", problem)
+        for a, b in pairs:
+            warnings.warn(
+                f"{path}:{line_of(text, f'{chr(34)}{b}{chr(34)}')}: tags {a} and {b} are at the "
+                "same point in tag_map (a copy and paste?)",
+                stacklevel=2,
+            )
+    start = numbers(
+        "nominal_start", doc["nominal_start"], 3, "nominal_start [x, y, theta]", pose=True
+    )
+    far = _start_problem(start, tag_map)
+    if far is not None:
+        fail("nominal_start", far)
     return RunMeta(
         name=doc["name"],
         source=doc["source"],
-        nominal_start=numbers(
-            "nominal_start", doc["nominal_start"], 3, "nominal_start [x, y, theta]", pose=True
-        ),
+        nominal_start=start,
         control_rate_hz=positive("controls_hz", rates.get("controls_hz"), "controls_hz", True),
         camera_rate_hz=positive("camera_hz", rates.get("camera_hz"), "camera_hz", True),
         robot=robot,
@@ -348,6 +369,31 @@ def read_meta(path: str | os.PathLike) -> RunMeta:
         tags=tags,
         frames=frames,
         defaults=defaults,
+    )
+
+
+def _map_problem(tag_map: dict[int, Array]) -> tuple[str | None, list[tuple[int, int]]]:
+    """Why the tag map cannot place a run (every tag at one point), and the pairs of tags at
+    one point (`ekfslam.plausibility.coincident`)."""
+    at_one, pairs = coincident(tag_map)
+    if at_one:
+        xy = np.asarray(tag_map[at_one[0]], dtype=float).tolist()
+        return (
+            f"tag_map: all {len(at_one)} tags are at one point {xy}: eq. (17) cannot find the "
+            "map's rotation from it; give each tag its own position",
+            [],
+        )
+    return None, pairs
+
+
+def _start_problem(start: Array, tag_map: dict[int, Array] | None) -> str | None:
+    far = beyond_map(np.asarray(start)[None, :2], tag_map)
+    if far is None:
+        return None
+    _, distance, reach = far
+    return (
+        f"nominal_start {np.asarray(start).tolist()} is {distance:.4g} m from the tag map, beyond "
+        f"{reach:.4g} m: millimetres for metres, or another map's start?"
     )
 
 

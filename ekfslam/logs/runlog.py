@@ -34,12 +34,25 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from ekfslam import checks
 from ekfslam.core.kinematics import MecanumGeometry, wheels_to_twist
 from ekfslam.errors import InputError
-from ekfslam.files import atomic_write_text
+from ekfslam.files import atomic_write_all, new_folder, not_a_file, probe_output
 from ekfslam.logs.csvtable import csv_text, read_table
 from ekfslam.logs.runjson import RunMeta, check_meta, check_shape, meta_json, read_meta
-from ekfslam.plausibility import check_clocks
+from ekfslam.plausibility import (
+    MAX_HEADING,
+    MAX_POSITION,
+    MAX_SPEED,
+    MAX_TIME,
+    MAX_TURN_RATE,
+    MAX_WHEEL_SPEED,
+    beyond_map,
+    check_clocks,
+    control_hole,
+    ranges_beyond_map,
+    sightings_off_truth,
+)
 
 RUN_JSON, CONTROLS_CSV = "run.json", "controls.csv"
 DETECTIONS_CSV, GROUNDTRUTH_CSV = "detections.csv", "groundtruth.csv"
@@ -151,7 +164,9 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
         On the first problem found, naming the file, its 1-based line (header = line 1) and what
         is wrong, e.g. ``controls.csv:57: time 12.4 s is earlier than the previous row (12.45 s)``.
     """
-    folder = Path(folder)
+    folder = checks.path(folder, "read_run: folder")
+    if detections is not None:
+        checks.instance(detections, Detections, "read_run: detections")
     if not folder.is_dir():
         problem = "is not a folder" if folder.exists() else "run folder not found"
         raise InputError(folder, None, f"{problem}; a run is a folder holding {_FILES_HINT}")
@@ -190,7 +205,8 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
 
     groundtruth = None
     path = folder / GROUNDTRUTH_CSV
-    if path.exists():
+    if path.exists() or path.is_symlink():  # a dangling link is a broken truth, not no truth
+        require_file(path, "ground truth is a file (t,x,y,theta); delete it if there is none")
         _, columns = read_table(path, {"groundtruth": GROUNDTRUTH_COLUMNS})
         groundtruth = GroundTruth(t=columns[0], pose=np.column_stack(columns[1:]))
         _check_groundtruth(groundtruth, path)
@@ -199,15 +215,15 @@ def read_run(folder: str | os.PathLike, *, detections: Detections | None = None)
         check_time_spans(run, folder, (CONTROLS_CSV, "frames.csv", GROUNDTRUTH_CSV), lines=False)
     else:
         check_time_spans(run, folder)
+    check_across_files(run, folder, lines=not found_in_frames)
     return run
 
 
 def require_file(path: Path, hint: str) -> None:
-    """Raise `InputError` unless `path` is a file: missing, a folder, a dead link or a loop."""
-    if not path.is_file():  # is_file() follows links: a loop or a dangling link ends here too
-        problem = "is a folder, not a file" if path.is_dir() else "missing file"
-        if path.is_symlink() and not path.is_dir():
-            problem = "is a symbolic link that leads to no file (dangling, or a loop)"
+    """Raise `InputError` unless `path` is a regular file (`ekfslam.files.not_a_file`: missing,
+    a folder, a dangling link or a loop, a FIFO, a device such as a link to /dev/null)."""
+    problem = not_a_file(path)
+    if problem is not None:
         raise InputError(path, None, f"{problem}; {hint}")
 
 
@@ -218,6 +234,45 @@ _FILES_HINT = (
 
 # ---------------------------------------------------------------------------------------------
 # Validation (shared by reader and writer)
+
+
+_RUN_HINT = (
+    "read a run folder first (ekfslam.read_run(folder)) or simulate one (ekfslam.simulate())"
+)
+
+
+def check_replayable(run: RunLog, name: str) -> None:
+    """What a replay reads of `run`, checked before it starts: a `RunLog` (`name` says whose
+    argument) whose controls and detections are finite, in time order and plausible.
+
+    Fast (a few vectorised tests, no row loop): a run built in memory with a NaN wheel speed is
+    caught here, and only then does `validate_run` look for the row to name.
+    """
+    checks.instance(run, RunLog, name, _RUN_HINT)
+    c, d = run.controls, run.detections
+    bound = MAX_WHEEL_SPEED if c.kind == "wheels" else min(MAX_SPEED, MAX_TURN_RATE)
+    try:
+        t, values = np.asarray(c.t, dtype=float), np.asarray(c.values, dtype=float)
+        det = [np.asarray(getattr(d, n)) for n in DETECTION_COLUMNS]
+        ok = (
+            c.kind in CONTROL_COLUMNS
+            and t.ndim == 1
+            and len(t) > 0
+            and values.shape == (len(t), len(CONTROL_COLUMNS[c.kind]) - 1)
+            and bool(np.all(np.abs(t) <= MAX_TIME))
+            and bool(np.all(np.abs(values) <= bound))
+            and not bool(np.any(np.diff(t) < 0))
+            and all(a.shape == det[0].shape and a.ndim == 1 for a in det)
+            and np.issubdtype(det[1].dtype, np.integer)
+            and bool(np.all(np.abs(det[0].astype(float)) <= MAX_TIME))
+            and bool(np.all((det[2] >= 0) & (det[2] <= MAX_POSITION)))
+            and bool(np.all(np.abs(det[3]) <= math.pi))
+            and not bool(np.any(np.diff(det[0]) < 0))
+        )
+    except (TypeError, ValueError, AttributeError):
+        ok = False
+    if not ok:
+        validate_run(run)  # names the file and the row, as the written run would have them
 
 
 def validate_run(run: RunLog, folder: str | os.PathLike | None = None) -> None:
@@ -235,6 +290,71 @@ def validate_run(run: RunLog, folder: str | os.PathLike | None = None) -> None:
     if run.groundtruth is not None:
         _check_groundtruth(run.groundtruth, base / GROUNDTRUTH_CSV)
     check_time_spans(run, base)
+    check_across_files(run, base)
+
+
+def check_across_files(
+    run: RunLog, folder: Path, names: tuple = (), lines: bool = True, sorted_rows=None
+) -> None:
+    """The rules of `ekfslam.plausibility` that take more than one row or one file; raise
+    `InputError` naming the file and the line of the first row that breaks one.
+
+    A hole in the controls while the robot moves; ranges and true positions too far from the
+    tag map to belong to it (millimetres for metres). `names`: the three files' names (controls,
+    detections, ground truth), the run format's by default; `lines`: whether row i is line
+    i + 2 of its file; `sorted_rows`: per file name, the file's row of each sorted row (a
+    loader that sorted), so the line is still the file's.
+    """
+    c_name, d_name, g_name = names or (CONTROLS_CSV, DETECTIONS_CSV, GROUNDTRUTH_CSV)
+
+    def line(name: str, row: int) -> int | None:
+        if sorted_rows is not None and name in sorted_rows:
+            return sorted_rows[name](row)
+        return row + 2 if lines else None
+
+    hole = control_hole(run.controls.t, run.control_twist())
+    if hole is not None:
+        row, gap = hole
+        before = _num(run.controls.t[row - 1])
+        raise InputError(
+            folder / c_name,
+            line(c_name, row),
+            f"no control row for {gap:.6g} s after the previous one (t {before} s) while the "
+            f"robot is moving: the replay would hold that control for {gap:.6g} s; is a piece "
+            "of the log missing?",
+        )
+    far = ranges_beyond_map(run.detections.range, run.meta.tag_map)
+    if far is not None:
+        row, longest = far
+        raise InputError(
+            folder / d_name,
+            line(d_name, row),
+            f"range {_num(run.detections.range[row])} m is longer than any sighting of the tag map "
+            f"could be ({longest:.4g} m): millimetres for metres?",
+        )
+    if run.groundtruth is not None:
+        far_pose = beyond_map(run.groundtruth.pose[:, :2], run.meta.tag_map)
+        if far_pose is not None:
+            row, distance, reach = far_pose
+            xy = run.groundtruth.pose[row, :2].tolist()
+            raise InputError(
+                folder / g_name,
+                line(g_name, row),
+                f"groundtruth position {xy} is {distance:.4g} m from the tag map, beyond "
+                f"{reach:.4g} m: millimetres for metres, or another map's run?",
+            )
+        d, g = run.detections, run.groundtruth
+        truth = (g.t, g.pose)
+        off = sightings_off_truth(d.t, d.tag_id, d.range, d.bearing, truth, run.meta.tag_map)
+        if off is not None:
+            count, compared, row = off
+            raise InputError(
+                folder / d_name,
+                line(d_name, row),
+                f"{count} of {compared} sightings do not fit the true poses of {g_name} and the "
+                f"tag map (this one: range {_num(d.range[row])} m, bearing {_num(d.bearing[row])} "
+                "rad): another robot's measurements mixed in, or a map in another frame?",
+            )
 
 
 def check_time_spans(run: RunLog, folder: Path, names: tuple = (), lines: bool = True) -> None:
@@ -296,7 +416,35 @@ def _check_controls(controls: Controls, path: Path) -> None:
     if len(controls.t) == 0:
         raise InputError(path, 2, "no controls: the file has a header but no rows")
     columns = {"t": controls.t} | {n: controls.values[:, j] for j, n in enumerate(names[1:])}
-    _check_rows(path, controls.t, columns)
+    bounds = {"t": (MAX_TIME, "s", "a time")} | {n: _CONTROL_BOUNDS[n] for n in names[1:]}
+    _check_rows(path, controls.t, columns, _bounded(columns, bounds))
+
+
+#: column -> (the largest plausible |value|, its unit, what it is), for the messages
+_CONTROL_BOUNDS = {
+    **{w: (MAX_WHEEL_SPEED, "rad/s", "a wheel speed") for w in ("w1", "w2", "w3", "w4")},
+    "vx": (MAX_SPEED, "m/s", "a speed"),
+    "vy": (MAX_SPEED, "m/s", "a speed"),
+    "wz": (MAX_TURN_RATE, "rad/s", "a turn rate"),
+}
+
+
+def _bounded(columns: dict[str, Array], bounds: dict[str, tuple[float, str, str]]) -> list:
+    """`_check_rows` rules: each column within its plausible bound (a finite 1e300 is a corrupt
+    cell, not a measurement; in seconds, a time in nanoseconds is beyond `MAX_TIME`)."""
+    rules = []
+    for name, (bound, unit, what) in bounds.items():
+        values = columns[name]
+        hint = " (nanoseconds?)" if name == "t" else ""
+        rules.append(
+            (
+                np.abs(values) > bound,
+                lambda i, n=name, v=values, b=bound, u=unit, w=what, h=hint: (
+                    f"{n} {_num(v[i])} {u} is not plausible as {w} (beyond {b:g} {u}){h}"
+                ),
+            )
+        )
+    return rules
 
 
 def _check_detections(det: Detections, path: Path, tag_map: dict[int, Array] | None) -> None:
@@ -341,6 +489,8 @@ def _check_detections(det: Detections, path: Path, tag_map: dict[int, Array] | N
             )
         )
     columns = {"t": det.t, "range": det.range, "bearing": det.bearing} | sigmas
+    # times: the clock check (`check_time_spans`) names both files of a run on two clocks
+    extra += _bounded(columns, {"range": (MAX_POSITION, "m", "a range")})
     _check_rows(path, det.t, columns, extra)
 
 
@@ -350,7 +500,20 @@ def _check_groundtruth(gt: GroundTruth, path: Path) -> None:
     if len(gt.t) == 0:
         raise InputError(path, 2, "no ground-truth rows (delete the file if there is no truth)")
     names = GROUNDTRUTH_COLUMNS[1:]
-    _check_rows(path, gt.t, {"t": gt.t} | {n: gt.pose[:, j] for j, n in enumerate(names)})
+    columns = {"t": gt.t} | {n: gt.pose[:, j] for j, n in enumerate(names)}
+    bounds = {  # times: the clock check names both files of a run on two clocks
+        "x": (MAX_POSITION, "m", "a position"),
+        "y": (MAX_POSITION, "m", "a position"),
+    }
+    theta = gt.pose[:, 2]
+    degrees = (
+        np.abs(theta) > MAX_HEADING,
+        lambda i: (
+            f"theta {_num(theta[i])} rad is beyond ±2π (degrees by mistake, or a heading never "
+            "wrapped?); give the heading in radians, in [-π, π)"
+        ),
+    )
+    _check_rows(path, gt.t, columns, [*_bounded(columns, bounds), degrees])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -382,7 +545,12 @@ def write_run(
     those again gives the same bytes. Simulators pass `SIMULATED_DECIMALS`, so that their files
     do not depend on the CPU's vector unit; None writes every float exactly.
     """
-    folder = Path(folder)
+    checks.instance(run, RunLog, "write_run: run", _RUN_HINT)
+    folder = checks.path(folder, "write_run: folder")
+    for name, value in (("overwrite", overwrite), ("with_detections", with_detections)):
+        checks.flag(value, f"write_run: {name}")
+    if decimals is not None:
+        checks.whole(decimals, "write_run: decimals", lo=0, hi=17)
     validate_run(run)
     if not with_detections and run.meta.frames is None:
         raise InputError(folder / RUN_JSON, None, "a run without detections.csv needs frames")
@@ -406,15 +574,20 @@ def write_run(
             "folder exists and is not empty; refusing to overwrite it "
             f"(choose a new folder, or pass {overwrite_hint} to replace its run files)",
         )
-    folder.mkdir(parents=True, exist_ok=True)
-    for name, text in texts.items():
-        # write-then-rename, so an interrupted write never leaves half a file under the real name
-        atomic_write_text(folder / name, text)
-    if g is None:
-        (folder / GROUNDTRUTH_CSV).unlink(missing_ok=True)
-    if not with_detections:
-        (folder / DETECTIONS_CSV).unlink(missing_ok=True)
+    probe_output(folder, folder=True)
+    with new_folder(folder):  # removed again if the writing fails or is interrupted
+        # every file to a temporary one first, then all renamed at once: an interrupted write
+        # leaves the old run or the new one, never half of each
+        atomic_write_all({folder / name: _text_writer(text) for name, text in texts.items()})
+        if g is None:
+            (folder / GROUNDTRUTH_CSV).unlink(missing_ok=True)
+        if not with_detections:
+            (folder / DETECTIONS_CSV).unlink(missing_ok=True)
     return folder
+
+
+def _text_writer(text: str) -> Callable[[Path], object]:
+    return lambda tmp: tmp.write_text(text, encoding="utf-8", newline="\n")
 
 
 def write_detections(
@@ -423,7 +596,7 @@ def write_detections(
     """Write detections.csv alone (validated against `tag_map`), e.g. for a run of camera frames."""
     path = Path(path)
     _check_detections(detections, path, tag_map)
-    return atomic_write_text(path, _detections_text(detections))
+    return atomic_write_all({path: _text_writer(_detections_text(detections))})[0]
 
 
 def _detections_text(d: Detections, decimals: int | None = None) -> str:

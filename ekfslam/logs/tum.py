@@ -30,7 +30,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.filter.history import History
 from ekfslam.errors import InputError
-from ekfslam.files import atomic_write_text
+from ekfslam.files import (
+    atomic_write_all,
+    atomic_write_text,
+    new_folder,
+    not_a_file,
+    probe_output,
+)
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runlog import GroundTruth, RunLog
 
@@ -108,11 +114,15 @@ def write_tum(path: str | os.PathLike, rows: ArrayLike) -> Path:
     keep their milliseconds.
     """
     path = Path(path)
+    return atomic_write_text(path, tum_text(path, rows))
+
+
+def tum_text(path: Path, rows: ArrayLike) -> str:
+    """The text of TUM rows (K, 8), one line each (`write_tum`); `path` names them in errors."""
     rows = np.asarray(rows, dtype=np.float64).reshape(-1, 8)
     if not np.isfinite(rows).all():
         raise ValueError(f"{path}: non-finite values cannot be written in the TUM format")
-    lines = [" ".join(repr(v) for v in row) for row in rows.tolist()]
-    return atomic_write_text(path, "".join(line + "\n" for line in lines))
+    return "".join(" ".join(repr(v) for v in row) + "\n" for row in rows.tolist())
 
 
 def read_tum(path: str | os.PathLike) -> tuple[Array, Array]:
@@ -123,10 +133,15 @@ def read_tum(path: str | os.PathLike) -> tuple[Array, Array]:
     z (|qx|, |qy| or |z| above 1e-6 after normalising), raises `InputError` naming the line.
     """
     path = Path(path)
+    problem = not_a_file(path)  # before reading: a FIFO would block for ever
+    if problem is not None:
+        raise InputError(path, None, problem)
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise InputError(path, None, f"cannot read the file: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(path, None, f"not UTF-8 text (byte {exc.start}); save as UTF-8") from None
     rows = []
     for number, line in enumerate(text.splitlines(), start=1):
         fields = line.split("#", 1)[0].split()
@@ -165,17 +180,19 @@ def export_tum(run: RunLog, result: ReplayLike, folder: str | os.PathLike) -> di
 
     Returns {file name: path} of the files written.
     """
-    folder = Path(folder)
+    folder = probe_output(folder, folder=True)
     h = result.history
     t, poses = last_pose_per_time(h.t, h.pose)
-    written = {
-        TRAJECTORY: write_tum(folder / TRAJECTORY, poses_to_tum(t, poses)),
-        MAP: write_tum(folder / MAP, landmarks_to_tum(result.landmarks)),
-    }
+    rows = {TRAJECTORY: poses_to_tum(t, poses), MAP: landmarks_to_tum(result.landmarks)}
     gt: GroundTruth | None = run.groundtruth
     if gt is not None and len(gt.t):
         gt_t, gt_pose = last_pose_per_time(gt.t, gt.pose)
-        written[GROUNDTRUTH] = write_tum(folder / GROUNDTRUTH, poses_to_tum(gt_t, gt_pose))
+        rows[GROUNDTRUTH] = poses_to_tum(gt_t, gt_pose)
     if run.meta.tag_map:
-        written[MAP_TRUTH] = write_tum(folder / MAP_TRUTH, landmarks_to_tum(run.meta.tag_map))
-    return written
+        rows[MAP_TRUTH] = landmarks_to_tum(run.meta.tag_map)
+    texts = {name: tum_text(folder / name, r) for name, r in rows.items()}
+    with new_folder(folder):  # the files together or none of them, even when interrupted
+        paths = atomic_write_all(
+            {folder / name: (lambda tmp, s=text: tmp.write_text(s)) for name, text in texts.items()}
+        )
+    return dict(zip(texts, paths, strict=True))

@@ -28,6 +28,7 @@ from ekfslam.core.camera import (
 )
 from ekfslam.core.kinematics import MecanumGeometry
 from ekfslam.errors import ConfigError
+from ekfslam.fieldtypes import field_types
 
 Array = NDArray[np.float64]
 
@@ -154,6 +155,7 @@ class SimulationConfig:
     camera_yaw_error: float = 0.0
 
     def __post_init__(self) -> None:
+        field_types(self)
         if self.trajectory not in TRAJECTORIES:
             raise ConfigError(f"trajectory must be one of {TRAJECTORIES}, got {self.trajectory!r}")
         for name in ("start_error", "start_error_sigma", "camera_mounting"):  # lists -> tuples
@@ -181,6 +183,7 @@ class SimulationConfig:
                 lambda v: v >= 0,
                 "zero or positive",
             ),
+            ("seed", lambda v: 0 <= v < 2**63, "a whole number from 0 to 2^63 - 1"),
             ("slip_fraction", lambda v: 0 <= v <= 0.5, "a fraction in [0, 0.5]"),
             ("lens_distortion_ignored", lambda v: 0 <= v <= 1, "a fraction in [0, 1]"),
             ("camera_yaw_error", lambda v: abs(v) < 0.5, "an angle under 0.5 rad"),

@@ -41,11 +41,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ekfslam import checks
 from ekfslam.core.arena import SEED_ARENA, Arena
 from ekfslam.core.camera import (
     tags_in_view,
 )
 from ekfslam.core.kinematics import twist_to_wheels, wheels_to_twist
+from ekfslam.errors import ConfigError
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs import realistic_defaults
 from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta
@@ -344,6 +346,8 @@ def simulate(config: SimulationConfig | None = None, arena: Arena = SEED_ARENA) 
     the outlier counts and the whole config.
     """
     c = config if config is not None else SimulationConfig()
+    checks.instance(c, SimulationConfig, "simulate: config", "e.g. SimulationConfig(laps=1)")
+    checks.instance(arena, Arena, "simulate: arena", "e.g. ekfslam.SEED_ARENA")
     # later stages take later children: spawn(5)[:3] are spawn(3), so older runs stay the same
     start_rng, motion_rng, camera_rng, tag_rng, slip_rng = (
         np.random.default_rng(s) for s in np.random.SeedSequence(c.seed).spawn(5)
@@ -353,6 +357,13 @@ def simulate(config: SimulationConfig | None = None, arena: Arena = SEED_ARENA) 
     nominal = np.asarray(arena.nominal_start, dtype=float)
     true_start = nominal + start_error
     true_start[2] = wrap_angle(true_start[2])
+    if not arena.contains(true_start):
+        raise ConfigError(
+            f"simulate: the robot would start at ({true_start[0]:.3f}, {true_start[1]:.3f}) m, "
+            f"outside the arena (walls at ±{arena.half_size:g} m): the start error "
+            f"{start_error[:2].tolist()} m from the nominal start "
+            f"{nominal[:2].tolist()} puts it through a wall"
+        )
     plan = plan_commands(c, nominal)
     t_cam = np.arange(math.floor(plan.t[-1] * c.camera_hz + 1e-9) + 1) / c.camera_hz
     # a frame stamped t_cam was exposed camera_latency earlier (not before the log starts)

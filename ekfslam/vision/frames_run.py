@@ -26,9 +26,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ekfslam import checks
 from ekfslam.core.arena import SEED_ARENA, Arena
 from ekfslam.core.camera import TAG_SIZE, Camera, TagSpec, pinhole_camera
-from ekfslam.errors import InputError
+from ekfslam.errors import ConfigError, InputError
+from ekfslam.files import new_folder, probe_output
 from ekfslam.logs.frames import (
     IMAGE_PATTERN,
     VIDEO_FILE,
@@ -126,19 +128,23 @@ def write_frames_run(
     by `ekfslam.vision.render.ArenaRenderer` (frame k's noise seeded by k). The run must have ground
     truth, a camera rate and camera metadata; detections.csv is not written.
     """
+    checks.instance(run, RunLog, "write_frames_run: run")
     meta = run.meta
     if meta.frames is None or meta.camera is None or meta.tags is None:
-        raise ValueError("give the run a camera first: write_frames_run(with_camera(run), ...)")
+        raise ConfigError("give the run a camera first: write_frames_run(with_camera(run), ...)")
     if run.groundtruth is None or meta.camera_rate_hz is None:
-        raise ValueError("rendering frames needs the run's ground truth and camera rate")
+        raise ConfigError(
+            f"run {meta.name!r}: rendering frames needs the run's ground truth and camera rate"
+        )
     if meta.tag_map is not None and meta.tag_map.keys() != arena.tag_map().keys():
-        raise ValueError("the run's tag map is not the arena's: render it with its own arena")
-    folder = Path(folder)
-    write_run(run, folder, overwrite=overwrite, with_detections=False)
+        raise ConfigError("the run's tag map is not the arena's: render it with its own arena")
+    folder = checks.path(folder, "write_frames_run: folder")
     renderer = ArenaRenderer(meta.camera, meta.tags, meta.camera_mounting, arena, render)
     times = frame_times(run.groundtruth.t, run.groundtruth.pose, meta.camera_rate_hz)
     frames = (renderer.render(pose, k) for k, pose in enumerate(times.pose))
-    return write_frames(folder, meta.frames, frames, times.t, meta.camera_rate_hz)
+    with new_folder(folder):  # a failed or interrupted rendering leaves no half-made run
+        write_run(run, folder, overwrite=overwrite, with_detections=False)
+        return write_frames(folder, meta.frames, frames, times.t, meta.camera_rate_hz)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -253,9 +259,9 @@ def detect_run(
         raise InputError(target, None, "folder exists and is not empty; pass --overwrite")
     if path.exists() and not overwrite:
         raise InputError(path, None, "exists; pass --overwrite to replace it")
+    probe_output(path)  # before the frames are read: a target that cannot be written says so now
     detections, counts = detect_frames(folder, meta, config)
-    if target != path:  # a new run folder: the run's own files, then its detections
-        shutil.copytree(folder, target, dirs_exist_ok=True)
-    else:  # a FILE.csv: its folder is made only once there is something to write into it
-        path.parent.mkdir(parents=True, exist_ok=True)
-    return write_detections(detections, path, meta.tag_map), counts
+    with new_folder(target if target != path else path.parent):  # removed if interrupted
+        if target != path:  # a new run folder: the run's own files, then its detections
+            shutil.copytree(folder, target, dirs_exist_ok=True)
+        return write_detections(detections, path, meta.tag_map), counts

@@ -18,7 +18,7 @@ from ekfslam.analysis.alignment import (
     mean_distance_objective,
 )
 from ekfslam.core.arena import SEED_TAG_POSITIONS
-from ekfslam.errors import AlignmentError
+from ekfslam.errors import AlignmentError, ConfigError
 
 # The seed's eight AprilTags (m) and its nominal start pose.
 SEED_TAGS = np.array(SEED_TAG_POSITIONS)
@@ -282,9 +282,11 @@ def test_too_few_common_landmarks(estimated, truth, found):
 
 def test_bad_inputs_raise_alignment_error():
     pts = {1: (0.0, 0.0), 2: (1.0, 0.0)}
-    with pytest.raises(AlignmentError, match="unknown alignment method 'icp'"):
+    # a bad argument is a ConfigError (a ValueError), not an AlignmentError: `summarize` reports
+    # an AlignmentError as "no alignment", and an unknown method must never read so (issue 27)
+    with pytest.raises(ConfigError, match=r"align: method must be one of .*got 'icp'"):
         align(pts, pts, method="icp")
-    with pytest.raises(AlignmentError, match="integers"):
+    with pytest.raises(ConfigError, match="integers"):
         align({1.5: (0.0, 0.0), 2: (1.0, 0.0)}, pts)
     with pytest.raises(AlignmentError, match=r"shape \(N, 2\)"):
         align_mean_distance(np.zeros((3, 2)), np.zeros((4, 2)))

@@ -113,7 +113,16 @@ def test_geometry_rejects_non_positive_sizes(field, value):
 
 
 def test_wrong_shapes_are_rejected():
-    with pytest.raises(ValueError, match="4 columns"):
+    with pytest.raises(ValueError, match=r"wheels_to_twist: wheels .*: 4 numbers, got 3"):
         wheels_to_twist([1.0, 2.0, 3.0], GEOMETRY)
-    with pytest.raises(ValueError, match="3 components"):
+    with pytest.raises(ValueError, match=r"twist_to_wheels: twist .*: 3 numbers, got 4"):
         twist_to_wheels([1.0, 2.0, 3.0, 4.0], GEOMETRY)
+
+
+def test_nan_wheel_speeds_and_a_missing_geometry_are_refused_not_returned_as_nan():
+    with pytest.raises(ValueError, match=r"wheels_to_twist: wheels must be finite .*nan"):
+        wheels_to_twist([[1.0, 2.0, 3.0, 4.0], [math.nan, 0.0, 0.0, 0.0]], GEOMETRY)
+    with pytest.raises(TypeError, match="wheels_to_twist: geometry must be a MecanumGeometry"):
+        wheels_to_twist([1.0, 2.0, 3.0, 4.0], None)
+    with pytest.raises(TypeError, match="twist_to_wheels: twist must be a body twist"):
+        twist_to_wheels("0.1, 0, 0", GEOMETRY)

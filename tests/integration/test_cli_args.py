@@ -14,10 +14,11 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from benchmarks.__main__ import COMMANDS as BENCHMARKS
 from ekfslam import files, read_run
 from ekfslam.cli import animate as animate_args
 from ekfslam.cli import args as ca
-from ekfslam.cli.main import main
+from ekfslam.cli.main import build_parser, main
 from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.errors import ConfigError, EkfSlamError
@@ -283,3 +284,46 @@ def test_run_animate_with_hidden_ids_labels_landmarks_by_true_id(tmp_path, monke
     ids = np.asarray(read_run(square).detections.tag_id)
     first_seen = [str(i) for i in dict.fromkeys(ids.tolist())]  # nn gets every one right here
     assert seen == {"labels": first_seen, "fps": 10.0}
+
+
+@pytest.mark.parametrize(
+    ("argv", "line"),
+    [
+        (
+            ["bench", "--mrclam", "7", "--no-mrclam"],
+            "argument --no-mrclam: contradicts --mrclam, given too; give one of them",
+        ),
+        (
+            ["bench", "--no-mr", "--mrclam", "7"],
+            "argument --no-mr: contradicts --mrclam, given too; give one of them",
+        ),
+        (
+            ["run", "RUN", "--robot", "1", "--robot", "2"],
+            "argument --robot: given twice with different values (--robot 1 and --robot 2); "
+            "give it once",
+        ),
+        (
+            ["run", "RUN", "--start", "0", "0", "0", "--start", "1", "-1", "0"],
+            "argument --start: given twice with different values (--start 0 0 0 and --start 1 "
+            "-1 0); give it once",
+        ),
+        (
+            ["run", "RUN", "--sigma-range=0.1", "--sigma-range", "0.2"],
+            "argument --sigma-range: given twice with different values (--sigma-range 0.1 and "
+            "--sigma-range 0.2); give it once",
+        ),
+    ],
+)
+def test_contradicting_options_are_refused_not_resolved_silently(argv, line, capsys) -> None:
+    argv = [str(RUN) if a == "RUN" else a for a in argv]
+    prog = "python -m benchmarks" if argv[0] in BENCHMARKS else "python -m ekfslam"
+    table = {"commands": BENCHMARKS, "prog": prog} if argv[0] in BENCHMARKS else {}
+    assert main(argv, **table) == 2
+    err = capsys.readouterr().err
+    assert f": error: {line} (see {prog} {argv[0]} --help)" in err, err
+
+
+def test_an_option_repeated_with_the_same_value_is_harmless() -> None:
+    argv = ["run", str(RUN), "--json", "--json", "--start", "-0.1", "0", "0"]
+    args = build_parser(argv).parse_args([*argv, "--start", "-0.1", "0", "0"])
+    assert args.json and args.start == [-0.1, 0.0, 0.0]

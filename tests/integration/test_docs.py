@@ -177,6 +177,19 @@ def test_a_signature_with_a_dataclass_factory_is_parseable():
     assert fixed == "(a: int, b: list = ...)" and returns == "Array"
 
 
+def test_a_member_without_a_module_is_not_skipped_and_does_not_break_the_build():
+    """A sympy function class (``sympy.Function("wrap_angle")``) has ``__module__`` None; the
+    skip handler read it as a string and the -W build failed."""
+    import sympy
+
+    assert house_docstrings.skip_foreign(None, "class", "x", sympy.Function("f"), False, {}) is None
+
+    class Artist:
+        __module__ = "matplotlib.artist"
+
+    assert house_docstrings.skip_foreign(None, "class", "x", Artist, False, {}) is True
+
+
 # --- docs/_ext/book_notebooks.py ----------------------------------------------------------------
 
 

@@ -12,6 +12,7 @@ import pytest
 
 from ekfslam.core.kinematics import MecanumGeometry
 from ekfslam.errors import InputError
+from ekfslam.logs.csvtable import csv_text, read_table
 from ekfslam.logs.runlog import (
     Controls,
     Detections,
@@ -180,12 +181,26 @@ def assert_runs_identical(a: RunLog, b: RunLog) -> None:
 
 
 def awkward_floats(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
-    """Random doubles with full 17-digit mantissas, plus values whose text is easy to get wrong."""
-    x = rng.normal(size=shape) * 10.0 ** rng.integers(-8, 8, size=shape)
+    """Random doubles with full 17-digit mantissas, plus values whose text is easy to get wrong.
+
+    Within what a run may hold (below 30 in magnitude: speeds, ranges and positions near the
+    map, headings within ±2π, `ekfslam.plausibility`); the doubles no run holds (1.8e308,
+    2^53 + 2) round-trip in test_csv_text_round_trips_every_double.
+    """
+    x = rng.normal(size=shape) * 10.0 ** rng.integers(-8, 1, size=shape)
     flat = x.reshape(-1)
-    specials = [-0.0, 0.1, 1e-300, 5e-324, 1.7976931348623157e308, 1 / 3, 2.0**53 + 2]
+    specials = [-0.0, 0.1, 1e-300, 5e-324, 1 / 3, 6.283185307179586]
     flat[: len(specials)] = specials[: flat.size]
     return x
+
+
+def test_csv_text_round_trips_every_double(tmp_path: Path) -> None:
+    values = np.array([-0.0, 0.1, 1e-300, 5e-324, 1.7976931348623157e308, 1 / 3, 2.0**53 + 2])
+    path = tmp_path / "rows.csv"
+    path.write_text(csv_text(("t", "x"), [values, -values]))
+    name, (t, x) = read_table(path, {"rows": ("t", "x")})
+    assert name == "rows"
+    assert t.tobytes() == values.tobytes() and x.tobytes() == (-values).tobytes()
 
 
 def random_run(kind: str, *, with_truth: bool, with_map: bool, seed: int = 7) -> RunLog:
@@ -213,15 +228,18 @@ def random_run(kind: str, *, with_truth: bool, with_map: bool, seed: int = 7) ->
     controls = Controls(
         t=t, kind=kind, values=awkward_floats(rng, (n, 4 if kind == "wheels" else 3))
     )
+    # on the controls' clock; before the truth begins, so that random sightings are not held to
+    # fit the random true poses (`ekfslam.plausibility.sightings_off_truth`)
     detections = Detections(
-        t=np.sort(rng.uniform(t[0], t[-1], size=m)),  # on the controls' clock
+        t=np.sort(rng.uniform(t[0], t[0] + 0.4 * (t[-1] - t[0]), size=m)),
         tag_id=ids.astype(np.int64),
         range=np.abs(awkward_floats(rng, (m,))),
         bearing=np.concatenate([[-math.pi, math.pi, -0.0], rng.uniform(-math.pi, math.pi, m - 3)]),
     )
     truth = None
     if with_truth:
-        truth = GroundTruth(t=np.linspace(t[0], t[-1], k), pose=awkward_floats(rng, (k, 3)))
+        start = t[0] + 0.45 * (t[-1] - t[0])
+        truth = GroundTruth(t=np.linspace(start, t[-1], k), pose=awkward_floats(rng, (k, 3)))
     return RunLog(meta=meta, controls=controls, detections=detections, groundtruth=truth)
 
 

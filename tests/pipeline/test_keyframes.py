@@ -57,7 +57,8 @@ def test_keyframes_with_hidden_ids_end_at_the_final_state(square) -> None:
     np.testing.assert_array_equal(kf.mu[-1], result.mu)
 
 
-@pytest.mark.parametrize("bad", [1, 0, -3, 2.5, True, "four"])
+@pytest.mark.parametrize("bad", [1, 0, -3, 2.5, True, "four", 10**20])
 def test_keyframes_must_be_a_whole_number_of_at_least_two(square, bad) -> None:
-    with pytest.raises(ConfigError, match="keyframes must be a whole number >= 2"):
+    # 10**20 asked numpy for 10**20 copies of the state: "Maximum allowed size exceeded" (issue 27)
+    with pytest.raises(ConfigError, match="keyframes must be a whole number from 2 to 100000"):
         replay(square, keyframes=bad)

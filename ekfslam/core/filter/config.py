@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
 from ekfslam.errors import ConfigError
+from ekfslam.fieldtypes import field_types
 
 if TYPE_CHECKING:
     from ekfslam.core.filter.history import Outcome
@@ -112,6 +113,7 @@ class FilterConfig:
     backend: Literal["auto", "python", "numba"] = "auto"
 
     def __post_init__(self) -> None:
+        field_types(self)
         if self.linearization not in LINEARIZATIONS:
             raise ConfigError(
                 f"linearization must be 'standard', 'fej' or 'invariant', "

@@ -36,6 +36,7 @@ from ekfslam.core.filter.history import OBS_ROW, OBSERVE, PREDICT, ROW, Outcome
 from ekfslam.core.filter.predictions import Predicted, Rate
 from ekfslam.core.filter.state import FilterState
 from ekfslam.core.filter.steps import Linearization
+from ekfslam.core.filter_checks import check_predict, check_predict_many, check_update
 from ekfslam.core.models import MIN_RANGE_SQUARED
 
 Array = NDArray[np.float64]
@@ -105,6 +106,7 @@ class EKFSLAM(FilterState):
         Only the pose block and the pose-landmark cross blocks change:
         Σ_rr <- G Σ_rr Gᵀ + R and Σ_rm <- G Σ_rm, which is eq. (9) with its lifts done right.
         """
+        check_predict(u, R, t)
         ts = np.array([self._t if t is None else float(t)])
         self._propagate((_rows(u, 3), ts, ts, _matrix(R, 3, "motion noise"), False))
 
@@ -132,6 +134,7 @@ class EKFSLAM(FilterState):
             heading.
         R : (3, 3), or a fixed state-space R for every step (the seed's way). Give M or R.
         """
+        check_predict_many(us, dts, ts, M, R)
         if (M is None) == (R is None):
             raise ValueError("give exactly one of M (per second) or R (per step)")
         us, dts, ts = _rows(us, 3), _rows(dts), _rows(ts)
@@ -178,6 +181,7 @@ class EKFSLAM(FilterState):
             singular or not finite: the noise is too small or too large). Each is counted
             (`counts`, under its `Outcome.label`).
         """
+        check_update(landmark_id, z, Q, t)
         if t is not None:
             self._t = float(t)
         z = _rows(z)

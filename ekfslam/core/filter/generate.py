@@ -26,7 +26,7 @@ from sympy.printing.pycode import PythonCodePrinter
 from ekfslam.core.filter.rebinding import rebind
 
 #: The angle wrap, kept as a call in the generated code (it is not a smooth function to expand).
-WRAP = sympy.Function("wrap_angle")
+_WRAP = sympy.Function("wrap_angle")
 
 
 def _math() -> types.ModuleType:
@@ -41,7 +41,7 @@ def _math() -> types.ModuleType:
 def _symbolic(fn: Callable, env: dict) -> Callable:
     env["math"] = _math()
     if "wrap_angle" in env:
-        env["wrap_angle"] = WRAP
+        env["wrap_angle"] = _WRAP
     return types.FunctionType(fn.__code__, env, fn.__name__, fn.__defaults__, fn.__closure__)
 
 
@@ -103,7 +103,7 @@ class _Printer(PythonCodePrinter):
     """Python over floats: `math`'s functions, and `wrap_angle` for the wrap."""
 
     def _print_Function(self, expr: sympy.Function) -> str:
-        if expr.func == WRAP:
+        if expr.func == _WRAP:
             return f"wrap_angle({self._print(expr.args[0])})"
         return super()._print_Function(expr)
 

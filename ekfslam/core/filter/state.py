@@ -31,6 +31,7 @@ from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.history import History, Recorder
 from ekfslam.core.filter.steps import Linearization, Storage
 from ekfslam.core.filter.symmetric import mirror, rows_of
+from ekfslam.core.filter_checks import check_start
 from ekfslam.core.invariant import from_cartesian, landmark_to_cartesian, to_cartesian
 from ekfslam.core.models import ODOMETRY, RANGE_BEARING
 from ekfslam.geometry import wrap_angle
@@ -65,6 +66,7 @@ class FilterState:
         config: FilterConfig | None = None,
         record: bool = True,
     ) -> None:
+        check_start(pose, pose_covariance, config, record)
         self.config = config or FilterConfig()
         lin = Linearization[self.config.linearization.upper()]
         self._use(_storage(self.config.initial_capacity, int(lin)))

@@ -15,11 +15,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ekfslam.errors import InputError
+from ekfslam.files import not_a_file
 
 Array = NDArray[np.float64]
 
-# What np.loadtxt accepts as a number; the slow line-by-line check must agree with it.
-_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+# What np.loadtxt accepts as a number; the slow line-by-line check must agree with it (ASCII
+# digits: re's \d also matches Arabic-Indic and fullwidth ones, which np.loadtxt refuses).
+_NUMBER = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")
 _NON_FINITE = re.compile(r"[+-]?(nan|inf|infinity)", re.IGNORECASE)
 _NEWLINE = re.compile(r"\r\n|\r|\n")  # the universal newlines np.loadtxt reads
 
@@ -43,6 +45,9 @@ def read_table(path: Path, names: tuple[str, ...]) -> Array:
     np.loadtxt (C parser) does the fast pass; only when it or the shape/finiteness checks fail
     do we walk the file line by line, to name the exact line.
     """
+    problem = not_a_file(path)  # before reading: a FIFO would block for ever
+    if problem is not None:
+        raise InputError(path, None, problem)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
@@ -93,4 +98,9 @@ def _raise_first_bad_line(path: Path, names: tuple[str, ...], fallback: str) -> 
 
 
 def raise_at_row(path: Path, row: int, problem: str) -> None:
-    raise InputError(path, _data_lines(path)[row][0], problem)
+    raise InputError(path, data_line(path, row), problem)
+
+
+def data_line(path: Path, row: int) -> int:
+    """The 1-based line of data row `row` (0-based, as `read_table` returns them) of `path`."""
+    return _data_lines(path)[row][0]

@@ -30,12 +30,15 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.errors import InputError
+from ekfslam.files import not_a_file
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.mrclam.checks import (
     DEFAULT_MAX_RANGE,
@@ -44,15 +47,37 @@ from ekfslam.logs.mrclam.checks import (
     swapped_subjects,
     time_offsets,
 )
-from ekfslam.logs.mrclam.dat import raise_at_row, read_table, require_integers
+from ekfslam.logs.mrclam.dat import data_line, raise_at_row, read_table, require_integers
 from ekfslam.logs.mrclam.defaults import NAME as MRCLAM_DEFAULTS
 from ekfslam.logs.mrclam.fetch import mrclam_path
 from ekfslam.logs.mrclam.report import BARCODES, MrclamLoadReport
-from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta, check_time_spans
+from ekfslam.logs.runlog import (
+    Controls,
+    Detections,
+    GroundTruth,
+    RunLog,
+    RunMeta,
+    check_across_files,
+    check_time_spans,
+)
 from ekfslam.places import shared_data_dir
+from ekfslam.plausibility import (
+    BACKWARDS_TOLERANCE_S,
+    MAX_HEADING,
+    MAX_POSITION,
+    MAX_SPEED,
+    MAX_TIME,
+    MAX_TURN_RATE,
+    backwards,
+    check_clocks,
+    coincident,
+    first_beyond,
+)
 
 Array = NDArray[np.float64]
 
+#: s: how long before a robot's odometry its Vicon truth may start (6-9 s in the datasets).
+VICON_LEAD_S = 60.0
 #: The robots' subject numbers; every other subject in Barcodes.dat is a landmark.
 ROBOTS = (1, 2, 3, 4, 5)
 
@@ -123,8 +148,10 @@ def load_mrclam(
     if not folder.is_dir():
         raise InputError(folder, None, "not a folder; expected an MRCLAM_Dataset<N> folder")
     paths = {kind: robot_file(folder, robot, kind) for kind in ROBOT_KINDS}
-    has_truth = paths["Groundtruth"].is_file()
+    truth_path = paths["Groundtruth"]
+    has_truth = truth_path.exists() or truth_path.is_symlink()  # a dangling link is broken
     required = [folder / BARCODES, folder / LANDMARKS, paths["Odometry"], paths["Measurement"]]
+    required += [truth_path] if has_truth else []
     _require_files(folder, robot, required)
     dataset = _dataset_number(folder)
 
@@ -134,15 +161,19 @@ def load_mrclam(
     else:
         swap_fixed = False
     tag_map = read_landmarks(folder / LANDMARKS)
-    odometry, odo_unsorted = _sorted_by_time(read_table(paths["Odometry"], _ODOMETRY_COLUMNS))
+    table = read_table(paths["Odometry"], _ODOMETRY_COLUMNS)
+    _check_plausible(paths["Odometry"], table, _ODOMETRY_COLUMNS, _ODOMETRY_BOUNDS)
+    odometry, odo_unsorted, odo_order = _sorted_by_time(table, paths["Odometry"])
     measurements = read_table(paths["Measurement"], _MEASUREMENT_COLUMNS)
+    _check_plausible(paths["Measurement"], measurements, _MEASUREMENT_COLUMNS, _MEASUREMENT_BOUNDS)
     _check_measurements(paths["Measurement"], measurements, barcode_to_subject, tag_map)
-    measurements, meas_unsorted = _sorted_by_time(measurements)
+    measurements, meas_unsorted, meas_order = _sorted_by_time(measurements, paths["Measurement"])
     if has_truth:
         table = read_table(paths["Groundtruth"], _GROUNDTRUTH_COLUMNS)
+        _check_plausible(paths["Groundtruth"], table, _GROUNDTRUTH_COLUMNS, _GROUNDTRUTH_BOUNDS)
     else:
         table = np.empty((0, 4))
-    groundtruth, gt_unsorted = _sorted_by_time(table)
+    groundtruth, gt_unsorted, gt_order = _sorted_by_time(table, paths["Groundtruth"])
 
     controls = Controls(
         t=odometry[:, 0].copy(),
@@ -209,6 +240,16 @@ def load_mrclam(
     # the measurements share the odometry's clock; the Vicon truth's cover is only reported
     names = (paths["Odometry"].name, paths["Measurement"].name, paths["Groundtruth"].name)
     check_time_spans(dataclasses.replace(run, groundtruth=None), folder, names, lines=False)
+    if truth is not None:  # on the odometry's clock too, though it need not cover the run
+        others = [(paths["Groundtruth"], truth.t, False)]
+        check_clocks((names[0], controls.t), others, False, margin_s=VICON_LEAD_S, overlap=False)
+    kept_rows = np.flatnonzero(keep)
+    lines: dict[str, Callable[[int], int]] = {
+        names[0]: lambda row: data_line(paths["Odometry"], int(odo_order[row])),
+        names[1]: lambda row: data_line(paths["Measurement"], int(meas_order[kept_rows[row]])),
+        names[2]: lambda row: data_line(paths["Groundtruth"], int(gt_order[row])),
+    }
+    check_across_files(run, folder, names, sorted_rows=lines)
     return run, report
 
 
@@ -272,7 +313,23 @@ def read_landmarks(path: str | Path) -> dict[int, Array]:
             raise_at_row(path, row, f"subject {subject} is a robot, not a landmark")
         if subject in tag_map:
             raise_at_row(path, row, f"landmark {subject} is listed twice")
+        if max(abs(x), abs(y)) > MAX_POSITION:
+            raise_at_row(path, row, f"landmark {subject} at ({x!r}, {y!r}) m: not plausible")
         tag_map[subject] = np.array([x, y])
+    at_one, pairs = coincident(tag_map)
+    if at_one:
+        raise InputError(
+            path,
+            None,
+            f"all {len(at_one)} landmarks are at one point {tag_map[at_one[0]].tolist()}: eq. (17) "
+            "cannot find the map's rotation from it",
+        )
+    for a, b in pairs:
+        row = sorted(tag_map).index(b)
+        warnings.warn(
+            f"{path}:{data_line(path, row)}: landmarks {a} and {b} are at the same point",
+            stacklevel=3,
+        )
     return tag_map
 
 
@@ -288,20 +345,83 @@ def _dataset_number(folder: Path) -> str:
 
 
 def _require_files(folder: Path, robot: int, paths: list[Path]) -> None:
-    missing = [p for p in paths if not p.is_file()]
+    missing = [p for p in paths if not p.exists() and not p.is_symlink()]
     if missing:
         names = ", ".join(p.name for p in missing)
         raise InputError(
             missing[0], None, f"file not found: robot {robot} needs {names} in {folder}"
         )
+    for path in paths:  # there, but a folder, a FIFO, a device, a dangling link
+        problem = not_a_file(path)
+        if problem is not None:
+            raise InputError(path, None, f"{problem}; robot {robot} reads it as a table")
 
 
-def _sorted_by_time(table: Array) -> tuple[Array, int]:
-    """Stable sort on column 0; returns the table and the number of rows earlier than the last."""
-    out_of_order = int(np.count_nonzero(np.diff(table[:, 0]) < 0))
+def _sorted_by_time(table: Array, path: Path) -> tuple[Array, int, np.ndarray]:
+    """Stable sort on column 0: (the table, how many rows were earlier than the row before,
+    each sorted row's row in the file).
+
+    A step back of more than `BACKWARDS_TOLERANCE_S` is refused, naming its line: two logs
+    pasted together (another robot's rows appended), not rows logged out of order. Smaller
+    steps are sorted, counted in the report, and warned about with the first one's line.
+    """
+    back = backwards(table[:, 0])
+    if back is not None:
+        row, seconds = back
+        raise_at_row(
+            path,
+            row,
+            f"time {table[row, 0]!r} s goes back {seconds:.6g} s from the rows before it (more "
+            f"than the {BACKWARDS_TOLERANCE_S:g} s a log may be out of order): two logs pasted "
+            "together, such as another robot's rows?",
+        )
+    steps = np.diff(table[:, 0]) < 0
+    out_of_order = int(np.count_nonzero(steps))
+    order = np.arange(len(table))
     if out_of_order:
-        table = table[np.argsort(table[:, 0], kind="stable")]
-    return table, out_of_order
+        first = int(np.flatnonzero(steps)[0]) + 1
+        warnings.warn(
+            f"{path}:{data_line(path, first)}: {out_of_order} row(s) out of time order (at most "
+            f"{float((-np.diff(table[:, 0])).max()):.3g} s earlier than the row before): sorted",
+            stacklevel=3,
+        )
+        order = np.argsort(table[:, 0], kind="stable")
+        table = table[order]
+    return table, out_of_order, order
+
+
+#: column -> (the largest plausible |value|, unit, what it is) of each file (`ekfslam.plausibility`)
+_ODOMETRY_BOUNDS = {
+    0: (MAX_TIME, "s", "a time"),
+    1: (MAX_SPEED, "m/s", "a speed"),
+    2: (MAX_TURN_RATE, "rad/s", "a turn rate"),
+}
+# the measurements' and the truth's times: the clock check names both files of two clocks
+_MEASUREMENT_BOUNDS = {2: (MAX_POSITION, "m", "a range")}
+_GROUNDTRUTH_BOUNDS = {
+    1: (MAX_POSITION, "m", "a position"),
+    2: (MAX_POSITION, "m", "a position"),
+    3: (MAX_HEADING, "rad", "a heading (degrees by mistake?)"),
+}
+
+
+def _check_plausible(
+    path: Path, table: Array, names: tuple[str, ...], bounds: dict[int, tuple[float, str, str]]
+) -> None:
+    """Refuse the first row with a value beyond its column's plausible bound, naming its line."""
+    first = None
+    for col, (bound, unit, what) in bounds.items():
+        row = first_beyond(table[:, col], bound)
+        if row is not None and (first is None or row < first[0]):
+            first = (row, col, bound, unit, what)
+    if first is not None:
+        row, col, bound, unit, what = first
+        raise_at_row(
+            path,
+            row,
+            f"{names[col]} {float(table[row, col])!r} {unit} is not plausible as {what} "
+            f"(beyond {bound:g} {unit})",
+        )
 
 
 def _check_measurements(path: Path, table: Array, subjects: dict, tag_map: dict) -> None:

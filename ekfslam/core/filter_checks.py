@@ -1,0 +1,181 @@
+"""What `ekfslam.core.filter.ekf.EKFSLAM` is given, checked where it takes it (`ekfslam.checks`).
+
+One function per public entry of the filter, called on the first line of the constructor and of
+`predict`, `predict_many` and `update`: a pose of 2 numbers, a 2x2 start covariance, a negative
+R, a z with 3 coordinates, a string id or NaN end in one `ConfigError` (ValueError) or
+`WrongTypeError` (TypeError) naming the method and the argument, before the state is touched.
+
+`predict_many` and `update` run once per event of a replay, so they take a fast path for what
+the replay passes (Python floats, C-ordered float arrays) and check a noise matrix (the same
+one, event after event) once per distinct content.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ekfslam import checks
+from ekfslam.core.filter.config import FilterConfig
+from ekfslam.errors import ConfigError, WrongTypeError
+from ekfslam.plausibility import MAX_POSITION, MAX_TIME
+
+#: the last noise matrices found good, by their bytes: a replay passes one M (or R) and one Q
+_GOOD_NOISE: dict[tuple[str, int], bytes] = {}
+#: arrays up to this many values are checked as Python floats (`_rows`)
+_FAST_SIZE = 64
+_ARRAY, _FLOAT = np.ndarray, np.dtype(np.float64)
+_M_KEY = ("EKFSLAM.predict_many: M", 3)
+_Q_KEY = ("EKFSLAM.update: Q", 2)
+
+
+def check_start(pose: Any, pose_covariance: Any, config: Any, record: Any) -> None:
+    """`EKFSLAM(pose, pose_covariance, config, record)` (and `FilterState`'s)."""
+    checks.pose(pose, "EKFSLAM: pose")
+    if pose_covariance is not None:
+        checks.covariance(pose_covariance, "EKFSLAM: pose_covariance", 3)
+    if config is not None:
+        checks.instance(
+            config, FilterConfig, "EKFSLAM: config", "build one, e.g. FilterConfig(gate=None)"
+        )
+    checks.flag(record, "EKFSLAM: record")
+
+
+def check_predict(u: Any, R: Any, t: Any) -> None:
+    """`EKFSLAM.predict(u, R, t)`: u (3,) finite, R a 3x3 covariance, t a finite time or None."""
+    what = "an increment (dx, dy, dtheta) in m, m, rad"
+    checks.array(u, "EKFSLAM.predict: u", (3,), what, bound=MAX_POSITION)
+    _noise(R, "EKFSLAM.predict: R", 3)
+    if t is not None:
+        checks.real(t, "EKFSLAM.predict: t", lo=-MAX_TIME, hi=MAX_TIME, unit="s")
+
+
+def check_predict_many(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> None:
+    """`EKFSLAM.predict_many(us, dts, ts, M, R)`: K increments, K durations >= 0 (with M), K
+    times, and exactly one of M (per second) and R (per step), a 3x3 covariance."""
+    if (
+        R is None
+        and type(M) is _ARRAY
+        and M.shape == (3, 3)
+        and type(us) is _ARRAY
+        and type(dts) is _ARRAY
+        and type(ts) is _ARRAY
+        and us.dtype is _FLOAT
+        and dts.dtype is _FLOAT
+        and ts.dtype is _FLOAT
+        and us.ndim == 2
+        and us.shape[1] == 3
+        and dts.ndim == ts.ndim == 1
+        and len(us) == len(dts) == len(ts)
+        and us.size <= _FAST_SIZE
+        and _GOOD_NOISE.get(_M_KEY) == M.tobytes()
+    ):  # what the replay passes, event after event: Python floats, no numpy reduction
+        u, d, t = us.ravel().tolist(), dts.tolist(), ts.tolist()
+        if (
+            math.isfinite(sum(u) + sum(d) + sum(t))
+            and (not d or (min(d) >= 0.0 and max(d) <= MAX_TIME))
+            and (not u or -MAX_POSITION <= min(u) <= max(u) <= MAX_POSITION)
+            and (not t or -MAX_TIME <= min(t) <= max(t) <= MAX_TIME)
+        ):
+            return
+    name = "EKFSLAM.predict_many"
+    if (M is None) == (R is None):
+        raise ConfigError(f"{name}: give exactly one of M (per second) or R (per step)")
+    _noise(M if M is not None else R, f"{name}: {'M' if M is not None else 'R'}", 3)
+    k, _ = _rows(us, f"{name}: us", 3, bound=MAX_POSITION)
+    _rows(ts, f"{name}: ts", None, k, bound=MAX_TIME)
+    if M is not None:
+        _, smallest = _rows(dts, f"{name}: dts", None, k, bound=MAX_TIME)
+        if smallest < 0.0:
+            raise ConfigError(f"{name}: dts must be durations >= 0 s, got {smallest!r}")
+
+
+def check_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> None:
+    """`EKFSLAM.update(landmark_id, z, Q, t)`: a whole-number id, z = (r, φ) finite (|r| within
+    the plausible 1e7 m), Q a 2x2 positive-definite covariance, t a plausible time or None. (A
+    negative range is the sensor's business, refused by the readers; the filter's algebra takes
+    it.)"""
+    if (
+        type(landmark_id) is int
+        and type(z) is list
+        and len(z) == 2
+        and type(Q) is _ARRAY
+        and type(t) is float
+        and Q.dtype is _FLOAT
+        and Q.shape == (2, 2)
+        and _GOOD_NOISE.get(_Q_KEY) == Q.tobytes()
+    ):  # what the replay passes, event after event
+        r, phi = z
+        if (
+            type(r) is float
+            and type(phi) is float
+            and -MAX_POSITION <= r <= MAX_POSITION
+            and -math.inf < phi < math.inf
+            and -MAX_TIME <= t <= MAX_TIME
+        ):
+            return
+    if not checks.is_whole(landmark_id) or not -(2**63) <= int(landmark_id) < 2**63:
+        raise WrongTypeError(
+            "EKFSLAM.update: landmark_id must be a whole number within 64 bits, got "
+            f"{checks.shown(landmark_id)}"
+        )
+    what = "an observation (range, bearing)"
+    checks.array(z, "EKFSLAM.update: z", (2,), what, bound=MAX_POSITION)
+    _noise(Q, "EKFSLAM.update: Q", 2, definite=True)
+    if t is not None:
+        checks.real(t, "EKFSLAM.update: t", lo=-MAX_TIME, hi=MAX_TIME, unit="s")
+
+
+def _noise(value: Any, name: str, n: int, definite: bool = False) -> None:
+    """A noise covariance; an array whose bytes were found good before is not checked again."""
+    key = (name, n)
+    if type(value) is _ARRAY and value.dtype is _FLOAT and value.shape == (n, n):
+        data = value.tobytes()
+        if _GOOD_NOISE.get(key) == data:
+            return
+        checks.covariance(value, name, n, definite=definite)
+        _GOOD_NOISE[key] = data
+        return
+    checks.covariance(value, name, n, definite=definite)
+
+
+def _rows(
+    value: Any, name: str, width: int | None, length: int | None = None, bound: float = math.inf
+) -> tuple[int, float]:
+    """Check rows of `width` finite numbers ((width,) is one row), or (N,) values when `width`
+    is None, `length` of them when given; returns (how many, the smallest value).
+
+    The replay's own arrays (C-ordered float64, a few rows) are summed as Python floats, 0.3 µs
+    where a numpy reduction costs 2 µs: a NaN or inf anywhere makes the sum non-finite (a sum
+    that overflowed goes to the precise check, which lets it pass).
+    """
+    shape: tuple[int | None, ...] = (None,) if width is None else (None, width)
+    fast = (
+        type(value) is np.ndarray
+        and value.dtype == np.float64
+        and value.ndim == len(shape)
+        and (width is None or value.shape[1] == width)
+    )
+    if fast and value.size <= _FAST_SIZE:
+        flat = value.ravel().tolist()
+        if not math.isfinite(sum(flat)) or (flat and max(map(abs, flat)) > bound):
+            checks.array(value, name, shape, bound=bound)  # says which (or lets it pass)
+        count, smallest = len(value), min(flat, default=0.0)
+    else:
+        if not fast and width is not None and _ndim(value) == 1:
+            shape = (width,)
+        a = checks.array(value, name, shape, bound=bound)
+        count = 1 if a.ndim == 1 and width is not None else len(a)
+        smallest = float(a.min()) if a.size else 0.0
+    if length is not None and count != length:
+        raise ConfigError(f"{name}: {length} increments need as many values, got {count}")
+    return count, smallest
+
+
+def _ndim(value: Any) -> int:
+    try:
+        return np.ndim(value)
+    except (ValueError, TypeError):  # ragged: `checks.array` says so
+        return 2
