@@ -346,10 +346,11 @@ class Schedule:
         """Q (2, 2) of detection i: the one Q, or its own when Q holds one per detection."""
         return self.Q if self.Q.ndim == 2 else self.Q[i]
 
-    def predict(self, target, start: int, stop: int) -> None:
-        """Predict `target` through pieces start..stop-1 (`EKFSLAM.predict_many`)."""
+    def predict(self, target, start: int, stop: int, **options) -> None:
+        """Predict `target` through pieces start..stop-1 (`EKFSLAM.predict_many`, with
+        `options`)."""
         target.predict_many(
-            self.u[start:stop], self.dt[start:stop], self.t[start:stop], self.M, self.R
+            self.u[start:stop], self.dt[start:stop], self.t[start:stop], self.M, self.R, **options
         )
 
     @property
@@ -505,22 +506,23 @@ def _feed(ekf: EKFSLAM, steps: Schedule, *, check: bool = False, pause=None) -> 
     predicted, before the prediction for detection i (i = len(upto): before the last one).
     """
     done = 0
+    trusted = {"validate": False}  # the run was checked once, as it was read or handed in
     for i, p in enumerate(steps.upto):
         if pause is not None:
             pause(i, done)
         if p > done:
-            steps.predict(ekf, done, p)
+            steps.predict(ekf, done, p, **trusted)
             done = p
             if check:
                 _check_finite(ekf, f"t = {steps.t[p - 1]:.3f} s (prediction)")
-        ekf.update(steps.ids[i], steps.z[i], steps.noise_of(i), steps.times[i])
+        ekf.update(steps.ids[i], steps.z[i], steps.noise_of(i), steps.times[i], **trusted)
         if check:
             where = f"update of landmark {steps.ids[i]}, detection {i + 1}"
             _check_finite(ekf, f"t = {steps.times[i]:.3f} s ({where})")
     if pause is not None:
         pause(len(steps.upto), done)
     if done < len(steps.u):
-        steps.predict(ekf, done, len(steps.u))
+        steps.predict(ekf, done, len(steps.u), **trusted)
         if check:
             _check_finite(ekf, f"t = {steps.t[-1]:.3f} s (prediction to the end)")
 

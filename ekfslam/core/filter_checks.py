@@ -53,8 +53,8 @@ def check_predict(u: Any, R: Any, t: Any) -> None:
 
 
 def check_predict_many(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> None:
-    """`EKFSLAM.predict_many(us, dts, ts, M, R)`: K increments, K durations >= 0 (with M), K
-    times, and exactly one of M (per second) and R (per step), a 3x3 covariance."""
+    """`EKFSLAM.predict_many(us, dts, ts, M, R)`: K increments, K durations >= 0, K times, and
+    exactly one of M (per second) and R (per step), a 3x3 covariance."""
     if (
         R is None
         and type(M) is _ARRAY
@@ -86,10 +86,11 @@ def check_predict_many(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> None:
     _noise(M if M is not None else R, f"{name}: {'M' if M is not None else 'R'}", 3)
     k, _ = _rows(us, f"{name}: us", 3, bound=MAX_POSITION)
     _rows(ts, f"{name}: ts", None, k, bound=MAX_TIME)
-    if M is not None:
-        _, smallest = _rows(dts, f"{name}: dts", None, k, bound=MAX_TIME)
-        if smallest < 0.0:
-            raise ConfigError(f"{name}: dts must be durations >= 0 s, got {smallest!r}")
+    _, smallest = _rows(
+        dts, f"{name}: dts", None, k, bound=MAX_TIME
+    )  # R ignores them; K all the same
+    if smallest < 0.0:
+        raise ConfigError(f"{name}: dts must be durations >= 0 s, got {smallest!r}")
 
 
 def check_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> None:

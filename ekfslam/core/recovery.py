@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike
 from ekfslam.core.filter.history import Outcome
 from ekfslam.core.models import observation
 from ekfslam.errors import ConfigError
+from ekfslam.geometry import wrap_angle
 
 
 @dataclass(frozen=True)
@@ -84,11 +85,11 @@ class Recovery:
         self.filter.predict_many(*args, **kwargs)
 
     def update(
-        self, landmark_id: int, z: ArrayLike, Q: ArrayLike, t: float | None = None
+        self, landmark_id: int, z: ArrayLike, Q: ArrayLike, t: float | None = None, **options: Any
     ) -> Outcome:
-        """The filter's update; after it, a rejection may complete a run that triggers a
-        widening."""
-        outcome = self.filter.update(landmark_id, z, Q, t)
+        """The filter's update (with `options`); after it, a rejection may complete a run that
+        triggers a widening."""
+        outcome = self.filter.update(landmark_id, z, Q, t, **options)
         if outcome == Outcome.ACCEPTED:
             self._innovations.clear()
             self._seen.clear()
@@ -96,7 +97,7 @@ class Recovery:
             mean, _ = self.filter.landmark(landmark_id)
             z_hat = observation(self.filter.pose, mean)
             nu_r = float(z[0]) - float(z_hat[0])
-            nu_b = (float(z[1]) - float(z_hat[1]) + math.pi) % (2 * math.pi) - math.pi
+            nu_b = wrap_angle(float(z[1]) - float(z_hat[1]))
             self._innovations.append((nu_r, nu_b))
             self._seen.add(int(landmark_id))
             c = self.config

@@ -501,3 +501,15 @@ def test_a_singular_or_overflowing_innovation_covariance_is_its_own_outcome() ->
     assert (c.singular, c.refused, c.accepted, c.initialised) == (1, 0, 1, 1)
     outcomes = [Outcome(k) for k in f.history().obs_outcome]
     assert outcomes == [Outcome.INITIALISED, Outcome.SINGULAR, Outcome.ACCEPTED]
+
+
+@pytest.mark.parametrize("noise", ["M", "R"])
+def test_predict_many_refuses_durations_and_times_of_another_length(noise) -> None:
+    """With R (per step) the durations are not used, but K increments still need K of them:
+    the step reads one per increment."""
+    ekf = EKFSLAM([0.0, 0.0, 0.0])
+    us = np.zeros((3, 3))
+    with pytest.raises(ValueError, match="3 increments need as many values"):
+        ekf.predict_many(us, [0.1, 0.1], [0.0, 0.1, 0.2], **{noise: 1e-3 * np.eye(3)})
+    with pytest.raises(ValueError, match="3 increments need as many values"):
+        ekf.predict_many(us, [0.1, 0.1, 0.1], [0.0, 0.1], **{noise: 1e-3 * np.eye(3)})

@@ -117,6 +117,8 @@ class EKFSLAM(FilterState):
         ts: ArrayLike,
         M: ArrayLike | None = None,
         R: ArrayLike | None = None,
+        *,
+        validate: bool = True,
     ) -> None:
         """Several predictions in a row, exactly as many calls to `predict`, at O(n) once.
 
@@ -133,15 +135,16 @@ class EKFSLAM(FilterState):
             R_k = V(θ_k) (M dt_k) V(θ_k)ᵀ (`ekfslam.core.models.motion_noise`), θ_k its start
             heading.
         R : (3, 3), or a fixed state-space R for every step (the seed's way). Give M or R.
+        validate : check the arguments first (`ekfslam.core.filter_checks`). False is for a
+            caller whose arrays were checked already (a replay checks its run once, then feeds
+            thousands of batches): as scipy's ``check_finite=False``, wrong input is then
+            undefined behaviour.
         """
-        check_predict_many(us, dts, ts, M, R)
-        if (M is None) == (R is None):
-            raise ValueError("give exactly one of M (per second) or R (per step)")
-        us, dts, ts = _rows(us, 3), _rows(dts), _rows(ts)
-        if not len(us) == len(ts) == len(dts):
-            raise ValueError(f"{len(us)} increments need as many times and durations")
-        N = _matrix(M if M is not None else R, 3, "motion noise")
-        self._propagate((us, dts, ts, N, M is not None))
+        if validate:
+            check_predict_many(us, dts, ts, M, R)
+        per_second = M is not None
+        us, dts, ts, N = _rows(us, 3), _rows(dts), _rows(ts), _rows(M if per_second else R)
+        self._propagate((us, dts, ts, N, per_second))
 
     def _propagate(self, batch: tuple) -> None:
         """`ekfslam.core.filter.steps.predict` of a `Batch` (u, dt, t, N, per_second)."""
@@ -157,7 +160,13 @@ class EKFSLAM(FilterState):
 
     # -------------------------------------------------------------- correction
     def update(
-        self, landmark_id: int, z: ArrayLike, Q: ArrayLike, t: float | None = None
+        self,
+        landmark_id: int,
+        z: ArrayLike,
+        Q: ArrayLike,
+        t: float | None = None,
+        *,
+        validate: bool = True,
     ) -> Outcome:
         """Use one range-bearing observation z = (r, φ) of a landmark, eqs. (10)-(16).
 
@@ -171,6 +180,7 @@ class EKFSLAM(FilterState):
         z : array (2,)  range (m) and bearing (rad).
         Q : array (2, 2)  observation noise covariance, eq. (11).
         t : float, optional  time of the observation, s.
+        validate : check the arguments first (as `predict_many`'s).
 
         Returns
         -------
@@ -181,13 +191,11 @@ class EKFSLAM(FilterState):
             singular or not finite: the noise is too small or too large). Each is counted
             (`counts`, under its `Outcome.label`).
         """
-        check_update(landmark_id, z, Q, t)
+        if validate:
+            check_update(landmark_id, z, Q, t)
         if t is not None:
             self._t = float(t)
-        z = _rows(z)
-        Q = _matrix(Q, 2, "observation noise")
-        if z.shape != (2,) or not (np.isfinite(z).all() and np.isfinite(Q).all()):
-            raise ValueError(f"non-finite observation {z} or noise {Q} for landmark {landmark_id}")
+        z, Q = _rows(z), _rows(Q)
         obs = self._observation_row()
         j = self.slot.get(landmark_id)
         if j is None:
