@@ -43,7 +43,7 @@ from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.models import observation_noise
 from ekfslam.core.noise import default_noise
 from ekfslam.errors import ConfigError
-from ekfslam.logs.mrclam.fetch import mrclam_path
+from ekfslam.logs.mrclam.cache import mrclam_path
 from ekfslam.logs.mrclam.load import load_mrclam
 from ekfslam.logs.runlog import read_run
 from ekfslam.pipeline import replay

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 
 from ekfslam.cli import args as ca
-from ekfslam.logs.mrclam.fetch import CACHE_DEFAULT_HELP, DATASETS, fetch_mrclam
+from ekfslam.logs.mrclam.cache import CACHE_DEFAULT_HELP, DATASETS
+from ekfslam.logs.mrclam.fetch import fetch_mrclam
 
 
 def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) -> None:

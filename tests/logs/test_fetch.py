@@ -17,7 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from ekfslam.logs.mrclam.fetch import EXPECTED_FILES, FetchError, default_cache_dir, fetch_mrclam
+from ekfslam.logs.mrclam.cache import EXPECTED_FILES, default_cache_dir
+from ekfslam.logs.mrclam.fetch import FetchError, fetch_mrclam
 from ekfslam.logs.mrclam.load import load_mrclam
 
 pytestmark = pytest.mark.shared_data
@@ -244,7 +245,7 @@ def test_help_and_readme_name_the_cache_the_code_uses(monkeypatch, tmp_path: Pat
     import argparse
 
     from ekfslam.cli import fetch as fetch_command
-    from ekfslam.logs.mrclam.fetch import CACHE_DEFAULT_HELP
+    from ekfslam.logs.mrclam.cache import CACHE_DEFAULT_HELP
 
     parser = argparse.ArgumentParser()
     fetch_command.add_command(parser.add_subparsers(), "fetch", "download")

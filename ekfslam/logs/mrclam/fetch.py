@@ -22,19 +22,10 @@ from pathlib import Path, PurePosixPath
 from typing import TextIO
 
 from ekfslam.errors import EkfSlamError
+from ekfslam.logs.mrclam.cache import DATASETS, missing_files, mrclam_path
 
 DEFAULT_BASE_URL = "ftp://asrl3.utias.utoronto.ca/MRCLAM/"
 DATASET_PAGE = "http://asrl.utias.utoronto.ca/datasets/mrclam/"
-DATASETS = range(1, 10)
-EXPECTED_FILES = (
-    "Barcodes.dat",
-    "Landmark_Groundtruth.dat",
-    *(
-        f"Robot{r}_{kind}.dat"
-        for r in range(1, 6)
-        for kind in ("Odometry", "Measurement", "Groundtruth")
-    ),
-)
 TIMEOUT_S = 60.0
 _CHUNK = 1 << 16
 
@@ -43,34 +34,10 @@ class FetchError(EkfSlamError):
     """A dataset could not be downloaded, unpacked or checked; the message says what to do."""
 
 
-#: What `default_cache_dir` picks, for help texts (the dataset goes in <cache>/mrclam/...).
-CACHE_DEFAULT_HELP = "$EKFSLAM_CACHE, else $XDG_CACHE_HOME/ekfslam, else ~/.cache/ekfslam"
-
-
-def default_cache_dir() -> Path:
-    """``$EKFSLAM_CACHE``, else ``$XDG_CACHE_HOME/ekfslam``, else ``~/.cache/ekfslam``."""
-    if os.environ.get("EKFSLAM_CACHE"):
-        return Path(os.environ["EKFSLAM_CACHE"]).expanduser()
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg) if xdg else Path.home() / ".cache") / "ekfslam"
-
-
 def mrclam_url(n: int, base_url: str | None = None) -> str:
     """The archive URL of dataset n: base URL (argument, ``$EKFSLAM_MRCLAM_URL`` or default)."""
     base = base_url or os.environ.get("EKFSLAM_MRCLAM_URL") or DEFAULT_BASE_URL
     return f"{base.rstrip('/')}/MRCLAM{_check_number(n)}.zip"
-
-
-def mrclam_path(n: int, cache_dir: str | Path | None = None) -> Path:
-    """Where dataset n lives once fetched: ``<cache>/mrclam/MRCLAM_Dataset<n>``."""
-    cache = Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
-    return cache / "mrclam" / f"MRCLAM_Dataset{_check_number(n)}"
-
-
-def missing_files(folder: str | Path) -> list[str]:
-    """The expected MRCLAM file names that are not in `folder` (all of them if it is absent)."""
-    folder = Path(folder)
-    return [name for name in EXPECTED_FILES if not (folder / name).is_file()]
 
 
 def fetch_mrclam(
@@ -92,7 +59,7 @@ def fetch_mrclam(
     Parameters
     ----------
     n : dataset number, 1 to 9.
-    cache_dir : cache root; default `default_cache_dir()`.
+    cache_dir : cache root; default `ekfslam.logs.mrclam.cache.default_cache_dir`.
     base_url : folder URL holding ``MRCLAM<n>.zip``; default ``$EKFSLAM_MRCLAM_URL`` or the
         publisher's FTP server.
     progress : draw a text progress bar.
@@ -107,7 +74,7 @@ def fetch_mrclam(
     FetchError
         Bad dataset number, download failure, not a zip, unsafe member name, files missing.
     """
-    final = mrclam_path(n, cache_dir)
+    final = mrclam_path(_check_number(n), cache_dir)
     if not missing_files(final):
         return final
     url = mrclam_url(n, base_url)

@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 from ekfslam.errors import InputError
 from ekfslam.files import not_a_file
 from ekfslam.geometry import wrap_angle
+from ekfslam.logs.mrclam.cache import mrclam_path
 from ekfslam.logs.mrclam.checks import (
     DEFAULT_MAX_RANGE,
     beyond_range,
@@ -49,7 +50,6 @@ from ekfslam.logs.mrclam.checks import (
 )
 from ekfslam.logs.mrclam.dat import data_line, raise_at_row, read_table, require_integers
 from ekfslam.logs.mrclam.defaults import NAME as MRCLAM_DEFAULTS
-from ekfslam.logs.mrclam.fetch import mrclam_path
 from ekfslam.logs.mrclam.report import BARCODES, MrclamLoadReport
 from ekfslam.logs.runlog import (
     Controls,
