@@ -51,6 +51,10 @@ def _rows(values: ArrayLike, width: int | None = None) -> Array:
     return a if width is None else a.reshape(-1, width)
 
 
+#: each outcome's `Outcome.label`, looked up once per sighting
+_LABEL = {outcome: outcome.label for outcome in Outcome}
+
+
 def _matrix(values: ArrayLike, n: int, what: str) -> Array:
     a = np.ascontiguousarray(values, dtype=float)
     if a.shape != (n, n):
@@ -80,6 +84,7 @@ class EKFSLAM(FilterState):
         self._linearisations = 1  # the iterated update's last count (`steps.linearise`)
         self._scratch = np.full(len(OBS_ROW), math.nan)  # an observation row nobody keeps
         self._event = np.zeros(len(ROW))  # an event row nobody keeps
+        self._fej = self._storage.linearization == Linearization.FEJ  # H at first estimates
 
     def clone(self) -> EKFSLAM:
         """`FilterState.clone`, with the filter's own lists (sightings, rejections)."""
@@ -221,8 +226,8 @@ class EKFSLAM(FilterState):
         """Where H is evaluated: the pose and the landmark as estimated, or FEJ's first
         estimates (the pose predicted for this step, the landmark when first placed)."""
         s = self._storage
-        at = s.first if s.linearization == Linearization.FEJ else s.mu
-        return np.concatenate((at[:3], at[l : l + 2]))
+        at = s.first if self._fej else s.mu
+        return at.take((0, 1, 2, l, l + 1))
 
     def _correct(
         self,
@@ -311,7 +316,7 @@ class EKFSLAM(FilterState):
             l < 0 or self.config.init == "inverse"
         ):
             obs[:] = math.nan
-        self._counts[outcome.label] += 1
+        self._counts[_LABEL[outcome]] += 1
         rec = self._recorder
         if rec is not None:
             n = rec.n - 1
