@@ -140,15 +140,17 @@ class EKFSLAM(FilterState):
             R_k = V(θ_k) (M dt_k) V(θ_k)ᵀ (`ekfslam.core.models.motion_noise`), θ_k its start
             heading.
         R : (3, 3), or a fixed state-space R for every step (the seed's way). Give M or R.
-        validate : check the arguments first (`ekfslam.core.filter_checks`). False is for a
-            caller whose arrays were checked already (a replay checks its run once, then feeds
-            thousands of batches): as scipy's ``check_finite=False``, wrong input is then
+        validate : check the arguments first (`ekfslam.core.filter_checks`) and take them as
+            float arrays. False is for a caller whose arrays were checked already and are
+            float64, C-ordered and of these shapes (a replay checks its run once, then feeds
+            thousands of batches): as scipy's ``check_finite=False``, other input is then
             undefined behaviour.
         """
+        per_second = M is not None
+        N = M if per_second else R
         if validate:
             check_predict_many(us, dts, ts, M, R)
-        per_second = M is not None
-        us, dts, ts, N = _rows(us, 3), _rows(dts), _rows(ts), _rows(M if per_second else R)
+            us, dts, ts, N = _rows(us, 3), _rows(dts), _rows(ts), _rows(N)
         self._propagate((us, dts, ts, N, per_second))
 
     def _propagate(self, batch: tuple) -> None:

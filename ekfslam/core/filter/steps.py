@@ -259,7 +259,8 @@ def owed_direction(storage: Storage, d: int) -> Array:
 
 # ------------------------------------------------------------------------------- correction
 def correct(storage: Storage, d: int, l: int, update: Update, obs: Array) -> int:
-    """Use one observation of the landmark at rows l, l+1, eqs. (13)-(16); returns an `Outcome`.
+    """Use one observation of the landmark at rows l, l+1, eqs. (13)-(16); returns an `Outcome`
+    as its code (an int: compiled, an enum member would be rebuilt at every return).
 
     Only ACCEPTED changes μ and Σ. REJECTED: the NIS exceeds the gate. REFUSED: the landmark, or
     the point H is evaluated at, sits on the robot. SINGULAR: S is not positive definite, or not
@@ -270,7 +271,7 @@ def correct(storage: Storage, d: int, l: int, update: Update, obs: Array) -> int
     r, L = slice(0, 3), slice(l, l + 2)
     obs[OBS_Z_HAT : OBS_NIS + 1] = np.nan
     if not (apart(mu[r], mu[L]) and apart(point[:3], point[3:])):
-        return Outcome.REFUSED
+        return Outcome.REFUSED.value
     z_hat = sensor.h(mu[r], mu[L])  # eq. (13)
     nu = sensor.innovation(z, z_hat)  # z - ẑ, the bearing wrapped
     H_r, H_l = jacobians(storage, point)  # eq. (14)'s two non-zero blocks
@@ -285,12 +286,12 @@ def correct(storage: Storage, d: int, l: int, update: Update, obs: Array) -> int
     obs[OBS_S], obs[OBS_S + 1], obs[OBS_S + 2], obs[OBS_S + 3] = S[0, 0], S[1, 0], S[1, 0], S[1, 1]
     C = cholesky(S)  # S = C Cᵀ
     if not positive(C):
-        return Outcome.SINGULAR
+        return Outcome.SINGULAR.value
     w = solve_lower(C, nu)  # the NIS νᵀ S⁻¹ ν is |w|²
     nis = w @ w
     obs[OBS_NIS] = nis
     if nis > gate:
-        return Outcome.REJECTED
+        return Outcome.REJECTED.value
     W = solve_lower(C, HSigma)  # K = Σ Hᵀ S⁻¹ = Wᵀ C⁻¹, so K S Kᵀ = Wᵀ W
     step = W.T @ w  # K ν = (H Σ)ᵀ S⁻¹ ν, eq. (15)
     if lin == Linearization.INVARIANT:
@@ -304,7 +305,7 @@ def correct(storage: Storage, d: int, l: int, update: Update, obs: Array) -> int
         owed[0] = 0.0
     else:
         subtract_products(Sigma, d, W, W)  # eq. (16): Σ - K S Kᵀ = (I - K H) Σ
-    return Outcome.ACCEPTED
+    return Outcome.ACCEPTED.value
 
 
 def jacobians(storage: Storage, point: Array) -> tuple[Array, Array]:
