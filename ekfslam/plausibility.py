@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ekfslam.errors import InputError
+from ekfslam.geometry import wrap_angle
 
 #: |x|, |y| in metres beyond which a position is a mistake (10,000 km: UTM northings fit).
 MAX_POSITION = 1e7
@@ -246,7 +247,7 @@ def sightings_off_truth(
     dx, dy = tags[:, 0] - x, tags[:, 1] - y
     r_hat = np.hypot(dx, dy)
     d_bearing = np.asarray(bearings, dtype=float)[rows] - (np.arctan2(dy, dx) - theta)
-    d_bearing = np.abs((d_bearing + math.pi) % (2 * math.pi) - math.pi)
+    d_bearing = np.abs(wrap_angle(d_bearing))
     d_range = np.abs(np.asarray(ranges, dtype=float)[rows] - r_hat)
     off = (d_bearing > OFF_TRUTH_BEARING) | (d_range > OFF_TRUTH_RANGE + 0.2 * r_hat)
     count = int(np.count_nonzero(off))

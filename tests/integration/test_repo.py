@@ -149,3 +149,17 @@ def test_the_formatter_decides_the_layout():
         assert why.startswith(("-", ":")) and len(why) > 10, (
             f"{name}:{number}: a skip marker says why its alignment matters"
         )
+
+
+def test_the_package_wraps_angles_in_one_place():
+    """One angle wrap (`ekfslam.geometry.wrap_angle`, issue 24): a modulo by 2π written again
+    elsewhere is a second copy (plausibility's bearing check held one)."""
+    modulo = re.compile(r"%\s*\(?\s*(2\s*\*\s*(math|np)\.pi|TWO_PI|math\.tau|np\.tau)")
+    copies = [
+        f"{path.relative_to(REPO)}:{number}"
+        for path in sorted((REPO / "ekfslam").rglob("*.py"))
+        if path.name != "geometry.py" and "__pycache__" not in path.parts
+        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+        if modulo.search(line)
+    ]
+    assert copies == [], copies
