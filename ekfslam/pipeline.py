@@ -506,23 +506,22 @@ def _feed(ekf: EKFSLAM, steps: Schedule, *, check: bool = False, pause=None) -> 
     predicted, before the prediction for detection i (i = len(upto): before the last one).
     """
     done = 0
-    trusted = {"validate": False}  # the run was checked once, as it was read or handed in
     for i, p in enumerate(steps.upto):
         if pause is not None:
             pause(i, done)
         if p > done:
-            steps.predict(ekf, done, p, **trusted)
+            steps.predict(ekf, done, p, validate=False)  # the run was checked once, when read
             done = p
             if check:
                 _check_finite(ekf, f"t = {steps.t[p - 1]:.3f} s (prediction)")
-        ekf.update(steps.ids[i], steps.z[i], steps.noise_of(i), steps.times[i], **trusted)
+        ekf.update(steps.ids[i], steps.z[i], steps.noise_of(i), steps.times[i], validate=False)
         if check:
             where = f"update of landmark {steps.ids[i]}, detection {i + 1}"
             _check_finite(ekf, f"t = {steps.times[i]:.3f} s ({where})")
     if pause is not None:
         pause(len(steps.upto), done)
     if done < len(steps.u):
-        steps.predict(ekf, done, len(steps.u), **trusted)
+        steps.predict(ekf, done, len(steps.u), validate=False)
         if check:
             _check_finite(ekf, f"t = {steps.t[-1]:.3f} s (prediction to the end)")
 

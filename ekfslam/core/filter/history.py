@@ -258,7 +258,10 @@ class Recorder:
             size = max(2 * len(self.kinds), n + count)
             self.rows = _grown(self.rows, size, n)
             self.kinds = _grown(self.kinds, size, n)
-        self.kinds[n : n + count] = kind
+        if count == 1:  # an observation: a scalar store, a quarter of a slice's cost
+            self.kinds[n] = kind
+        else:
+            self.kinds[n : n + count] = kind
         self.n = n + count
         return n
 
