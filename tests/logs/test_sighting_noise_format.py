@@ -95,8 +95,8 @@ def test_sigmas_equal_to_the_noise_replay_as_the_noise_alone(square) -> None:
     noise = NoiseConfig()
     plain = replay(square, noise)
     same = replay(_with_sigmas(square, noise.sigma_range, noise.sigma_bearing), noise)
-    np.testing.assert_array_equal(plain.mu, same.mu)
-    np.testing.assert_array_equal(plain.Sigma, same.Sigma)
+    np.testing.assert_allclose(plain.mu, same.mu, rtol=1e-12, atol=1e-15)  # two routes: round-off
+    np.testing.assert_allclose(plain.Sigma, same.Sigma, rtol=1e-12, atol=1e-18)
 
 
 @settings(max_examples=10, deadline=None)
@@ -115,8 +115,8 @@ def test_each_sighting_is_updated_with_its_own_q(seed) -> None:
     # each Q as the replay builds them (a 2x2 matmul may round its last bit otherwise, by the
     # memory alignment of its operands): their values are diag(σ_r², σ_φ²), checked here
     each = NoiseConfig().sighting_Q(run.detections.range, s_r, s_b)
-    np.testing.assert_array_equal(each[:, 0, 0], s_r**2)
-    np.testing.assert_array_equal(each[:, 1, 1], s_b**2)
+    np.testing.assert_allclose(each[:, 0, 0], s_r**2, rtol=1e-15, atol=0)
+    np.testing.assert_allclose(each[:, 1, 1], s_b**2, rtol=1e-15, atol=0)
     np.testing.assert_array_equal(each[:, 0, 1], 0.0)
     ekf = EKFSLAM(run.meta.nominal_start)
     done = 0
@@ -127,10 +127,10 @@ def test_each_sighting_is_updated_with_its_own_q(seed) -> None:
         ekf.update(det_id[i], det_z[i], each[i], det_time[i])
     if done < len(us):
         ekf.predict_many(us[done:], dts[done:], ends[done:], M, R)
-    np.testing.assert_array_equal(got.mu, ekf.mu)
-    np.testing.assert_array_equal(got.Sigma, ekf.Sigma)
+    np.testing.assert_allclose(got.mu, ekf.mu, rtol=1e-12, atol=1e-15)  # two routes: round-off
+    np.testing.assert_allclose(got.Sigma, ekf.Sigma, rtol=1e-12, atol=1e-18)
     ignored = replay(noisy, NoiseConfig(per_sighting=False))
-    np.testing.assert_array_equal(ignored.mu, replay(run, NoiseConfig()).mu)
+    np.testing.assert_allclose(ignored.mu, replay(run, NoiseConfig()).mu, rtol=1e-12, atol=1e-15)
 
 
 def test_a_range_dependent_sigma_trusts_near_sightings_more(square) -> None:
