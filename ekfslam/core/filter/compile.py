@@ -218,9 +218,8 @@ def _generated(fn: Callable, models: dict[str, object], tag: str) -> Callable:
 def _cache_dir() -> Path:
     """Where generated sources go: the package's own ``__pycache__`` when it can be written to
     (a checkout, a user's environment), else the user's cache folder."""
-    here = Path(__file__).resolve().parent / "__pycache__"
-    for folder in (here, Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache"))):
-        folder = folder if folder == here else folder / "ekfslam" / "generated"
+    user = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "ekfslam"
+    for folder in (Path(__file__).resolve().parent / "__pycache__", user / "generated"):
         try:
             folder.mkdir(parents=True, exist_ok=True)
         except OSError:

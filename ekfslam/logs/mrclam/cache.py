@@ -35,7 +35,7 @@ def default_cache_dir() -> Path:
 def mrclam_path(n: int, cache_dir: str | Path | None = None) -> Path:
     """Where dataset n lives once fetched: ``<cache>/mrclam/MRCLAM_Dataset<n>``."""
     cache = Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
-    return cache / "mrclam" / f"MRCLAM_Dataset{_number(n)}"
+    return cache / "mrclam" / f"MRCLAM_Dataset{dataset_number(n)}"
 
 
 def missing_files(folder: str | Path) -> list[str]:
@@ -44,7 +44,8 @@ def missing_files(folder: str | Path) -> list[str]:
     return [name for name in EXPECTED_FILES if not (folder / name).is_file()]
 
 
-def _number(n: int) -> int:
+def dataset_number(n: int) -> int:
+    """n, if it numbers a MRCLAM dataset (1 to 9)."""
     if isinstance(n, bool) or not isinstance(n, int) or n not in DATASETS:
         raise ConfigError(f"MRCLAM datasets are numbered 1 to 9, got {n!r}")
     return n

@@ -21,8 +21,8 @@ import zipfile
 from pathlib import Path, PurePosixPath
 from typing import TextIO
 
-from ekfslam.errors import EkfSlamError
-from ekfslam.logs.mrclam.cache import DATASETS, missing_files, mrclam_path
+from ekfslam.errors import ConfigError, EkfSlamError
+from ekfslam.logs.mrclam.cache import dataset_number, missing_files, mrclam_path
 
 DEFAULT_BASE_URL = "ftp://asrl3.utias.utoronto.ca/MRCLAM/"
 DATASET_PAGE = "http://asrl.utias.utoronto.ca/datasets/mrclam/"
@@ -97,9 +97,11 @@ def fetch_mrclam(
 
 
 def _check_number(n: int) -> int:
-    if isinstance(n, bool) or not isinstance(n, int) or n not in DATASETS:
-        raise FetchError(f"MRCLAM datasets are numbered 1 to 9, got {n!r}")
-    return n
+    """`ekfslam.logs.mrclam.cache.dataset_number`, refused as a `FetchError`."""
+    try:
+        return dataset_number(n)
+    except ConfigError as exc:
+        raise FetchError(str(exc)) from None
 
 
 def _download(url: str, final: Path, out: TextIO | None) -> Path:
