@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -165,6 +166,12 @@ def summarize(run: RunLog, result: ReplayResult, method: str = "mean_distance") 
     checks.instance(run, RunLog, "summarize: run", "the run that was replayed")
     checks.instance(result, ReplayResult, "summarize: result", "what ekfslam.replay(run) returned")
     checks.choice(method, "summarize: method", METHODS)
+    if result.name != run.meta.name:  # another run's truth would score it with confidence
+        warnings.warn(
+            f"summarize: the result is a replay of {result.name!r}, scored here against the "
+            f"truth of {run.meta.name!r}; pass the run that was replayed",
+            stacklevel=2,
+        )
     alignment = start_pose = None
     unaligned = None
     note = "the run has no known tag map"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -30,3 +31,15 @@ def test_the_outcome_counts_of_a_summary_add_up_to_the_sightings(name: str) -> N
     for o in Outcome:
         assert updates[o.label] == int(np.sum(result.history.obs_outcome == o))
     assert updates["accepted"] > 300  # numbers, not just the keys
+
+
+def test_a_result_scored_against_another_runs_truth_says_so() -> None:
+    """summarize(octagon, replay(square)) used to print confident errors; it now warns, naming
+    both runs (another run's truth scores the map with confidence all the same)."""
+    square, octagon = (read_run(RUNS / n) for n in ("square-2laps", "octagon-2laps"))
+    result = replay(square)
+    with pytest.warns(UserWarning, match="replay of 'square-2laps'.*'octagon-2laps'"):
+        summarize(octagon, result)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        summarize(square, result)  # its own run: no warning
