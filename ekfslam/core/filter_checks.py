@@ -5,9 +5,10 @@ One function per public entry of the filter, called on the first line of the con
 R, a z with 3 coordinates, a string id or NaN end in one `ConfigError` (ValueError) or
 `WrongTypeError` (TypeError) naming the method and the argument, before the state is touched.
 
-`predict_many` and `update` run once per event of a replay, so they take a fast path for what
-the replay passes (Python floats, C-ordered float arrays) and check a noise matrix (the same
-one, event after event) once per distinct content.
+A replay checks its run once and then calls the filter with ``validate=False``; a loop of the
+user's own calls `predict_many` and `update` event after event, so they take a fast path for
+small float input (Python floats, C-ordered float arrays) and check a noise matrix (the same one,
+call after call) once per distinct content.
 """
 
 from __future__ import annotations

@@ -113,7 +113,7 @@ class EKFSLAM(FilterState):
         """
         check_predict(u, R, t)
         ts = np.array([self._t if t is None else float(t)])
-        self._propagate((_rows(u, 3), ts, ts, _matrix(R, 3, "motion noise"), False))
+        self._propagate((_rows(u, 3), ts, ts, _rows(R), False))  # R's shape checked above
 
     def predict_many(
         self,
