@@ -43,6 +43,7 @@ from numba.extending import overload
 
 from ekfslam.core.filter import symmetric
 from ekfslam.core.filter.rebinding import called, closure, rebind
+from ekfslam.files import atomic_write_text
 
 #: The module that writes straight-line code from a step's lines (it loads sympy: imported only
 #: when a step's code is not in the cache yet).
@@ -205,9 +206,7 @@ def _generated(fn: Callable, models: dict[str, object], tag: str) -> Callable:
             'whenever any of them changes (its name carries their digest)."""\n\n'
             "import math\n\nfrom ekfslam.geometry import wrap_angle\n\n\n"
         )
-        partial = path.with_suffix(f".{os.getpid()}.partial")
-        partial.write_text(header + source, encoding="utf-8")
-        partial.replace(path)  # atomic: another process may be writing the same file
+        atomic_write_text(path, header + source)  # another process may be writing it too
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
