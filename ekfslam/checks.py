@@ -39,6 +39,8 @@ Array = NDArray[np.float64]
 
 #: numpy dtype kinds that are numbers (bool is not: True is no length)
 _NUMBER_KINDS = "iuf"
+#: arrays of float64 up to this many values are checked as Python floats (`array`)
+_SMALL = 64
 
 
 # --------------------------------------------------------------------------------- scalars
@@ -185,11 +187,14 @@ def array(
                 raise ConfigError(f"{name} holds a number too large for a float") from None
         else:
             raise WrongTypeError(f"{name} must be {what or 'numbers'}, got {shown(value)}")
-    if a.ndim != len(shape) or any(
-        s is not None and s != n for s, n in zip(shape, a.shape, strict=False)
+    if a.ndim != len(shape) or (
+        a.shape != shape
+        and any(s is not None and s != n for s, n in zip(shape, a.shape, strict=False))
     ):
         raise ConfigError(f"{name} must be {what or 'an array'}{_shape_problem(shape, a.shape)}")
     out = a.astype(np.float64, copy=False)
+    if out.size <= _SMALL and finite and _small_and_sound(out, bound):
+        return out
     if finite and not np.isfinite(out).all():
         where = tuple(int(i) for i in np.argwhere(~np.isfinite(out))[0])
         at = f" at index {where[0] if len(where) == 1 else where}" if where else ""
@@ -203,6 +208,17 @@ def array(
             f"±{bound:g})"
         )
     return out
+
+
+def _small_and_sound(a: Array, bound: float | None) -> bool:
+    """Are a small array's values finite and within ±bound? As Python floats: a user's loop
+    checks a z or a u per call, and 0.5 µs here is 3 µs in numpy's reductions. A NaN or inf
+    makes the sum non-finite; a sum that overflowed says False, and `array`'s precise check
+    then decides (and names the entry)."""
+    flat = a.ravel().tolist()
+    if not math.isfinite(sum(flat)):
+        return False
+    return bound is None or not flat or -bound <= min(flat) <= max(flat) <= bound
 
 
 def vector(value: Any, name: str, n: int, what: str = "") -> Array:

@@ -13,6 +13,9 @@ from typing import Literal
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
 from ekfslam import checks
 from ekfslam.errors import (
@@ -199,3 +202,28 @@ def test_field_types_checks_a_dataclass_against_its_annotations(kwargs, kind, me
 def test_field_types_takes_what_the_annotations_allow() -> None:
     c = _Config(gate=np.float64(5.0), count=np.int64(2), start=[0, 0, np.float32(1)])
     assert c.count == 2 and _Config(gate=None).gate is None
+
+
+@given(
+    values=hnp.arrays(
+        np.float64,
+        hnp.array_shapes(min_dims=1, max_dims=2, min_side=1, max_side=9),
+        elements=st.floats(allow_nan=True, allow_infinity=True, width=64),
+    ),
+    bound=st.one_of(st.none(), st.floats(0.0, 1e300)),
+)
+def test_a_small_float_array_is_refused_exactly_when_a_value_is_bad(values, bound) -> None:
+    """`checks.array` takes up to 64 float64 values as Python floats (a user's loop checks a z
+    per call); it must refuse what numpy's check refuses, and name the first bad entry, for any
+    values: NaN, inf, beyond the bound, or finite ones whose sum overflows."""
+    beyond = np.abs(values) > (math.inf if bound is None else bound)
+    bad = ~np.isfinite(values) if not np.isfinite(values).all() else beyond  # what is said first
+    if bad.any():
+        with pytest.raises(ConfigError) as raised:
+            checks.array(values, "f: a", (None,) * values.ndim, bound=bound)
+        first = tuple(int(i) for i in np.argwhere(bad)[0])
+        where = first[0] if len(first) == 1 else first
+        assert f"at index {where}" in str(raised.value)
+    else:
+        out = checks.array(values, "f: a", (None,) * values.ndim, bound=bound)
+        assert out is values or np.array_equal(out, values)
