@@ -106,6 +106,10 @@ class Watch:
         caller = frame.f_back if frame.f_back is not None else sys._getframe(1)
         if self.forbidden or not self.crossing(caller):
             return
+        # a callable standing for a compiled function (the compiled backend's first call)
+        # is named by that function, not by its __call__
+        stands_for = getattr(frame.f_locals.get("self"), "py_func", None)
+        code = getattr(stands_for, "__code__", code)
         self.forbidden.append(getattr(code, "co_qualname", code.co_name))
 
 

@@ -30,9 +30,11 @@ import importlib.metadata
 import importlib.util
 import inspect
 import os
+import re
 import sys
 import textwrap
 import types
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -43,6 +45,7 @@ from numba.extending import overload
 
 from ekfslam.core.filter import symmetric
 from ekfslam.core.filter.rebinding import called, closure, rebind
+from ekfslam.errors import ConfigError
 from ekfslam.files import atomic_write_text
 
 #: The module that writes straight-line code from a step's lines (it loads sympy: imported only
@@ -149,11 +152,32 @@ def _digest(functions: list[Callable], models: dict[str, object]) -> str:
         h.update(f"{fn.__module__}.{fn.__qualname__}".encode())
         h.update(inspect.getsource(fn).encode())
         for cell in fn.__closure__ or ():
-            h.update(repr(cell.cell_contents).encode())
+            h.update(_stable(cell.cell_contents).encode())
         for name, value in called(fn, models).items():
             if not isinstance(value, types.FunctionType | types.ModuleType) and name not in models:
-                h.update(f"{name}={value!r}".encode())
+                h.update(f"{name}={_stable(value)}".encode())
     return h.hexdigest()[:16]
+
+
+def _stable(value: object, _seen: frozenset = frozenset()) -> str:
+    """What a value a compiled function reads is, the same in every process: a function by its
+    source and what it closes over (a model's factory makes new ones per call, whose repr
+    holds their address), anything else by its repr without addresses. Else every process
+    would compile afresh, and fill the cache, for a model made by a factory."""
+    if not isinstance(value, types.FunctionType):
+        return _ADDRESS.sub("", repr(value))
+    if value in _seen:  # a function that closes over itself (recursion)
+        return value.__qualname__
+    try:
+        source = inspect.getsource(value)
+    except (OSError, TypeError):  # made by exec: its bytecode and constants
+        source = f"{value.__code__.co_code.hex()}{value.__code__.co_consts!r}"
+    seen = _seen | {value}
+    cells = ",".join(_stable(c.cell_contents, seen) for c in value.__closure__ or ())
+    return f"{value.__qualname__}:{_ADDRESS.sub('', source)}({cells})"
+
+
+_ADDRESS = re.compile(r" at 0x[0-9a-fA-F]+")
 
 
 def compiled(roots: dict[str, Callable], models: dict[str, object]) -> types.SimpleNamespace:
@@ -164,7 +188,8 @@ def compiled(roots: dict[str, Callable], models: dict[str, object]) -> types.Sim
     """
     functions = closure(roots.values(), models, primitives=PRIMITIVES)
     tag = _digest(functions, models)
-    replace = {fn: _generated(fn, models, tag) for fn in functions if _straight_line(fn)}
+    generated = {fn: _generated(fn, models, tag) for fn in functions if _straight_line(fn)}
+    replace = {fn: g for fn, g in generated.items() if g is not None}
 
     outermost = set(roots.values())
 
@@ -182,7 +207,45 @@ def compiled(roots: dict[str, Callable], models: dict[str, object]) -> types.Sim
         # inlined where it is called: one machine-code library per root to cache and load
         return njit(inline="always", error_model="numpy")(source)
 
-    return rebind(roots, models, build, primitives=PRIMITIVES, replace=replace)
+    steps = rebind(roots, models, build, primitives=PRIMITIVES, replace=replace)
+    for name in roots:
+        setattr(steps, name, _FirstCall(steps, name, models))
+    return steps
+
+
+class ModelNotCompiled(ConfigError):
+    """numba cannot compile a model handed to the compiled filter (`FilterConfig.backend`)."""
+
+
+class _FirstCall:
+    """A step's dispatcher until its first call has compiled (or loaded) its machine code: a
+    model numba cannot type ends there in one `ModelNotCompiled` naming the model and numba's
+    reason, not in numba's page of traceback. It then puts the dispatcher itself in its place,
+    so later calls cost nothing more."""
+
+    def __init__(self, steps: types.SimpleNamespace, name: str, models: dict[str, object]):
+        self._steps, self._name, self._models = steps, name, models
+        self._dispatcher = getattr(steps, name)
+
+    def __call__(self, *args: object) -> object:
+        try:
+            out = self._dispatcher(*args)
+        except numba.core.errors.TypingError as error:
+            lines = [line for line in str(error).splitlines() if line.strip()]
+            reason = lines[1] if len(lines) > 1 and lines[0].startswith("Failed in") else lines[0]
+            names = ", ".join(f"{k} {getattr(m, 'name', m)!r}" for k, m in self._models.items())
+            raise ModelNotCompiled(
+                f"backend='numba': numba cannot compile the filter's {self._name} with {names}: "
+                f"{reason.strip()}; use FilterConfig(backend='python'), or write the model as "
+                "plain math on floats (ARCHITECTURE.md, 'Where a new sensor model goes')"
+            ) from None
+        setattr(self._steps, self._name, self._dispatcher)
+        return out
+
+    @property
+    def py_func(self) -> Callable:
+        """The dispatcher's Python function (what `ekfslam.teaching.tripwire` looks for)."""
+        return self._dispatcher.py_func
 
 
 def _straight_line(fn: Callable) -> dict | None:
@@ -190,16 +253,22 @@ def _straight_line(fn: Callable) -> dict | None:
     return getattr(sys.modules[fn.__module__], "STRAIGHT_LINE", {}).get(fn.__name__)
 
 
-def _generated(fn: Callable, models: dict[str, object], tag: str) -> Callable:
+def _generated(fn: Callable, models: dict[str, object], tag: str) -> Callable | None:
     """The straight-line stand-in for fn (`ekfslam.core.filter.generate`): read from the cache
     if it was generated for these sources before, else generated (sympy, about a second) and
-    written there. The file is plain Python, to read beside the lines it was made from."""
+    written there. The file is plain Python, to read beside the lines it was made from.
+
+    None when these models cannot be written so (`generate.NotStraightLine`: a branch on a
+    value, numpy's functions): fn is then compiled as written, slower and as right, and a
+    `SlowStepWarning` says why; the cache keeps the reason, so that sympy runs once."""
     name = f"ekfslam_generated_{fn.__name__}_{tag}"
     path = _cache_dir() / f"{name}.py"
     if not path.is_file():
-        source = importlib.import_module(GENERATOR).straight_line(
-            fn, _straight_line(fn), models, fn.__name__
-        )
+        generator = importlib.import_module(GENERATOR)
+        try:
+            source = generator.straight_line(fn, _straight_line(fn), models, fn.__name__)
+        except generator.NotStraightLine as why:
+            source = f"NOT_GENERATED = {str(why)!r}\n"
         header = (
             f'"""{fn.__module__}.{fn.__qualname__} as straight-line code, generated by '
             f"{GENERATOR} from its lines and the models'.\n\nDo not edit: it is made again "
@@ -211,7 +280,19 @@ def _generated(fn: Callable, models: dict[str, object], tag: str) -> Callable:
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
     spec.loader.exec_module(module)
+    if hasattr(module, "NOT_GENERATED"):
+        warnings.warn(
+            f"the compiled filter runs {fn.__name__} as written, not as straight-line code "
+            f"(slower, as right): {module.NOT_GENERATED}",
+            SlowStepWarning,
+            stacklevel=2,
+        )
+        return None
     return getattr(module, fn.__name__)
+
+
+class SlowStepWarning(UserWarning):
+    """A compiled step runs from its own lines: its models cannot be made straight-line code."""
 
 
 def _cache_dir() -> Path:

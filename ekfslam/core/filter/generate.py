@@ -16,6 +16,7 @@ generated beside the machine code, named by the digest of every line it came fro
 from __future__ import annotations
 
 import itertools
+import math
 import types
 from collections.abc import Callable
 
@@ -24,25 +25,61 @@ import sympy
 from sympy.printing.pycode import PythonCodePrinter
 
 from ekfslam.core.filter.rebinding import rebind
+from ekfslam.geometry import wrap_angle
 
 #: The angle wrap, kept as a call in the generated code (it is not a smooth function to expand).
 _WRAP = sympy.Function("wrap_angle")
 
 
-def _math() -> types.ModuleType:
-    """`math` as the traced code reads it: sympy's functions and constants."""
-    shim = types.ModuleType("math")
-    for name in ("cos", "sin", "tan", "atan2", "sqrt", "exp", "log", "pi"):
-        setattr(shim, name, getattr(sympy, name))
-    shim.hypot = lambda a, b: sympy.sqrt(a * a + b * b)
-    return shim
+class NotStraightLine(ValueError):
+    """A step that cannot be written as straight-line code for these models: tracing it on
+    symbols failed (a branch on a value, ``if abs(w) < 1e-9``; numpy's functions on a symbol),
+    or the code it gave does not do what the step's lines do at a test point (a branch the
+    symbols took silently, ``if w == 0``). The step then runs compiled as written."""
+
+
+#: sympy's stand-ins for the functions a model may call, by their `math` names
+_SYMPY = {
+    **{name: getattr(sympy, name) for name in ("cos", "sin", "tan", "atan2", "sqrt", "exp", "log")},
+    "hypot": lambda a, b: sympy.sqrt(a * a + b * b),
+}
+#: numpy's names for them
+_NUMPY_NAMES = {"arctan2": "atan2", **{name: name for name in _SYMPY if name != "atan2"}}
+
+
+class _Numpy(types.ModuleType):
+    """numpy as the traced code reads it: its functions of `_SYMPY` are sympy's, the rest
+    (``np.array``, ``np.eye``) numpy's own."""
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(np, name)
+
+
+def _stand_ins() -> dict[int, object]:
+    """What the traced code reads in place of `math`, numpy and their functions, by the id of
+    the original: a model may name them as ``math.cos``, ``np.cos``, ``from math import cos``,
+    or close over them (``cos = math.cos`` in its factory)."""
+    shim_math, shim_numpy = types.ModuleType("math"), _Numpy("numpy")
+    shim_math.pi = sympy.pi
+    swap: dict[int, object] = {id(math): shim_math, id(np): shim_numpy}
+    for name, stand_in in _SYMPY.items():
+        setattr(shim_math, name, stand_in)
+        swap[id(getattr(math, name))] = stand_in
+    for np_name, name in _NUMPY_NAMES.items():
+        setattr(shim_numpy, np_name, _SYMPY[name])
+        swap[id(getattr(np, np_name))] = _SYMPY[name]
+    return swap
 
 
 def _symbolic(fn: Callable, env: dict) -> Callable:
-    env["math"] = _math()
+    swap = _stand_ins()
+    for name, value in env.items():
+        env[name] = swap.get(id(value), value)
     if "wrap_angle" in env:
         env["wrap_angle"] = _WRAP
-    return types.FunctionType(fn.__code__, env, fn.__name__, fn.__defaults__, fn.__closure__)
+    # the closure as rebound (a factory's helpers traced too), its math functions sympy's
+    cells = tuple(types.CellType(env[name]) for name in fn.__code__.co_freevars)
+    return types.FunctionType(fn.__code__, env, fn.__name__, fn.__defaults__, cells or None)
 
 
 def _symbols(name: str, shape: tuple) -> object:
@@ -61,6 +98,15 @@ def straight_line(
     spec : what fn takes, by argument: a shape (a tuple: an array of symbols), () (one symbol)
         or a list of the values a flag takes (one branch of code each).
     """
+    source = _trace(fn, spec, models, name)
+    _check(fn, spec, models, source, name)
+    return source
+
+
+def _trace(
+    fn: Callable, spec: dict[str, tuple | list], models: dict[str, object], name: str
+) -> str:
+    """`straight_line`'s source, not yet checked."""
     traced = rebind({"fn": fn}, models, _symbolic).fn
     arrays = {a: s for a, s in spec.items() if isinstance(s, tuple) and s}
     scalars = [a for a, s in spec.items() if s == ()]
@@ -72,7 +118,10 @@ def straight_line(
         args |= {a: sympy.Symbol(a, real=True) for a in scalars}
         args |= dict(zip(flags, values, strict=True))
         before = {a: args[a].copy() for a in arrays}
-        traced(**{a: args[a] for a in spec})
+        try:
+            traced(**{a: args[a] for a in spec})
+        except Exception as error:  # the models are anyone's code: any error means "cannot"
+            raise NotStraightLine(_reason(fn, models, error)) from error
         writes = [
             (a, index, sympy.sympify(value))
             for a in arrays
@@ -111,3 +160,69 @@ class _Printer(PythonCodePrinter):
 def _code(expr: sympy.Expr) -> str:
     """One expression as Python source (`_Printer`)."""
     return _Printer({"fully_qualified_modules": True, "standard": "python3"}).doprint(expr)
+
+
+def _reason(fn: Callable, models: dict[str, object], error: BaseException) -> str:
+    first = str(error).splitlines()[0] if str(error) else ""
+    return f"{_which(fn, models)}: {type(error).__name__}: {first}"
+
+
+def _which(fn: Callable, models: dict[str, object]) -> str:
+    """``advance with motion 'arc', sensor 'range-bearing'``: the step and its models."""
+    names = ", ".join(f"{k} {getattr(m, 'name', m)!r}" for k, m in models.items())
+    return f"{fn.__name__} with {names}"
+
+
+def _check(
+    fn: Callable, spec: dict[str, tuple | list], models: dict[str, object], source: str, name: str
+) -> None:
+    """Raise `NotStraightLine` unless the generated `source` writes what fn's own lines write,
+    for every flag combination: at a random point, and at points where one value, one argument
+    or every argument is zero (where a model's ``if w == 0`` branch, which a symbol never
+    takes, would show)."""
+    env = {"math": math, "wrap_angle": wrap_angle}
+    exec(compile(source, f"<generated {name}>", "exec"), env)
+    generated = env[name]
+    readable = rebind({"fn": fn}, models, _numeric).fn
+    arrays = [a for a, s in spec.items() if isinstance(s, tuple)]
+    flags = {a: s for a, s in spec.items() if isinstance(s, list)}
+    zeros = [(a, index) for a in arrays for index in np.ndindex(*spec[a])]  # one value
+    zeros += [(a, None) for a in arrays] + [("all", None), (None, None)]  # one argument, all
+    rng = np.random.default_rng(0)
+    for values in itertools.product(*flags.values()):
+        for where, index in zeros:
+            point = {a: rng.uniform(0.1, 1.0, spec[a]) * rng.choice((-1, 1)) for a in arrays}
+            for a in arrays if where == "all" else [where] if where else []:
+                if index is None or not spec[a]:
+                    point[a] = point[a] * 0.0
+                else:
+                    point[a][index] = 0.0
+            point = {a: v if spec[a] else float(v) for a, v in point.items()}
+            point |= dict(zip(flags, values, strict=True))
+            want, got = _run(readable, point), _run(generated, point)
+            for a, w in want.items():
+                if not np.allclose(got[a], w, rtol=1e-9, atol=1e-12, equal_nan=True):
+                    at = "a random point" if where is None else f"{where}{list(index or ())} = 0"
+                    raise NotStraightLine(
+                        f"{_which(fn, models)}: the generated code does not write what the "
+                        f"step's lines write into {a} at {at} (flags {values})"
+                    )
+
+
+def _numeric(fn: Callable, env: dict) -> Callable:
+    return types.FunctionType(fn.__code__, env, fn.__name__, fn.__defaults__, fn.__closure__)
+
+
+def _run(fn: Callable, point: dict) -> dict:
+    """fn called on copies of `point`'s arrays; what it left in them (an error: all NaN)."""
+    args = {a: v.copy() if isinstance(v, np.ndarray) else v for a, v in point.items()}
+    with np.errstate(all="ignore"):
+        try:
+            fn(**args)
+        except (ArithmeticError, ValueError):  # the generated code divides by a zero
+            return {
+                a: np.full(np.shape(v), np.nan)
+                for a, v in args.items()
+                if isinstance(v, np.ndarray)
+            }
+    return {a: v for a, v in args.items() if isinstance(v, np.ndarray)}
