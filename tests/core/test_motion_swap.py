@@ -200,3 +200,25 @@ def test_a_factorys_model_compiles_once_not_once_per_process():
     assert first.f is not again.f  # two calls of the factory: new functions
     assert digest(first) == digest(again)
     assert digest(make_model("numpy", "abs")) != digest(first)  # another slip, another trig
+
+
+def test_a_table_a_model_reads_is_in_the_digest_whole():
+    """numba bakes an array a model closes over into the machine code; two tables that differ
+    in the middle, which a repr elides, must not share it."""
+
+    def scaled(table: np.ndarray) -> MotionModel:
+        def f(pose, u):
+            return ODOMETRY.f(pose, u * table[1000])
+
+        return MotionModel(f=f, F_x=ODOMETRY.F_x, F_v=ODOMETRY.F_v, name="scaled")
+
+    def digest(model: MotionModel) -> str:
+        models = {"motion": model, "sensor": RANGE_BEARING}
+        return _digest(closure([advance], models), models)
+
+    table = np.ones(2000)
+    other = table.copy()
+    other[1000] = 0.5
+    assert repr(table) == repr(other)  # what the digest read before
+    assert digest(scaled(table)) != digest(scaled(other))
+    assert digest(scaled(table)) == digest(scaled(table.copy()))

@@ -162,8 +162,11 @@ def _digest(functions: list[Callable], models: dict[str, object]) -> str:
 def _stable(value: object, _seen: frozenset = frozenset()) -> str:
     """What a value a compiled function reads is, the same in every process: a function by its
     source and what it closes over (a model's factory makes new ones per call, whose repr
-    holds their address), anything else by its repr without addresses. Else every process
-    would compile afresh, and fill the cache, for a model made by a factory."""
+    holds their address), an array by its bytes, anything else by its repr without addresses.
+    Else every process would compile afresh, and fill the cache, for a model made by a
+    factory; or two tables that differ only in the middle would share machine code."""
+    if isinstance(value, np.ndarray):  # numba bakes it in; its repr elides a long one's middle
+        return f"array{value.shape}{value.dtype}:{hashlib.sha256(value.tobytes()).hexdigest()}"
     if not isinstance(value, types.FunctionType):
         return _ADDRESS.sub("", repr(value))
     if value in _seen:  # a function that closes over itself (recursion)
