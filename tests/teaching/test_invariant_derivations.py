@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from finite_differences import central
 
 from ekfslam.core.invariant import INVARIANT_NEW_LANDMARK_POSE, noise_map, retract
 from ekfslam.core.models import (
@@ -36,16 +37,6 @@ def moved(state: np.ndarray, u: np.ndarray, noise=(0.0, 0.0, 0.0)) -> np.ndarray
     return np.concatenate([motion(state[:3], u) + np.asarray(noise), state[3:5]])
 
 
-def central(f, x0: np.ndarray) -> np.ndarray:
-    """∂f/∂x at x0 by central differences."""
-    cols = []
-    for k in range(len(x0)):
-        e = np.zeros(len(x0))
-        e[k] = EPS
-        cols.append((f(x0 + e) - f(x0 - e)) / (2 * EPS))
-    return np.column_stack(cols)
-
-
 def points(seed: int):
     rng = np.random.default_rng(seed)
     state = np.array([*rng.uniform(-3, 3, 2), rng.uniform(-3, 3), *rng.uniform(-3, 3, 2)])
@@ -60,11 +51,11 @@ def test_the_derived_jacobians_are_the_exact_maps_derivatives(seed: int) -> None
     d = invariant_numeric()
     after = moved(state, u)
     # propagation: ξ' = log(f(exp(ξ) X̂) f(X̂)⁻¹) has the identity for Jacobian
-    F = central(lambda xi: log_error(moved(retract(state, xi), u), after), np.zeros(5))
+    F = central(lambda xi: log_error(moved(retract(state, xi), u), after), np.zeros(5), EPS)
     np.testing.assert_allclose(d.F(state[:3], state[3:], u), F, rtol=0, atol=1e-7)
     np.testing.assert_allclose(F, np.eye(5), rtol=0, atol=1e-7)
     # a Cartesian pose noise after the step
-    N = central(lambda n: log_error(moved(state, u, n), after), np.zeros(3))
+    N = central(lambda n: log_error(moved(state, u, n), after), np.zeros(3), EPS)
     np.testing.assert_allclose(d.noise(state[:3], state[3:], u), N, rtol=0, atol=1e-7)
     # observation: ẑ(exp(ξ) X̂), the bearing wrapped near its value
     z0 = observation(state[:3], state[3:])
@@ -75,7 +66,7 @@ def test_the_derived_jacobians_are_the_exact_maps_derivatives(seed: int) -> None
         dz[1] = (dz[1] + math.pi) % (2 * math.pi) - math.pi
         return dz
 
-    np.testing.assert_allclose(d.H(state[:3], state[3:]), central(h, np.zeros(5)), atol=1e-7)
+    np.testing.assert_allclose(d.H(state[:3], state[3:]), central(h, np.zeros(5), EPS), atol=1e-7)
     # a new landmark: ξ_m of m(exp(ξ) pose, z + δz)
     m0 = inverse_observation(state[:3], z)
 
@@ -84,7 +75,7 @@ def test_the_derived_jacobians_are_the_exact_maps_derivatives(seed: int) -> None
         m = inverse_observation(pose, z + v[3:])
         return log_error(np.concatenate([pose, m]), np.concatenate([state[:3], m0]))[3:]
 
-    G = central(xi_m, np.zeros(5))
+    G = central(xi_m, np.zeros(5), EPS)
     np.testing.assert_allclose(d.G_pose(state[:3], z), G[:, :3], rtol=0, atol=1e-7)
     np.testing.assert_allclose(d.G_z(state[:3], z), G[:, 3:], rtol=0, atol=1e-7)
 

@@ -18,7 +18,7 @@ import types
 from collections.abc import Callable
 
 from ekfslam.core.filter import iterated, jcbb_search, predictions, steps
-from ekfslam.core.filter.rebinding import rebind
+from ekfslam.core.filter.rebinding import interpreted, rebind
 from ekfslam.core.models import MotionModel, SensorModel
 
 #: The functions a filter runs, by the names it calls them.
@@ -41,10 +41,6 @@ BACKENDS = ("python", "numba")
 COMPILER = "ekfslam.core.filter.compile"
 
 
-def _interpreted(fn: Callable, env: dict) -> Callable:
-    return types.FunctionType(fn.__code__, env, fn.__name__, fn.__defaults__, fn.__closure__)
-
-
 @functools.cache
 def steps_for(motion: MotionModel, sensor: SensorModel, backend: str) -> types.SimpleNamespace:
     """The filter's step functions (`ROOTS`) for these models on this backend, made once."""
@@ -52,5 +48,5 @@ def steps_for(motion: MotionModel, sensor: SensorModel, backend: str) -> types.S
         raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
     models = {"motion": motion, "sensor": sensor}
     if backend == "python":
-        return rebind(ROOTS, models, _interpreted)
+        return rebind(ROOTS, models, interpreted)
     return importlib.import_module(COMPILER).compiled(ROOTS, models)

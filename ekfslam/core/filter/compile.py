@@ -44,7 +44,7 @@ from numba import njit
 from numba.extending import overload
 
 from ekfslam.core.filter import symmetric
-from ekfslam.core.filter.rebinding import called, closure, rebind
+from ekfslam.core.filter.rebinding import called, closure, named, rebind
 from ekfslam.errors import ConfigError
 from ekfslam.files import atomic_write_text
 
@@ -236,9 +236,9 @@ class _FirstCall:
         except numba.core.errors.TypingError as error:
             lines = [line for line in str(error).splitlines() if line.strip()]
             reason = lines[1] if len(lines) > 1 and lines[0].startswith("Failed in") else lines[0]
-            names = ", ".join(f"{k} {getattr(m, 'name', m)!r}" for k, m in self._models.items())
             raise ModelNotCompiled(
-                f"backend='numba': numba cannot compile the filter's {self._name} with {names}: "
+                f"backend='numba': numba cannot compile the filter's {self._name} with "
+                f"{named(self._models)}: "
                 f"{reason.strip()}; use FilterConfig(backend='python'), or write the model as "
                 "plain math on floats (ARCHITECTURE.md, 'Where a new sensor model goes')"
             ) from None

@@ -24,7 +24,7 @@ import numpy as np
 import sympy
 from sympy.printing.pycode import PythonCodePrinter
 
-from ekfslam.core.filter.rebinding import rebind
+from ekfslam.core.filter.rebinding import interpreted, named, rebind
 from ekfslam.geometry import wrap_angle
 
 #: The angle wrap, kept as a call in the generated code (it is not a smooth function to expand).
@@ -169,8 +169,7 @@ def _reason(fn: Callable, models: dict[str, object], error: BaseException) -> st
 
 def _which(fn: Callable, models: dict[str, object]) -> str:
     """``advance with motion 'arc', sensor 'range-bearing'``: the step and its models."""
-    names = ", ".join(f"{k} {getattr(m, 'name', m)!r}" for k, m in models.items())
-    return f"{fn.__name__} with {names}"
+    return f"{fn.__name__} with {named(models)}"
 
 
 def _check(
@@ -183,7 +182,7 @@ def _check(
     env = {"math": math, "wrap_angle": wrap_angle}
     exec(compile(source, f"<generated {name}>", "exec"), env)
     generated = env[name]
-    readable = rebind({"fn": fn}, models, _numeric).fn
+    readable = rebind({"fn": fn}, models, interpreted).fn
     arrays = [a for a, s in spec.items() if isinstance(s, tuple)]
     flags = {a: s for a, s in spec.items() if isinstance(s, list)}
     zeros = [(a, index) for a in arrays for index in np.ndindex(*spec[a])]  # one value
@@ -207,10 +206,6 @@ def _check(
                         f"{_which(fn, models)}: the generated code does not write what the "
                         f"step's lines write into {a} at {at} (flags {values})"
                     )
-
-
-def _numeric(fn: Callable, env: dict) -> Callable:
-    return types.FunctionType(fn.__code__, env, fn.__name__, fn.__defaults__, fn.__closure__)
 
 
 def _run(fn: Callable, point: dict) -> dict:
