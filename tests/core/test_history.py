@@ -8,9 +8,10 @@ import math
 from dataclasses import fields
 
 import numpy as np
+import pytest
 
 from ekfslam.core.filter import steps
-from ekfslam.core.filter.config import FilterCounts
+from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.filter.history import OBS_COLUMNS, OBS_ROW, ROW, ROW_COLUMNS, Outcome
 
@@ -69,6 +70,24 @@ def test_every_outcome_the_filter_records_is_a_member_and_counted() -> None:
     )
     for o in Outcome:
         assert f.counts.of(o) == returned.count(o) == int(h.outcome_mask(o).sum())
+
+
+@pytest.mark.parametrize("backend", ["python", "numba"])
+def test_the_seed_initialisation_records_its_own_outcome_not_the_corrections(backend) -> None:
+    # init="seed" places a landmark and corrects with the same sighting (`steps.sight`, which
+    # records ACCEPTED): the history and the counts say INITIALISED, and REINITIALISED for a
+    # landmark placed again after three rejected sightings that agree
+    f = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(init="seed", backend=backend))
+    Q = np.diag([1e-4, 1e-4])
+    returned = [f.update(2, (1.0, 0.2), Q) for _ in range(2)]
+    returned += [f.update(2, (1.6, 0.2), Q) for _ in range(3)]
+    expected = [Outcome.INITIALISED, Outcome.ACCEPTED, *[Outcome.REJECTED] * 2]
+    assert returned == [*expected, Outcome.REINITIALISED]
+    h = f.history()
+    assert [Outcome(k) for k in h.obs_outcome.tolist()] == returned
+    assert [f.counts.of(o) for o in Outcome] == [returned.count(o) for o in Outcome]
+    assert np.isfinite(h.obs_nis[[0, 1, 2, 3]]).all()  # the seed's placing is an update too
+    assert np.allclose(h.obs_landmark[-1], f.landmark(2)[0])
 
 
 def test_the_named_columns_cover_each_row_once_in_order() -> None:

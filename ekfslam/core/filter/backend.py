@@ -25,6 +25,8 @@ from ekfslam.core.models import MotionModel, SensorModel
 ROOTS: dict[str, Callable] = {
     "predict": steps.predict,
     "correct": steps.correct,
+    "sight": steps.sight,
+    "linearisation_point": steps.linearisation_point,
     "place_landmark": steps.place_landmark,
     "record_observation": steps.record_observation,
     "settle": steps.settle,

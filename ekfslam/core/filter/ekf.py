@@ -26,13 +26,14 @@ the same (x, y, θ, m), every covariance handed out is the Cartesian T P Tᵀ to
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.filter.config import CHI2_2DOF_99 as CHI2_2DOF_99
 from ekfslam.core.filter.config import FilterConfig
-from ekfslam.core.filter.history import OBS_ROW, OBSERVE, PREDICT, ROW, Outcome
+from ekfslam.core.filter.history import OBS_OUTCOME, OBS_ROW, OBSERVE, PREDICT, ROW, Outcome
 from ekfslam.core.filter.predictions import Predicted, Rate
 from ekfslam.core.filter.state import FilterState
 from ekfslam.core.filter.steps import Linearization
@@ -53,6 +54,15 @@ def _rows(values: ArrayLike, width: int | None = None) -> Array:
 
 #: each outcome's `Outcome.label`, looked up once per sighting
 _LABEL = {outcome: outcome.label for outcome in Outcome}
+
+
+class Rows(NamedTuple):
+    """Where one observation is recorded: its event row (`ROW`), its observation row
+    (`OBS_ROW`) and the event's index in the history (-1: scratch rows, nothing kept)."""
+
+    row: Array
+    obs: Array
+    event: int
 
 
 def _matrix(values: ArrayLike, n: int, what: str) -> Array:
@@ -203,33 +213,31 @@ class EKFSLAM(FilterState):
         if t is not None:
             self._t = float(t)
         z, Q = _rows(z), _rows(Q)
-        obs = self._observation_row()
+        rows = self._rows_for_observation()
         j = self.slot.get(landmark_id)
         if j is None:
             if z[0] * z[0] <= MIN_RANGE_SQUARED:
-                return self._finish(landmark_id, z, Outcome.REFUSED, -1, obs)
+                return self._finish(landmark_id, z, Outcome.REFUSED, -1, rows)
             j = self._add_landmark(landmark_id, z, Q)
             if self.config.init == "inverse":
-                return self._finish(landmark_id, z, Outcome.INITIALISED, 3 + 2 * j, obs)
-            return self._correct(landmark_id, j, z, Q, obs, accepted_as=Outcome.INITIALISED)
+                return self._finish(landmark_id, z, Outcome.INITIALISED, 3 + 2 * j, rows)
+            return self._correct(landmark_id, j, z, Q, rows, accepted_as=Outcome.INITIALISED)
         gated = self.config.gate is not None and self._sightings[j] >= self.config.gate_after
-        return self._correct(landmark_id, j, z, Q, obs, gate=self.config.gate if gated else None)
+        return self._correct(landmark_id, j, z, Q, rows, gate=self.config.gate if gated else None)
 
-    def _observation_row(self) -> Array:
-        """The history's row for the observation being made (`OBS_ROW`), or a scratch row."""
+    def _rows_for_observation(self) -> Rows:
+        """Where the observation being made is recorded: the history's event row (`ROW`), its
+        observation row (`OBS_ROW`) and the event's index; scratch rows when nothing is kept."""
         rec = self._recorder
         if rec is None:
-            return self._scratch
-        rec.reserve(OBSERVE, 1)
+            return Rows(self._event, self._scratch, -1)
+        n = rec.reserve(OBSERVE, 1)
         m = rec.reserve_observation()  # may grow rec.obs: index the array it leaves
-        return rec.obs[m]
+        return Rows(rec.rows[n], rec.obs[m], n)
 
     def _point(self, l: int) -> Array:
-        """Where H is evaluated: the pose and the landmark as estimated, or FEJ's first
-        estimates (the pose predicted for this step, the landmark when first placed)."""
-        s = self._storage
-        at = s.first if self._fej else s.mu
-        return at.take((0, 1, 2, l, l + 1))
+        """Where H is evaluated for the landmark at rows l, l+1 (`steps.linearisation_point`)."""
+        return self._steps.linearisation_point(self._arrays, l)
 
     def _correct(
         self,
@@ -237,29 +245,42 @@ class EKFSLAM(FilterState):
         j: int,
         z: Array,
         Q: Array,
-        obs: Array,
+        rows: Rows,
         *,
         gate: float | None = None,
         accepted_as: Outcome = Outcome.ACCEPTED,
     ) -> Outcome:
-        """`ekfslam.core.filter.steps.correct`, then the bookkeeping of its outcome."""
-        l, s = 3 + 2 * j, self._arrays
-        update = (z, Q, math.inf if gate is None else float(gate), self._point(l))  # an `Update`
-        target = obs
-        if self.config.iterations > 1:  # the Gauss-Newton linearisation point, as z' and H's
-            taken = self._steps.linearise(s, self._dim, l, update, self.config.iterations, obs)
-            if not np.isnan(taken[0]):  # the history keeps the first linearisation's ν, S
-                update = (taken[5:7].copy(), Q, math.inf, taken[:5].copy())
-                target, self._linearisations = self._scratch, int(taken[7])
-        outcome = _OUTCOME[self._steps.correct(s, self._dim, l, update, target)]
+        """The correction (`steps.sight`, which records it too; or the iterated update's), then
+        the bookkeeping of its outcome."""
+        l, s, gate = 3 + 2 * j, self._arrays, math.inf if gate is None else float(gate)
+        if self.config.iterations > 1:
+            outcome = self._correct_iterated(l, z, Q, gate, rows.obs)
+        else:
+            sighting = (self._t, int(landmark_id), z, Q, gate, rows.event)  # a `Sighting`
+            outcome = _OUTCOME[self._steps.sight(s, self._dim, l, sighting, rows.row, rows.obs)]
         if outcome == Outcome.REJECTED and self._should_reinitialise(j, z):
-            return self._reinitialise(landmark_id, j, z, Q, obs)
+            return self._reinitialise(landmark_id, j, z, Q, rows)
         if outcome == Outcome.ACCEPTED:
             outcome = accepted_as
             if accepted_as == Outcome.ACCEPTED:
                 self._sightings[j] += 1
             self._rejected[j].clear()
-        return self._finish(landmark_id, z, outcome, l, obs)
+        if self.config.iterations > 1:
+            return self._finish(landmark_id, z, outcome, l, rows)
+        rows.obs[OBS_OUTCOME] = outcome  # `sight` recorded ACCEPTED for an `accepted_as`
+        self._counts[_LABEL[outcome]] += 1
+        return outcome
+
+    def _correct_iterated(self, l: int, z: Array, Q: Array, gate: float, obs: Array) -> Outcome:
+        """The iterated update (`iterated.linearise`, then `steps.correct` at its point)."""
+        s = self._arrays
+        update = (z, Q, gate, self._point(l))  # an `Update`
+        taken = self._steps.linearise(s, self._dim, l, update, self.config.iterations, obs)
+        target = obs
+        if not np.isnan(taken[0]):  # the history keeps the first linearisation's ν, S
+            update = (taken[5:7].copy(), Q, math.inf, taken[:5].copy())
+            target, self._linearisations = self._scratch, int(taken[7])
+        return _OUTCOME[self._steps.correct(s, self._dim, l, update, target)]
 
     def _add_landmark(self, landmark_id: int, z: Array, Q: Array) -> int:
         """Append a landmark slot, eq. (12) for the mean; covariance by `config.init`."""
@@ -299,16 +320,16 @@ class EKFSLAM(FilterState):
         del seen[:-k]
         return _new_place(seen, self.mu[3:].reshape(-1, 2), j, self.config.reinit_radius)
 
-    def _reinitialise(self, landmark_id: int, j: int, z: Array, Q: Array, obs: Array) -> Outcome:
+    def _reinitialise(self, landmark_id: int, j: int, z: Array, Q: Array, rows: Rows) -> Outcome:
         self.settle()
         self._place(j, z, Q)
         self._sightings[j] = 1
         self._rejected[j].clear()
         if self.config.init == "seed":  # eq. (3), then the update with this sighting
-            return self._correct(landmark_id, j, z, Q, obs, accepted_as=Outcome.REINITIALISED)
-        return self._finish(landmark_id, z, Outcome.REINITIALISED, 3 + 2 * j, obs)
+            return self._correct(landmark_id, j, z, Q, rows, accepted_as=Outcome.REINITIALISED)
+        return self._finish(landmark_id, z, Outcome.REINITIALISED, 3 + 2 * j, rows)
 
-    def _finish(self, landmark_id: int, z: Array, outcome: Outcome, l: int, obs: Array) -> Outcome:
+    def _finish(self, landmark_id: int, z: Array, outcome: Outcome, l: int, rows: Rows) -> Outcome:
         """Count the outcome and record the state after it (l < 0: the landmark has no slot).
 
         An outcome the correction did not compute (a landmark placed, or refused) records its
@@ -317,13 +338,10 @@ class EKFSLAM(FilterState):
         if outcome in (Outcome.INITIALISED, Outcome.REINITIALISED, Outcome.REFUSED) and (
             l < 0 or self.config.init == "inverse"
         ):
-            obs[:] = math.nan
+            rows.obs[:] = math.nan
         self._counts[_LABEL[outcome]] += 1
-        rec = self._recorder
-        if rec is not None:
-            n = rec.n - 1
-            observed = (self._t, int(landmark_id), z, int(outcome), n)  # an `Observed`
-            self._steps.record_observation(self._arrays, self._dim, l, observed, rec.rows[n], obs)
+        observed = (self._t, int(landmark_id), z, int(outcome), rows.event)  # an `Observed`
+        self._steps.record_observation(self._arrays, self._dim, l, observed, rows.row, rows.obs)
         return outcome
 
     # ---------------------------------------------------------- for the association

@@ -126,6 +126,19 @@ class Update(NamedTuple):
     point: Array
 
 
+class Sighting(NamedTuple):
+    """One sighting of a mapped landmark as `sight` takes it: its time (s), the landmark's id,
+    z (2,), Q (2, 2), the gate (the largest NIS accepted; inf: none) and the index of its event
+    row."""
+
+    t: float
+    landmark_id: int
+    z: Array
+    Q: Array
+    gate: float
+    event: int
+
+
 class Observed(NamedTuple):
     """One observation as the history records it (`record_observation`): its time (s), the
     landmark's id, z (2,), the `Outcome` and the index of its event row."""
@@ -306,6 +319,24 @@ def correct(storage: Storage, d: int, l: int, update: Update, obs: Array) -> int
     else:
         subtract_products(Sigma, d, W, W)  # eq. (16): Σ - K S Kᵀ = (I - K H) Σ
     return Outcome.ACCEPTED.value
+
+
+def sight(storage: Storage, d: int, l: int, sighting: Sighting, row: Array, obs: Array) -> int:
+    """A sighting of the landmark at rows l, l+1: corrected (`correct`, H at
+    `linearisation_point`) and recorded (`record_observation`), the filter's commonest step in
+    one call. Returns the `Outcome`'s code."""
+    t, landmark_id, z, Q, gate, event = sighting
+    outcome = correct(storage, d, l, (z, Q, gate, linearisation_point(storage, l)), obs)
+    record_observation(storage, d, l, (t, landmark_id, z, outcome, event), row, obs)
+    return outcome
+
+
+def linearisation_point(storage: Storage, l: int) -> Array:
+    """Where H is evaluated (5,): the pose and the landmark at rows l, l+1 as estimated, or
+    FEJ's first estimates (the pose predicted for this step, the landmark when first placed)."""
+    mu, _, first, _, lin = storage
+    at = first if lin == Linearization.FEJ else mu
+    return np.array((at[0], at[1], at[2], at[l], at[l + 1]))
 
 
 def jacobians(storage: Storage, point: Array) -> tuple[Array, Array]:
