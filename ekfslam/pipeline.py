@@ -26,7 +26,7 @@ from ekfslam.core.association import AssociationConfig
 from ekfslam.core.diagnosis import Diagnosis, diagnose
 from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog, shares_image_error
 from ekfslam.core.filter.config import MAX_PASSES, FilterConfig, FilterCounts, backend_for
-from ekfslam.core.filter.ekf import EKFSLAM
+from ekfslam.core.filter.ekf import EKFSLAM, Detections, Pieces
 from ekfslam.core.filter.history import History, KeyframeRecorder, Keyframes
 from ekfslam.core.filter.mapping import MappingFilter
 from ekfslam.core.filter.mht import DecisionReplay, HypothesisBank
@@ -353,6 +353,22 @@ class Schedule:
             self.u[start:stop], self.dt[start:stop], self.t[start:stop], self.M, self.R, **options
         )
 
+    def pieces(self) -> Pieces:
+        """The prediction pieces as `EKFSLAM.feed` takes them."""
+        return Pieces(self.u, self.dt, self.t, self.M, self.R)
+
+    def detections(self) -> Detections:
+        """The detections as `EKFSLAM.feed` takes them (arrays; Q one per detection)."""
+        n = len(self.ids)
+        Q = self.Q if self.Q.ndim == 3 else np.broadcast_to(self.Q, (n, 2, 2))
+        return Detections(
+            upto=np.array(self.upto, dtype=np.int64),
+            landmark_id=np.array(self.ids, dtype=np.int64),
+            z=np.array(self.z, dtype=float).reshape(n, 2),
+            Q=np.ascontiguousarray(Q, dtype=float),
+            t=np.array(self.times, dtype=float),
+        )
+
     @property
     def events(self) -> int:
         """Predictions and detections: what the filter will be fed."""
@@ -497,14 +513,19 @@ def landmark_slots(result: ReplayResult) -> list[int]:
     return ids
 
 
-def _feed(ekf: EKFSLAM, steps: Schedule, *, check: bool = False, pause=None) -> None:
-    """Predict through the pieces before each detection, update, and predict to the end.
+def _feed(ekf: EKFSLAM | Recovery, steps: Schedule, *, check: bool = False, pause=None) -> None:
+    """Predict through the pieces before each detection, update, and predict to the end: the
+    filter's `EKFSLAM.feed`, in one call, or step by step when a `Recovery` watches each update,
+    or when `check` or `pause` asks to stop between them.
 
     check: after every step, raise `NonFiniteStateError` naming the step if the state is no
     longer finite (the locating pass; the normal pass checks once, at the end).
     pause: called as pause(i, done) when detections 0..i-1 are applied and `done` pieces
     predicted, before the prediction for detection i (i = len(upto): before the last one).
     """
+    if pause is None and not check and isinstance(ekf, EKFSLAM):  # (not a `Recovery`'s watch)
+        ekf.feed(steps.pieces(), steps.detections())
+        return
     done = 0
     for i, p in enumerate(steps.upto):
         if pause is not None:

@@ -105,6 +105,11 @@ class Recovery:
                 self._widen(t)
         return outcome
 
+    def feed(self, *args: Any, **kwargs: Any) -> None:
+        """Not the filter's `feed`, which would pass the run by unwatched: step it through
+        `predict_many` and `update` (as `ekfslam.pipeline.replay` does)."""
+        raise TypeError("Recovery watches each update: feed it with predict_many and update")
+
     def _widen(self, t: float | None) -> None:
         nu = np.array(self._innovations)
         position, heading = np.mean(nu**2, axis=0).tolist()

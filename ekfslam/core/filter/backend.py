@@ -26,6 +26,7 @@ ROOTS: dict[str, Callable] = {
     "predict": steps.predict,
     "correct": steps.correct,
     "sight": steps.sight,
+    "feed": steps.feed,
     "linearisation_point": steps.linearisation_point,
     "place_landmark": steps.place_landmark,
     "record_observation": steps.record_observation,

@@ -36,13 +36,22 @@ from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.filter.history import OBS_OUTCOME, OBS_ROW, OBSERVE, PREDICT, ROW, Outcome
 from ekfslam.core.filter.predictions import Predicted, Rate
 from ekfslam.core.filter.state import FilterState
-from ekfslam.core.filter.steps import Linearization
+from ekfslam.core.filter.steps import (
+    AT_DETECTION,
+    AT_OBS,
+    AT_OUTCOMES,
+    AT_PIECE,
+    AT_PREDICTIONS,
+    AT_ROW,
+    Linearization,
+)
 from ekfslam.core.filter_checks import check_predict, check_predict_many, check_update
 from ekfslam.core.models import MIN_RANGE_SQUARED
 
 Array = NDArray[np.float64]
 
 _NO_ROWS = np.zeros((0, len(ROW)))  # where a prediction records nothing
+_NO_TAPE = (_NO_ROWS, np.zeros(0, dtype=np.int8), np.zeros((0, len(OBS_ROW))))  # a `Tape`
 _OUTCOME = tuple(Outcome)  # _OUTCOME[code] is Outcome(code), at a tenth of the cost
 
 
@@ -54,6 +63,30 @@ def _rows(values: ArrayLike, width: int | None = None) -> Array:
 
 #: each outcome's `Outcome.label`, looked up once per sighting
 _LABEL = {outcome: outcome.label for outcome in Outcome}
+
+
+class Pieces(NamedTuple):
+    """A run's K prediction pieces (`EKFSLAM.feed`): u (K, 3) body-frame increments, dt (K,)
+    s, t (K,) s the time each ends, and the noise as `predict_many` takes it: M (3, 3) per
+    second, or R (3, 3) per step (the other None)."""
+
+    u: Array
+    dt: Array
+    t: Array
+    M: Array | None
+    R: Array | None
+
+
+class Detections(NamedTuple):
+    """A run's D detections in time order (`EKFSLAM.feed`): upto (D,) int64, the pieces that
+    end by each; landmark_id (D,) int64; z (D, 2) range and bearing; Q (D, 2, 2) each one's
+    noise; t (D,) s."""
+
+    upto: NDArray[np.int64]
+    landmark_id: NDArray[np.int64]
+    z: Array
+    Q: Array
+    t: Array
 
 
 class Rows(NamedTuple):
@@ -174,6 +207,62 @@ class EKFSLAM(FilterState):
         self._counts["predictions"] += k
         if k:
             self._t = float(batch[2][-1])
+
+    def feed(self, pieces: Pieces, detections: Detections) -> None:
+        """A run's predictions and sightings in time order, exactly as `predict_many` through
+        the pieces that end by each detection (`Detections.upto`), then `update` with it, and
+        `predict_many` through the pieces after the last: a replay in one call.
+
+        The run goes through `ekfslam.core.filter.steps.feed` (one compiled call for the lot,
+        with the "numba" backend), which hands back to `update` each detection that needs a
+        decision: a landmark seen for the first time, one whose last sightings were rejected,
+        and a rejection when `FilterConfig.reinit_after` may place the landmark again. The
+        arrays are taken as they are (float64 and int64, C-ordered, checked by the caller: as
+        `predict_many`'s ``validate=False``). With `FilterConfig.iterations` > 1 it is the
+        loop of `predict_many` and `update` itself.
+        """
+        u, dt, t, M, R = pieces
+        per_second = M is not None
+        batch = (u, dt, t, M if per_second else R, per_second)  # a `Batch`
+        upto, ids, zs, Qs, times = detections
+        if self.config.iterations > 1:
+            done = 0
+            for i, p in enumerate([*upto.tolist(), len(u)]):
+                if p > done:
+                    self.predict_many(u[done:p], dt[done:p], t[done:p], M, R, validate=False)
+                    done = p
+                if i < len(upto):
+                    self.update(int(ids[i]), zs[i], Qs[i], float(times[i]), validate=False)
+            return
+        known, code = np.unique(ids, return_inverse=True)
+        at = np.zeros(AT_OUTCOMES + len(Outcome), dtype=np.int64)
+        clock = np.array([self._t])
+        gate = math.inf if self.config.gate is None else float(self.config.gate)
+        while True:
+            rec = self._recorder
+            if rec is not None:
+                rec.room(len(u) - at[AT_PIECE] + len(upto) - at[AT_DETECTION], len(upto))
+                at[AT_ROW], at[AT_OBS] = rec.n, rec.m
+            tape = (rec.rows, rec.kinds, rec.obs) if rec is not None else _NO_TAPE
+            sightings = np.array(self._sightings, dtype=np.int64)
+            slot_of = np.array([self.slot.get(int(i), -1) for i in known], dtype=np.int64)
+            plan = (upto, ids, zs, Qs, times, code, slot_of, gate, self.config.gate_after)
+            plan += (sightings, np.array([bool(r) for r in self._rejected], dtype=np.bool_))
+            plan += (self.config.reinit_after is not None, clock)  # a `Plan`
+            self._steps.feed(self._arrays, self._dim, batch, plan, tape, at)
+            self._sightings = sightings.tolist()
+            if rec is not None:
+                rec.n, rec.m = int(at[AT_ROW]), int(at[AT_OBS])
+            self._t = float(clock[0])
+            i = int(at[AT_DETECTION])
+            if i == len(upto):
+                break
+            self.update(int(ids[i]), zs[i], Qs[i], float(times[i]), validate=False)
+            clock[0] = self._t
+            at[AT_DETECTION] += 1
+        self._counts["predictions"] += int(at[AT_PREDICTIONS])
+        for outcome in Outcome:
+            self._counts[outcome.label] += int(at[AT_OUTCOMES + outcome])
 
     # -------------------------------------------------------------- correction
     def update(

@@ -265,6 +265,16 @@ class Recorder:
         self.n = n + count
         return n
 
+    def room(self, events: int, observations: int) -> None:
+        """Make room for `events` more events and `observations` more observations, reserving
+        none (`ekfslam.core.filter.steps.feed` writes them, and says how many it wrote)."""
+        if self.n + events > len(self.kinds):
+            size = max(2 * len(self.kinds), self.n + events)
+            self.rows = _grown(self.rows, size, self.n)
+            self.kinds = _grown(self.kinds, size, self.n)
+        if self.m + observations > len(self.obs):
+            self.obs = _grown(self.obs, max(2 * len(self.obs), self.m + observations), self.m)
+
     def reserve_observation(self) -> int:
         """Make room for one observation (after its event's `reserve`); returns its row index."""
         m = self.m

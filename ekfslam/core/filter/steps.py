@@ -43,10 +43,14 @@ from ekfslam.core.filter.history import (
     OBS_NIS,
     OBS_NU,
     OBS_OUTCOME,
+    OBS_ROW,
     OBS_S,
     OBS_T,
     OBS_Z,
     OBS_Z_HAT,
+    OBSERVE,
+    PREDICT,
+    ROW,
     ROW_COV,
     ROW_POSE,
     ROW_T,
@@ -137,6 +141,48 @@ class Sighting(NamedTuple):
     Q: Array
     gate: float
     event: int
+
+
+class Plan(NamedTuple):
+    """D detections of a run as `feed` takes them, and what it needs to decide alone.
+
+    upto : (D,) the prediction pieces that end by each detection; landmark_id, z (D, 2), Q
+    (D, 2, 2), t (D,): each detection; code (D,) its id's index in slot_of (U,), the slot of
+    each distinct id (-1: not mapped yet). gate: the largest NIS accepted (inf: none), applied
+    once a landmark has gate_after accepted sightings (sightings (n,), per slot); pending (n,):
+    the slots whose last sightings were rejected; stop_on_reject: does a rejection go back to
+    the filter (which may place the landmark again, `FilterConfig.reinit_after`). clock (1,):
+    the time of the last event fed.
+    """
+
+    upto: NDArray[np.int64]
+    landmark_id: NDArray[np.int64]
+    z: Array
+    Q: Array
+    t: Array
+    code: NDArray[np.int64]
+    slot_of: NDArray[np.int64]
+    gate: float
+    gate_after: int
+    sightings: NDArray[np.int64]
+    pending: NDArray[np.bool_]
+    stop_on_reject: bool
+    clock: Array
+
+
+class Tape(NamedTuple):
+    """The history's arrays (`Recorder`'s) that `feed` writes its events into, with room for
+    every event it may feed; no rows: nothing recorded."""
+
+    rows: Array
+    kinds: NDArray[np.int8]
+    obs: Array
+
+
+#: `feed`'s cursor (an int array, read and advanced): the next detection, the pieces predicted,
+#: the history's event rows and observation rows used, the predictions made, and from
+#: `AT_OUTCOMES` on how many sightings had each `Outcome`
+AT_DETECTION, AT_PIECE, AT_ROW, AT_OBS, AT_PREDICTIONS, AT_OUTCOMES = 0, 1, 2, 3, 4, 5
 
 
 class Observed(NamedTuple):
@@ -329,6 +375,53 @@ def sight(storage: Storage, d: int, l: int, sighting: Sighting, row: Array, obs:
     outcome = correct(storage, d, l, (z, Q, gate, linearisation_point(storage, l)), obs)
     record_observation(storage, d, l, (t, landmark_id, z, outcome, event), row, obs)
     return outcome
+
+
+def feed(storage: Storage, d: int, pieces: Batch, plan: Plan, tape: Tape, at: NDArray) -> None:
+    """A run's detections from at[`AT_DETECTION`] on, each after its prediction pieces
+    (`predict`, one batch per detection), sighted (`sight`) and counted, and the pieces after
+    the last one: a replay's loop, as many `predict` and `sight` calls as the filter's own
+    steps make. It stops before a detection that needs the filter to decide (a landmark not
+    mapped yet, or one whose sightings were rejected), and before it counts a rejection when
+    `Plan.stop_on_reject`; `at` (`AT_DETECTION` ...) says where it stopped.
+    """
+    u, dt, t, N, per_second = pieces
+    upto, landmark_id, z, Q, seen_at, code, slot_of, gate, gate_after = plan[:9]
+    sightings, pending, stop_on_reject, clock = plan[9:]
+    rows, kinds, obs = tape
+    recording = rows.shape[0] > 0
+    spare_row, spare_obs = np.empty(len(ROW)), np.empty(len(OBS_ROW))  # when nothing is kept
+    i, done, n, m = at[AT_DETECTION], at[AT_PIECE], at[AT_ROW], at[AT_OBS]
+    while i <= upto.shape[0]:
+        p = upto[i] if i < upto.shape[0] else u.shape[0]  # after the last detection: the end
+        if p > done:
+            k = p - done
+            batch = (u[done:p], dt[done:p], t[done:p], N, per_second)
+            predict(storage, d, batch, rows[n : n + k] if recording else rows[:0])
+            if recording:
+                kinds[n : n + k] = PREDICT
+                n += k
+            at[AT_PREDICTIONS] += k
+            clock[0] = t[p - 1]
+            done = p
+        j = slot_of[code[i]] if i < upto.shape[0] else -1
+        if j < 0 or pending[j]:
+            break
+        row, ob = (rows[n], obs[m]) if recording else (spare_row, spare_obs)
+        gated = gate if sightings[j] >= gate_after else np.inf
+        sighting = (seen_at[i], landmark_id[i], z[i], Q[i], gated, n)  # a `Sighting`
+        outcome = sight(storage, d, 3 + 2 * j, sighting, row, ob)
+        if outcome == Outcome.REJECTED.value and stop_on_reject:
+            break
+        if recording:
+            kinds[n] = OBSERVE
+            n, m = n + 1, m + 1
+        if outcome == Outcome.ACCEPTED.value:
+            sightings[j] += 1
+        at[AT_OUTCOMES + outcome] += 1
+        clock[0] = seen_at[i]
+        i += 1
+    at[AT_DETECTION], at[AT_PIECE], at[AT_ROW], at[AT_OBS] = i, done, n, m
 
 
 def linearisation_point(storage: Storage, l: int) -> Array:
