@@ -566,13 +566,13 @@ def _feed_hidden(
             pause(i, done)
         p = steps.upto[i]
         if p > done:
-            steps.predict(associating, done, p)
+            steps.predict(associating, done, p, validate=False)  # the run was checked once
             done = p
         associating.observe(steps.z[i:k], steps.Q, steps.times[i], *_body_rate(steps, p))
     if pause is not None:
         pause(len(steps.upto), done)
     if done < len(steps.u):
-        steps.predict(associating, done, len(steps.u))
+        steps.predict(associating, done, len(steps.u), validate=False)
 
 
 def decisions_from_known_state(

@@ -130,6 +130,15 @@ def check_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> None:
         checks.real(t, "EKFSLAM.update: t", lo=-MAX_TIME, hi=MAX_TIME, unit="s")
 
 
+def check_observe(zs: Any, Q: Any, t: Any, name: str) -> None:
+    """An association's `observe(zs, Q, t)`: zs rows of (range, bearing), finite (|r| within
+    the plausible 1e7 m), Q a 2x2 positive-definite covariance, t a plausible time; checked
+    once for the sightings of one time, which it then feeds the filter unchecked."""
+    checks.array(zs, f"{name}: zs", (None, 2), "sightings (range, bearing)", bound=MAX_POSITION)
+    _noise(Q, f"{name}: Q", 2, definite=True)
+    checks.real(t, f"{name}: t", lo=-MAX_TIME, hi=MAX_TIME, unit="s")
+
+
 def _noise(value: Any, name: str, n: int, definite: bool = False) -> None:
     """A noise covariance; an array whose bytes were found good before is not checked again."""
     key = (name, n)

@@ -61,6 +61,7 @@ from ekfslam.core.association import (
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.filter.jcbb_search import Limits
 from ekfslam.core.filter.predictions import Predicted, Rate
+from ekfslam.core.filter_checks import check_observe
 from ekfslam.core.timestamp import TimeError, image_noises, time_shift
 
 Array = NDArray[np.float64]
@@ -180,9 +181,9 @@ class AssociatingFilter:
         c._estimated, c._decision = [], []
         return c
 
-    def predict_many(self, us, dts, ts, M=None, R=None) -> None:
+    def predict_many(self, us, dts, ts, M=None, R=None, *, validate: bool = True) -> None:
         """`EKFSLAM.predict_many` of the filter (the replay's call, as for `HypothesisBank`)."""
-        self.ekf.predict_many(us, dts, ts, M, R)
+        self.ekf.predict_many(us, dts, ts, M, R, validate=validate)
 
     def noises(
         self, zs: Array, Q: ArrayLike, omega: float, velocity: tuple[float, float]
@@ -212,6 +213,7 @@ class AssociatingFilter:
         of all its sightings together (`noises`).
         Returns the estimated landmark id each sighting was used for (-1: none).
         """
+        check_observe(zs, Q, t, "AssociatingFilter.observe")  # once: then fed unchecked
         zs = np.asarray(zs, dtype=float).reshape(-1, 2)
         Q, Qs, rate = self.noises(zs, Q, omega, velocity)
         if self._tentative:
@@ -239,7 +241,7 @@ class AssociatingFilter:
         for i in range(m):  # the paired ones first: each update sharpens the pose
             if pairing[i] != UNPAIRED:
                 used[i] = ids[pairing[i]]
-                self.ekf.update(used[i], zs[i], Q[i], t)
+                self.ekf.update(used[i], zs[i], Q[i], t, validate=False)
         for i in range(m):
             if pairing[i] != UNPAIRED:
                 continue
@@ -367,7 +369,7 @@ class AssociatingFilter:
             if v @ np.linalg.solve(S, v) <= self.config.gate:
                 del self._tentative[k]
                 new_id = self.ekf.n_landmarks
-                self.ekf.update(new_id, z, Q, t)
+                self.ekf.update(new_id, z, Q, t, validate=False)
                 return new_id, CONFIRMED
         self._tentative.append((t, p, C, P_now))
         return UNPAIRED, TENTATIVE

@@ -23,6 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.filter.associating import ASSOCIATED, CONFIRMED, AssociationLog
 from ekfslam.core.filter.ekf import EKFSLAM
+from ekfslam.core.filter_checks import check_observe
 from ekfslam.core.timestamp import TimeError, image_noises
 
 Array = NDArray[np.float64]
@@ -50,9 +51,9 @@ class MappingFilter:
         self.time_shared = bool(time_shared)
         self._next = 0  # the first sighting not yet fed
 
-    def predict_many(self, us, dts, ts, M=None, R=None) -> None:
+    def predict_many(self, us, dts, ts, M=None, R=None, *, validate: bool = True) -> None:
         """`EKFSLAM.predict_many` of the mapping filter."""
-        self.ekf.predict_many(us, dts, ts, M, R)
+        self.ekf.predict_many(us, dts, ts, M, R, validate=validate)
 
     def observe(
         self,
@@ -63,6 +64,7 @@ class MappingFilter:
         velocity: tuple[float, float] = (0.0, 0.0),
     ) -> list[int]:
         """Feed the sightings of time t (s) under the ids the deciding run gave them."""
+        check_observe(zs, Q, t, "MappingFilter.observe")  # once: then fed unchecked
         zs = np.asarray(zs, dtype=float).reshape(-1, 2)
         k, m = self._next, len(zs)
         if k + m > len(self.log.estimated):
@@ -78,7 +80,7 @@ class MappingFilter:
         for kind in (ASSOCIATED, CONFIRMED):  # the deciding filter's order (`_apply`)
             for i in range(m):
                 if what[i] == kind and used[i] >= 0:
-                    self.ekf.update(used[i], zs[i], Qs[i], t)
+                    self.ekf.update(used[i], zs[i], Qs[i], t, validate=False)
         self._next = k + m
         return used
 

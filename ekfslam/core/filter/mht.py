@@ -36,6 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 from ekfslam.core.association import UNPAIRED, AssociationConfig, JcbbResult, joint_innovation
 from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog, free_nis
 from ekfslam.core.filter.ekf import EKFSLAM
+from ekfslam.core.filter_checks import check_observe
 
 Array = NDArray[np.float64]
 
@@ -115,10 +116,10 @@ class HypothesisBank:
         """(log-likelihood score, filter) of each hypothesis, most likely first."""
         return [(s, af) for s, af, _ in self._bank]
 
-    def predict_many(self, us, dts, ts, M=None, R=None) -> None:
+    def predict_many(self, us, dts, ts, M=None, R=None, *, validate: bool = True) -> None:
         """Predict every hypothesis (`EKFSLAM.predict_many`)."""
         for _, af, _ in self._bank:
-            af.predict_many(us, dts, ts, M, R)
+            af.predict_many(us, dts, ts, M, R, validate=validate)
 
     def observe(
         self,
@@ -129,6 +130,7 @@ class HypothesisBank:
         velocity: tuple[float, float] = (0.0, 0.0),
     ) -> None:
         """Branch on the sightings taken at time t (s), as `AssociatingFilter.observe`."""
+        check_observe(zs, Q, t, "HypothesisBank.observe")  # once: then fed unchecked
         zs = np.asarray(zs, dtype=float).reshape(-1, 2)
         Q, Qs, rate = self._bank[0][1].noises(zs, Q, omega, velocity)
         children = []
