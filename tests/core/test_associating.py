@@ -15,6 +15,7 @@ from ekfslam.core.association import (
 from ekfslam.core.filter.associating import AMBIGUOUS, AssociatingFilter
 from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.filter.ekf import EKFSLAM
+from ekfslam.core.filter.mht import HypothesisBank
 from ekfslam.core.models import observation, observation_noise
 
 Q = observation_noise(0.01, 0.01)
@@ -214,3 +215,28 @@ def test_a_sighting_no_landmark_explains_better_than_a_new_one_starts_a_landmark
     assert individual_nis(nu, P, Qn[None])[0, 0] == pytest.approx(k * k, rel=1e-6)
     assert f.observe(z[None], Qn, 2.0) == [UNPAIRED]
     assert f.finish().decision[-1] == expected
+
+
+@pytest.mark.parametrize("method", ["nn", "jcbb", "mht"])
+@pytest.mark.parametrize(
+    ("zs", "Q", "t", "named"),
+    [
+        ([[1.0, np.nan]], np.eye(2) * 1e-3, 1.0, "zs"),
+        ([[1.0, 0.2, 0.1]], np.eye(2) * 1e-3, 1.0, "zs"),
+        ([[1.0, 0.2]], -np.eye(2), 1.0, "Q"),
+        ([[1.0, 0.2]], np.zeros((2, 2)), 1.0, "Q"),
+        ([[1.0, 0.2]], np.eye(2) * 1e-3, np.inf, "t"),
+    ],
+)
+def test_observe_refuses_bad_sightings_by_name_before_the_filter_is_touched(
+    method, zs, Q, t, named
+):
+    # observe checks the sightings of one time once, then feeds the filter unchecked: what the
+    # filter's own checks caught (EKFSLAM.update) must still be caught, by the observe's name
+    config = AssociationConfig(method="jcbb" if method == "mht" else method)
+    ekf = EKFSLAM([0.0, 0.0, 0.0])
+    target = HypothesisBank(ekf, config) if method == "mht" else AssociatingFilter(ekf, config)
+    before = ekf.mu.copy(), ekf.counts
+    with pytest.raises(ValueError, match=rf"\.observe: {named}\b"):
+        target.observe(zs, Q, t)
+    assert np.array_equal(ekf.mu, before[0]) and ekf.counts == before[1]
