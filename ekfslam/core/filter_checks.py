@@ -101,21 +101,21 @@ def check_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> None:
     it.)"""
     if (
         type(landmark_id) is int
-        and type(z) is list
+        and (type(z) is list or type(z) is tuple)
         and len(z) == 2
         and type(Q) is _ARRAY
-        and type(t) is float
+        and (t is None or type(t) is float)
         and Q.dtype is _FLOAT
         and Q.shape == (2, 2)
         and _GOOD_NOISE.get(_Q_KEY) == Q.tobytes()
-    ):  # what the replay passes, event after event
+    ):  # what a loop of calls passes, event after event: Python floats, the same Q
         r, phi = z
         if (
             type(r) is float
             and type(phi) is float
             and -MAX_POSITION <= r <= MAX_POSITION
-            and -math.inf < phi < math.inf
-            and -MAX_TIME <= t <= MAX_TIME
+            and -MAX_POSITION <= phi <= MAX_POSITION  # as the full check bounds z
+            and (t is None or -MAX_TIME <= t <= MAX_TIME)
         ):
             return
     if not checks.is_whole(landmark_id) or not -(2**63) <= int(landmark_id) < 2**63:

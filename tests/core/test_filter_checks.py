@@ -1,0 +1,67 @@
+"""The filter's argument checks (`ekfslam.core.filter_checks`): their fast paths for a loop's
+Python floats accept exactly what the full checks accept."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from ekfslam.core.filter_checks import _GOOD_NOISE, check_predict_many, check_update
+from ekfslam.errors import EkfSlamError
+
+Q = np.diag([0.05**2, 0.03**2])
+M = np.diag([1e-3, 1e-3, 1e-2])
+numbers = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.sampled_from([0.0, -0.0, 1e7, 1e7 + 1, -1e7 - 1, 1e10, 3e7]),
+)
+
+
+def verdict(check, *args) -> str | None:
+    try:
+        check(*args)
+    except (EkfSlamError, ValueError, TypeError) as exc:
+        return type(exc).__name__
+    return None
+
+
+@given(
+    r=numbers,
+    phi=numbers,
+    t=st.one_of(st.none(), numbers),
+    as_tuple=st.booleans(),
+)
+def test_the_updates_fast_path_accepts_what_the_full_check_accepts(r, phi, t, as_tuple) -> None:
+    check_update(1, [1.0, 0.1], Q, 0.0)  # Q found good: the fast path's condition
+    z = (r, phi) if as_tuple else [r, phi]
+    fast = verdict(check_update, 7, z, Q, t)
+    _GOOD_NOISE.clear()  # and z as an array: the full check
+    full = verdict(check_update, 7, np.array([r, phi]), Q.copy(), t)
+    assert fast == full
+
+
+@given(
+    us=st.lists(st.tuples(numbers, numbers, numbers), min_size=0, max_size=5),
+    dt=numbers,
+    t=numbers,
+)
+def test_the_batch_fast_path_accepts_what_the_full_check_accepts(us, dt, t) -> None:
+    check_predict_many(np.zeros((1, 3)), np.ones(1), np.zeros(1), M, None)  # M found good
+    u = np.array(us, dtype=float).reshape(-1, 3)
+    dts, ts = np.full(len(u), dt), np.full(len(u), t)
+    fast = verdict(check_predict_many, u, dts, ts, M, None)
+    _GOOD_NOISE.clear()  # M not found good yet: the full check
+    full = verdict(check_predict_many, u.copy(), dts.copy(), ts.copy(), M.copy(), None)
+    assert fast == full
+
+
+@pytest.mark.parametrize("z", [(1.0, 0.2), [1.0, 0.2]])
+@pytest.mark.parametrize("t", [None, 3.0])
+def test_a_loops_floats_take_the_fast_path(z, t, monkeypatch) -> None:
+    check_update(1, [1.0, 0.1], Q, 0.0)
+    import ekfslam.core.filter_checks as fc
+
+    monkeypatch.setattr(fc.checks, "array", lambda *a, **k: pytest.fail("the full check ran"))
+    check_update(2, z, Q, t)
