@@ -241,7 +241,8 @@ class EKFSLAM(FilterState):
         while True:
             rec = self._recorder
             if rec is not None:
-                rec.room(len(u) - at[AT_PIECE] + len(upto) - at[AT_DETECTION], len(upto))
+                left = len(upto) - at[AT_DETECTION]  # detections, and pieces below
+                rec.room(len(u) - at[AT_PIECE] + left, left)
                 at[AT_ROW], at[AT_OBS] = rec.n, rec.m
             tape = (rec.rows, rec.kinds, rec.obs) if rec is not None else _NO_TAPE
             sightings = np.array(self._sightings, dtype=np.int64)
