@@ -134,6 +134,26 @@ def check_observe(zs: Any, Q: Any, t: Any, name: str) -> None:
     """An association's `observe(zs, Q, t)`: zs rows of (range, bearing), finite (|r| within
     the plausible 1e7 m), Q a 2x2 positive-definite covariance, t a plausible time; checked
     once for the sightings of one time, which it then feeds the filter unchecked."""
+    if (
+        type(zs) is list
+        and zs
+        and type(t) is float
+        and -MAX_TIME <= t <= MAX_TIME
+        and type(Q) is _ARRAY
+        and Q.dtype is _FLOAT
+        and Q.shape == (2, 2)
+        and _GOOD_NOISE.get((f"{name}: Q", 2)) == Q.tobytes()
+        and all(
+            type(z) is list
+            and len(z) == 2
+            and type(z[0]) is float
+            and type(z[1]) is float
+            and -MAX_POSITION <= z[0] <= MAX_POSITION
+            and -MAX_POSITION <= z[1] <= MAX_POSITION
+            for z in zs
+        )
+    ):  # what a replay passes, time after time: lists of Python floats, the same Q
+        return
     checks.array(zs, f"{name}: zs", (None, 2), "sightings (range, bearing)", bound=MAX_POSITION)
     _noise(Q, f"{name}: Q", 2, definite=True)
     checks.real(t, f"{name}: t", lo=-MAX_TIME, hi=MAX_TIME, unit="s")

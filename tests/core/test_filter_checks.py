@@ -8,7 +8,12 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ekfslam.core.filter_checks import _GOOD_NOISE, check_predict_many, check_update
+from ekfslam.core.filter_checks import (
+    _GOOD_NOISE,
+    check_observe,
+    check_predict_many,
+    check_update,
+)
 from ekfslam.errors import EkfSlamError
 
 Q = np.diag([0.05**2, 0.03**2])
@@ -37,8 +42,22 @@ def test_the_updates_fast_path_accepts_what_the_full_check_accepts(r, phi, t, as
     check_update(1, [1.0, 0.1], Q, 0.0)  # Q found good: the fast path's condition
     z = (r, phi) if as_tuple else [r, phi]
     fast = verdict(check_update, 7, z, Q, t)
-    _GOOD_NOISE.clear()  # and z as an array: the full check
-    full = verdict(check_update, 7, np.array([r, phi]), Q.copy(), t)
+    _GOOD_NOISE.clear()  # Q not found good yet: the full check, of the same input
+    full = verdict(check_update, 7, z, Q, t)
+    assert fast == full
+
+
+@given(
+    zs=st.lists(st.tuples(numbers, numbers), min_size=0, max_size=4),
+    t=numbers,
+)
+def test_an_observes_fast_path_accepts_what_the_full_check_accepts(zs, t) -> None:
+    name = "AssociatingFilter.observe"
+    check_observe([[1.0, 0.1]], Q, 0.0, name)  # Q found good: the fast path's condition
+    zs = [list(z) for z in zs]
+    fast = verdict(check_observe, zs, Q, t, name)
+    _GOOD_NOISE.clear()  # Q not found good yet: the full check, of the same input
+    full = verdict(check_observe, zs, Q, t, name)
     assert fast == full
 
 

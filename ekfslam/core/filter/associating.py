@@ -235,7 +235,7 @@ class AssociatingFilter:
         `nearest` (m,); record and count. Q: (2, 2), or (m, 2, 2) one per sighting. Returns the
         estimated id each sighting was used for."""
         m, ids = len(zs), self.ekf.landmark_ids
-        Q = np.broadcast_to(Q, (m, 2, 2))
+        Q = Q if Q.ndim == 3 else (Q,) * m  # each sighting's
         used = [UNPAIRED] * m
         decision = [ASSOCIATED] * m
         for i in range(m):  # the paired ones first: each update sharpens the pose
