@@ -28,6 +28,7 @@ _GOOD_NOISE: dict[tuple[str, int], bytes] = {}
 #: the replay-shaped batches `check_predict_many` checks as Python floats
 _FAST_SIZE = 64
 _ARRAY, _FLOAT = np.ndarray, np.dtype(np.float64)
+_REALS = (float, np.float64)  # a Python float, or numpy's (a value read from an array)
 _M_KEY = ("EKFSLAM.predict_many: M", 3)
 _Q_KEY = ("EKFSLAM.update: Q", 2)
 
@@ -104,15 +105,15 @@ def check_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> None:
         and (type(z) is list or type(z) is tuple)
         and len(z) == 2
         and type(Q) is _ARRAY
-        and (t is None or type(t) is float)
+        and (t is None or type(t) in _REALS)
         and Q.dtype is _FLOAT
         and Q.shape == (2, 2)
         and _GOOD_NOISE.get(_Q_KEY) == Q.tobytes()
     ):  # what a loop of calls passes, event after event: Python floats, the same Q
         r, phi = z
         if (
-            type(r) is float
-            and type(phi) is float
+            type(r) in _REALS
+            and type(phi) in _REALS
             and -MAX_POSITION <= r <= MAX_POSITION
             and -MAX_POSITION <= phi <= MAX_POSITION  # as the full check bounds z
             and (t is None or -MAX_TIME <= t <= MAX_TIME)

@@ -37,9 +37,14 @@ def verdict(check, *args) -> str | None:
     phi=numbers,
     t=st.one_of(st.none(), numbers),
     as_tuple=st.booleans(),
+    as_numpy=st.booleans(),
 )
-def test_the_updates_fast_path_accepts_what_the_full_check_accepts(r, phi, t, as_tuple) -> None:
+def test_the_updates_fast_path_accepts_what_the_full_check_accepts(
+    r, phi, t, as_tuple, as_numpy
+) -> None:
     check_update(1, [1.0, 0.1], Q, 0.0)  # Q found good: the fast path's condition
+    if as_numpy:  # values read from arrays: numpy's floats
+        r, phi, t = np.float64(r), np.float64(phi), None if t is None else np.float64(t)
     z = (r, phi) if as_tuple else [r, phi]
     fast = verdict(check_update, 7, z, Q, t)
     _GOOD_NOISE.clear()  # Q not found good yet: the full check, of the same input
@@ -76,7 +81,7 @@ def test_the_batch_fast_path_accepts_what_the_full_check_accepts(us, dt, t) -> N
     assert fast == full
 
 
-@pytest.mark.parametrize("z", [(1.0, 0.2), [1.0, 0.2]])
+@pytest.mark.parametrize("z", [(1.0, 0.2), [1.0, 0.2], (np.float64(1.0), np.float64(0.2))])
 @pytest.mark.parametrize("t", [None, 3.0])
 def test_a_loops_floats_take_the_fast_path(z, t, monkeypatch) -> None:
     check_update(1, [1.0, 0.1], Q, 0.0)
