@@ -103,21 +103,13 @@ def check_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> None:
     if (
         type(landmark_id) is int
         and (type(z) is list or type(z) is tuple)
-        and len(z) == 2
         and type(Q) is _ARRAY
         and (t is None or type(t) in _REALS)
         and Q.dtype is _FLOAT
         and Q.shape == (2, 2)
         and _GOOD_NOISE.get(_Q_KEY) == Q.tobytes()
     ):  # what a loop of calls passes, event after event: Python floats, the same Q
-        r, phi = z
-        if (
-            type(r) in _REALS
-            and type(phi) in _REALS
-            and -MAX_POSITION <= r <= MAX_POSITION
-            and -MAX_POSITION <= phi <= MAX_POSITION  # as the full check bounds z
-            and (t is None or -MAX_TIME <= t <= MAX_TIME)
-        ):
+        if _plain_z(z) and (t is None or -MAX_TIME <= t <= MAX_TIME):
             return
     if not checks.is_whole(landmark_id) or not -(2**63) <= int(landmark_id) < 2**63:
         raise WrongTypeError(
@@ -144,20 +136,23 @@ def check_observe(zs: Any, Q: Any, t: Any, name: str) -> None:
         and Q.dtype is _FLOAT
         and Q.shape == (2, 2)
         and _GOOD_NOISE.get((f"{name}: Q", 2)) == Q.tobytes()
-        and all(
-            type(z) is list
-            and len(z) == 2
-            and type(z[0]) is float
-            and type(z[1]) is float
-            and -MAX_POSITION <= z[0] <= MAX_POSITION
-            and -MAX_POSITION <= z[1] <= MAX_POSITION
-            for z in zs
-        )
+        and all(type(z) is list and _plain_z(z) for z in zs)
     ):  # what a replay passes, time after time: lists of Python floats, the same Q
         return
     checks.array(zs, f"{name}: zs", (None, 2), "sightings (range, bearing)", bound=MAX_POSITION)
     _noise(Q, f"{name}: Q", 2, definite=True)
     checks.real(t, f"{name}: t", lo=-MAX_TIME, hi=MAX_TIME, unit="s")
+
+
+def _plain_z(z: list | tuple) -> bool:
+    """Is z two floats (Python's or numpy's) within the bound the full check puts on z?"""
+    return (
+        len(z) == 2
+        and type(z[0]) in _REALS
+        and type(z[1]) in _REALS
+        and -MAX_POSITION <= z[0] <= MAX_POSITION
+        and -MAX_POSITION <= z[1] <= MAX_POSITION
+    )
 
 
 def _noise(value: Any, name: str, n: int, definite: bool = False) -> None:

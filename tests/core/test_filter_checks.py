@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from ekfslam.core import filter_checks
 from ekfslam.core.filter_checks import (
     _GOOD_NOISE,
     check_observe,
@@ -85,7 +86,8 @@ def test_the_batch_fast_path_accepts_what_the_full_check_accepts(us, dt, t) -> N
 @pytest.mark.parametrize("t", [None, 3.0])
 def test_a_loops_floats_take_the_fast_path(z, t, monkeypatch) -> None:
     check_update(1, [1.0, 0.1], Q, 0.0)
-    import ekfslam.core.filter_checks as fc
 
-    monkeypatch.setattr(fc.checks, "array", lambda *a, **k: pytest.fail("the full check ran"))
+    monkeypatch.setattr(
+        filter_checks.checks, "array", lambda *a, **k: pytest.fail("the full check ran")
+    )
     check_update(2, z, Q, t)

@@ -4,8 +4,9 @@ A replay feeds the filter through `feed`; the loop it stands for is `predict_man
 pieces before each detection and `update` with it. Hypothesis draws whole runs whose sightings
 take every path: a landmark first seen mid-run, sightings on the robot (refused), outliers the
 gate rejects, a landmark placed again after rejections that agree, an innovation covariance
-that overflows (singular), noise per detection. The two must agree to the bit: μ, Σ, the
-counts, the sightings each landmark accepted, the time and every column of the history.
+that overflows (singular), noise per detection. The two must agree to the bit (to 1e-12
+compiled): μ, Σ, the counts, the sightings each landmark accepted, the time and every column
+of the history.
 """
 
 from __future__ import annotations
@@ -61,17 +62,23 @@ def runs(draw) -> tuple[Pieces, Detections, np.ndarray]:
     return Pieces(u, dt, t, M, R), Detections(upto, ids, z, np.ascontiguousarray(Q), times), pose
 
 
-def assert_same(fed: EKFSLAM, stepped: EKFSLAM, record: bool) -> None:
+def assert_same(fed: EKFSLAM, stepped: EKFSLAM, record: bool, exact: bool) -> None:
+    """The same state, counts and history: to the bit where both run the same Python lines
+    (`exact`), to 1e-12 where numba compiled the two paths apart (its code for one CPU may
+    round a last digit its own way)."""
     assert fed.counts == stepped.counts
     assert fed.accepted_sightings() == stepped.accepted_sightings()
     assert fed.landmark_ids == stepped.landmark_ids
     assert fed._t == stepped._t
-    np.testing.assert_array_equal(fed.mu, stepped.mu)
-    np.testing.assert_array_equal(fed.Sigma, stepped.Sigma)
+    arrays = [(fed.mu, stepped.mu), (fed.Sigma, stepped.Sigma)]
     if record:
         a, b = fed.history(), stepped.history()
-        for field in dataclasses.fields(a):
-            np.testing.assert_array_equal(getattr(a, field.name), getattr(b, field.name))
+        arrays += [(getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(a)]
+    for x, y in arrays:
+        if exact:
+            np.testing.assert_array_equal(x, y)
+        else:
+            np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-12)
 
 
 def check(config: FilterConfig, run, record: bool) -> EKFSLAM:
@@ -80,13 +87,15 @@ def check(config: FilterConfig, run, record: bool) -> EKFSLAM:
     with np.errstate(all="ignore"):
         fed.feed(pieces, detections)
         one_by_one(stepped, pieces, detections)
-    assert_same(fed, stepped, record)
+    assert_same(fed, stepped, record, exact=config.backend == "python")
     return fed
 
 
 @settings(max_examples=150, deadline=None)
-@given(config=configs, run=runs(), record=st.booleans())
-def test_feed_is_the_filters_own_steps_one_by_one(config, run, record) -> None:
+@given(config=configs, run=runs(), record=st.booleans(), iterations=st.sampled_from([1, 3]))
+def test_feed_is_the_filters_own_steps_one_by_one(config, run, record, iterations) -> None:
+    if config.linearization != "fej":  # (FEJ keeps each Jacobian where it was first evaluated)
+        config = dataclasses.replace(config, iterations=iterations)
     check(dataclasses.replace(config, backend="python"), run, record)
 
 

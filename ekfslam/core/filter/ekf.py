@@ -218,22 +218,14 @@ class EKFSLAM(FilterState):
         decision: a landmark seen for the first time, one whose last sightings were rejected,
         and a rejection when `FilterConfig.reinit_after` may place the landmark again. The
         arrays are taken as they are (float64 and int64, C-ordered, checked by the caller: as
-        `predict_many`'s ``validate=False``). With `FilterConfig.iterations` > 1 it is the
-        loop of `predict_many` and `update` itself.
+        `predict_many`'s ``validate=False``). With `FilterConfig.iterations` > 1 every
+        sighting goes back to `update` (the iterated update linearises in Python).
         """
         u, dt, t, M, R = pieces
         per_second = M is not None
         batch = (u, dt, t, M if per_second else R, per_second)  # a `Batch`
         upto, ids, zs, Qs, times = detections
-        if self.config.iterations > 1:
-            done = 0
-            for i, p in enumerate([*upto.tolist(), len(u)]):
-                if p > done:
-                    self.predict_many(u[done:p], dt[done:p], t[done:p], M, R, validate=False)
-                    done = p
-                if i < len(upto):
-                    self.update(int(ids[i]), zs[i], Qs[i], float(times[i]), validate=False)
-            return
+        iterated = self.config.iterations > 1  # every sighting back to `update`
         known, code = np.unique(ids, return_inverse=True)
         at = np.zeros(AT_OUTCOMES + len(Outcome), dtype=np.int64)
         clock = np.array([self._t])
@@ -248,7 +240,8 @@ class EKFSLAM(FilterState):
             sightings = np.array(self._sightings, dtype=np.int64)
             slot_of = np.array([self.slot.get(int(i), -1) for i in known], dtype=np.int64)
             plan = (upto, ids, zs, Qs, times, code, slot_of, gate, self.config.gate_after)
-            plan += (sightings, np.array([bool(r) for r in self._rejected], dtype=np.bool_))
+            pending = np.array([iterated or bool(r) for r in self._rejected], dtype=np.bool_)
+            plan += (sightings, pending)
             plan += (self.config.reinit_after is not None, clock)  # a `Plan`
             self._steps.feed(self._arrays, self._dim, batch, plan, tape, at)
             self._sightings = sightings.tolist()
