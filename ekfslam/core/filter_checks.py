@@ -6,9 +6,9 @@ R, a z with 3 coordinates, a string id or NaN end in one `ConfigError` (ValueErr
 `WrongTypeError` (TypeError) naming the method and the argument, before the state is touched.
 
 A replay checks its run once and then calls the filter with ``validate=False``; a loop of the
-user's own calls `predict_many` and `update` event after event, so they take a fast path for
-small float input (Python floats, C-ordered float arrays) and check a noise matrix (the same one,
-call after call) once per distinct content.
+user's own calls `predict`, `predict_many` and `update` event after event, so they take a fast
+path for small float input (Python floats, C-ordered float arrays) and check a noise matrix (the
+same one, call after call) once per distinct content.
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ _ARRAY, _FLOAT = np.ndarray, np.dtype(np.float64)
 _REALS = (float, np.float64)  # a Python float, or numpy's (a value read from an array)
 _M_KEY = ("EKFSLAM.predict_many: M", 3)
 _Q_KEY = ("EKFSLAM.update: Q", 2)
+_R_KEY = ("EKFSLAM.predict: R", 3)
 
 
 def check_start(pose: Any, pose_covariance: Any, config: Any, record: Any) -> None:
@@ -47,6 +48,16 @@ def check_start(pose: Any, pose_covariance: Any, config: Any, record: Any) -> No
 
 def check_predict(u: Any, R: Any, t: Any) -> None:
     """`EKFSLAM.predict(u, R, t)`: u (3,) finite, R a 3x3 covariance, t a finite time or None."""
+    if (
+        (type(u) is list or type(u) is tuple)
+        and type(R) is _ARRAY
+        and (t is None or type(t) in _REALS)
+        and R.dtype is _FLOAT
+        and R.shape == (3, 3)
+        and _GOOD_NOISE.get(_R_KEY) == R.tobytes()
+    ):  # what a loop of calls passes, step after step: Python floats, the same R
+        if _plain(u, 3) and (t is None or -MAX_TIME <= t <= MAX_TIME):
+            return
     what = "an increment (dx, dy, dtheta) in m, m, rad"
     checks.array(u, "EKFSLAM.predict: u", (3,), what, bound=MAX_POSITION)
     _noise(R, "EKFSLAM.predict: R", 3)
@@ -109,7 +120,7 @@ def check_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> None:
         and Q.shape == (2, 2)
         and _GOOD_NOISE.get(_Q_KEY) == Q.tobytes()
     ):  # what a loop of calls passes, event after event: Python floats, the same Q
-        if _plain_z(z) and (t is None or -MAX_TIME <= t <= MAX_TIME):
+        if _plain(z, 2) and (t is None or -MAX_TIME <= t <= MAX_TIME):
             return
     if not checks.is_whole(landmark_id) or not -(2**63) <= int(landmark_id) < 2**63:
         raise WrongTypeError(
@@ -136,7 +147,7 @@ def check_observe(zs: Any, Q: Any, t: Any, name: str) -> None:
         and Q.dtype is _FLOAT
         and Q.shape == (2, 2)
         and _GOOD_NOISE.get((f"{name}: Q", 2)) == Q.tobytes()
-        and all(type(z) is list and _plain_z(z) for z in zs)
+        and all(type(z) is list and _plain(z, 2) for z in zs)
     ):  # what a replay passes, time after time: lists of Python floats, the same Q
         return
     checks.array(zs, f"{name}: zs", (None, 2), "sightings (range, bearing)", bound=MAX_POSITION)
@@ -144,15 +155,15 @@ def check_observe(zs: Any, Q: Any, t: Any, name: str) -> None:
     checks.real(t, f"{name}: t", lo=-MAX_TIME, hi=MAX_TIME, unit="s")
 
 
-def _plain_z(z: list | tuple) -> bool:
-    """Is z two floats (Python's or numpy's) within the bound the full check puts on z?"""
-    return (
-        len(z) == 2
-        and type(z[0]) in _REALS
-        and type(z[1]) in _REALS
-        and -MAX_POSITION <= z[0] <= MAX_POSITION
-        and -MAX_POSITION <= z[1] <= MAX_POSITION
-    )
+def _plain(values: list | tuple, n: int) -> bool:
+    """Are the values n floats (Python's or numpy's) within the bound the full check puts on a
+    z or a u?"""
+    if len(values) != n:
+        return False
+    for x in values:  # a loop, not all(...): a generator costs more than the test
+        if type(x) not in _REALS or not -MAX_POSITION <= x <= MAX_POSITION:
+            return False
+    return True
 
 
 def _noise(value: Any, name: str, n: int, definite: bool = False) -> None:

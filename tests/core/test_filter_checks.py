@@ -12,6 +12,7 @@ from ekfslam.core import filter_checks
 from ekfslam.core.filter_checks import (
     _GOOD_NOISE,
     check_observe,
+    check_predict,
     check_predict_many,
     check_update,
 )
@@ -54,6 +55,26 @@ def test_the_updates_fast_path_accepts_what_the_full_check_accepts(
 
 
 @given(
+    u=st.lists(numbers, min_size=2, max_size=4),
+    t=st.one_of(st.none(), numbers),
+    as_tuple=st.booleans(),
+    as_numpy=st.booleans(),
+)
+def test_the_predictions_fast_path_accepts_what_the_full_check_accepts(
+    u, t, as_tuple, as_numpy
+) -> None:
+    R = np.diag([1e-4, 1e-4, 1e-5])
+    check_predict([0.1, 0.0, 0.01], R, 0.0)  # R found good: the fast path's condition
+    if as_numpy:  # values read from arrays: numpy's floats
+        u, t = [np.float64(x) for x in u], None if t is None else np.float64(t)
+    u = tuple(u) if as_tuple else list(u)
+    fast = verdict(check_predict, u, R, t)
+    _GOOD_NOISE.clear()  # R not found good yet: the full check, of the same input
+    full = verdict(check_predict, u, R, t)
+    assert fast == full
+
+
+@given(
     zs=st.lists(st.tuples(numbers, numbers), min_size=0, max_size=4),
     t=numbers,
 )
@@ -91,3 +112,15 @@ def test_a_loops_floats_take_the_fast_path(z, t, monkeypatch) -> None:
         filter_checks.checks, "array", lambda *a, **k: pytest.fail("the full check ran")
     )
     check_update(2, z, Q, t)
+
+
+@pytest.mark.parametrize("u", [(0.1, 0.0, 0.01), [0.1, 0.0, 0.01], tuple(np.array([0.1, 0, 0.01]))])
+@pytest.mark.parametrize("t", [None, 3.0])
+def test_a_loops_increments_take_the_fast_path(u, t, monkeypatch) -> None:
+    R = np.diag([1e-4, 1e-4, 1e-5])
+    check_predict([0.0, 0.0, 0.0], R, 0.0)
+
+    monkeypatch.setattr(
+        filter_checks.checks, "array", lambda *a, **k: pytest.fail("the full check ran")
+    )
+    check_predict(u, R, t)
