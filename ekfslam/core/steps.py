@@ -69,7 +69,7 @@ def _storage(mu: Array, Sigma: Array, size: int, invariant: bool) -> steps.Stora
 
 
 def _arrays(storage: steps.Storage, d: int) -> tuple[Array, Array]:
-    """μ and Σ out of the storage, Σ whole (the steps keep its lower triangle)."""
+    """μ and Σ out of the storage, Σ whole (the steps keep its upper triangle)."""
     steps.settle(storage, d)
     mirror(storage.Sigma, d)
     return storage.mu[:d].copy(), storage.Sigma[:d, :d].copy()

@@ -100,7 +100,7 @@ def test_the_compiled_correction_is_the_block_form(seed: int, invariant: bool) -
     compiled = steps_for(ODOMETRY, RANGE_BEARING, "numba")
     outcome = compiled.correct((*storage, int(lin)), d, l, (z, Q, math.inf, point), obs)
     assert outcome == Outcome.ACCEPTED
-    mirror(storage[1], d)  # the steps keep the lower triangle
+    mirror(storage[1], d)  # the steps keep the upper triangle
     np.testing.assert_allclose(obs[OBS_Z_HAT : OBS_Z_HAT + 2], steps.z_hat, rtol=0, atol=1e-9)
     np.testing.assert_allclose(obs[OBS_NU : OBS_NU + 2], steps.nu, rtol=0, atol=1e-9)
     np.testing.assert_allclose(obs[OBS_S : OBS_S + 4], steps.S.ravel(), rtol=0, atol=1e-9)
@@ -132,3 +132,27 @@ def test_the_literal_reference_correction_is_the_block_form(seed: int, lineariza
 def test_update_steps_refuses_a_slot_outside_the_state() -> None:
     with pytest.raises(ValueError, match="slot 1"):
         update_steps(np.zeros(5), np.eye(5), 1, [1.0, 0.0], np.eye(2))
+
+
+@pytest.mark.parametrize("backend", ["python", "numba"])
+@pytest.mark.parametrize("linearization", ["standard", "fej", "invariant"])
+def test_the_steps_keep_the_upper_triangle_so_the_pose_rows_are_whole(backend, linearization):
+    """Σ[r, :d] is the pose's contiguous rows of the storage, current after every step (what
+    makes the prediction's Σ[r, m] = G Σ[r, m] and the correction's H Σ read memory in order);
+    the lower triangle is filled in only when Σ is handed out."""
+    f = EKFSLAM(
+        [0.1, -0.2, 0.3],
+        np.diag([1e-3, 2e-3, 1e-4]),
+        FilterConfig(linearization=linearization, gate=None, backend=backend),
+    )
+    Q, R = np.diag([0.05**2, 0.03**2]), np.diag([1e-4, 2e-4, 3e-5])
+    rng = np.random.default_rng(5)
+    for k in range(40):
+        f.predict([0.05, 0.01, 0.02], R)
+        f.update(k % 7, (rng.uniform(1, 3), rng.uniform(-3, 3)), Q)
+    f.settle()
+    d, stored = 3 + 2 * f.n_landmarks, f._storage.Sigma.copy()  # before Sigma mirrors it
+    whole = f.invariant_covariance if linearization == "invariant" else f.Sigma
+    upper = np.triu_indices(d)
+    np.testing.assert_allclose(stored[:3, 3:d], whole[:3, 3:d], rtol=0, atol=1e-15)  # Σ[r, m]
+    np.testing.assert_allclose(stored[:d, :d][upper], whole[upper], rtol=0, atol=1e-15)

@@ -12,7 +12,7 @@ reader steps through in a debugger. `compiled` hands back the same functions com
    functions (`ekfslam.core.models.MotionModel`, `SensorModel`), compiled the same way, and so
    is every other function of ekfslam that a compiled function calls, down to the models.
 3. One primitive has a compiled form of its own: `ekfslam.core.filter.symmetric.
-   subtract_products`, a loop over Σ's lower triangle instead of numpy's d x d temporary.
+   subtract_products`, a loop over Σ's upper triangle instead of numpy's d x d temporary.
 4. numba caches the machine code beside the source files (``cache=True``), under a name that
    carries a digest of every source involved and of the models' parameters: a changed model or
    step is compiled afresh, and only the first run on a machine pays the compilation.
@@ -79,13 +79,12 @@ def _small_matmul(A, B):
 
 def _matrix_matrix(A, B):
     n, k = A.shape
-    C = np.empty((n, B.shape[1]))
+    C = np.zeros((n, B.shape[1]))
     for i in range(n):
-        for j in range(B.shape[1]):
-            total = 0.0
-            for t in range(k):
-                total += A[i, t] * B[t, j]
-            C[i, j] = total
+        for t in range(k):  # the columns innermost: along B's rows (G Σ[r, m]'s n columns)
+            a = A[i, t]
+            for j in range(B.shape[1]):
+                C[i, j] += a * B[t, j]
     return C
 
 
@@ -120,12 +119,12 @@ def _dot(A, B):
 
 @overload(symmetric.subtract_products, jit_options=OPTIONS, inline="always")
 def _subtract_products(Sigma, d, A, B):
-    def one_pass(Sigma, d, A, B):  # Σ[i, k] -= Σ_a A[a, i] B[a, k] for k <= i
+    def one_pass(Sigma, d, A, B):  # Σ[i, k] -= Σ_a A[a, i] B[a, k] for k >= i
         for i in range(d):
-            row = Sigma[i]
+            row = Sigma[i, i:d]  # sliced, so that the loop starts at 0: LLVM vectorises it
             for a in range(A.shape[0]):
-                x, b = A[a, i], B[a]
-                for k in range(i + 1):
+                x, b = A[a, i], B[a, i:d]
+                for k in range(d - i):
                     row[k] -= x * b[k]
 
     return one_pass

@@ -116,8 +116,8 @@ class FilterState:
     def Sigma(self) -> Array:
         """The state covariance (3 + 2n, 3 + 2n), a view into the pre-allocated storage.
 
-        The steps keep only its lower triangle current (`ekfslam.core.filter.symmetric`); reading
-        it fills in the upper one, O(n²). Read it again after a step rather than keeping the
+        The steps keep only its upper triangle current (`ekfslam.core.filter.symmetric`); reading
+        it fills in the lower one, O(n²). Read it again after a step rather than keeping the
         view. With `linearization="invariant"` it is the Cartesian covariance of (x, y, θ, m),
         a new array, T P Tᵀ from `invariant_covariance` (`ekfslam.core.invariant.to_cartesian`).
         """
@@ -172,7 +172,7 @@ class FilterState:
         m = self._storage.mu[l : l + 2].copy()
         P = rows_of(Sigma, l, 2, l + 2)[:, l:]
         if self._invariant:
-            P = landmark_to_cartesian(P, Sigma[l : l + 2, 2], Sigma[2, 2], m)
+            P = landmark_to_cartesian(P, Sigma[2, l : l + 2], Sigma[2, 2], m)
         return m, P
 
     def landmark_map(self) -> dict[int, Array]:

@@ -16,7 +16,7 @@ Storage (`Storage`): μ and Σ live in pre-allocated arrays larger than the stat
 their first d = 3 + 2n entries. The records below (`Storage`, `Batch`, `Update`, `Observed`)
 name the fields of the tuples the steps take; the filter passes plain tuples, which numba
 dispatches on in a microsecond where a named tuple costs three, and each step unpacks them at its
-top. Σ is kept as its lower triangle (`ekfslam.core.filter.
+top. Σ is kept as its upper triangle (`ekfslam.core.filter.
 symmetric`): `rows_of` reads whole rows from it, and the correction's O(n²) update touches half
 the matrix.
 
@@ -86,7 +86,7 @@ class Storage(NamedTuple):
     """The filter's arrays, which the steps change in place (`ekfslam.core.filter.state`).
 
     mu : (capacity,) the mean of eq. (1) in its first d entries, zero beyond.
-    Sigma : (capacity, capacity) its covariance, eq. (2); only the lower triangle is current.
+    Sigma : (capacity, capacity) its covariance, eq. (2); only the upper triangle is current.
     first : (capacity,) FEJ's first estimates: the pose predicted for this step p̂(k|k-1) at
         0:3, landmark j's first estimate at 3+2j : 5+2j.
     owed : (2,) the invariant filter's heading variance ρ not yet added to the map block, and
@@ -225,12 +225,12 @@ def predict(storage: Storage, d: int, batch: Batch, rows: Array) -> None:
             record_pose(rows[k], t[k], block[POSE:COV], block[COV:PRODUCT].reshape(3, 3), lin)
     mu[r], first[r] = block[POSE:COV], block[BEFORE:OWED]
     Sigma[r, r] = block[COV:PRODUCT].reshape(3, 3)
-    if lin == Linearization.INVARIANT:  # the noise's map rows: -J m̂ times its heading column
-        Sigma[m, r] += np.outer(-rotation_column(mu[:d])[m], block[OWED:BLOCK])
+    if lin == Linearization.INVARIANT:  # the noise's map columns: its heading column times -J m̂
+        Sigma[r, m] += np.outer(block[OWED:BLOCK], -rotation_column(mu[:d])[m])
         owed_now[0] += block[OWED + 2]  # the map block's ρ v vᵀ, O(n²): owed (`settle`)
         owed_now[1] = d
-    else:  # Σ[r, m] = G Σ[r, m], stored transposed, G the product of the batch's G's
-        Sigma[m, r] = Sigma[m, r] @ block[PRODUCT:BEFORE].reshape(3, 3).T
+    else:  # eq. (9) on the pose-map block, G the product of the batch's G's
+        Sigma[r, m] = block[PRODUCT:BEFORE].reshape(3, 3) @ Sigma[r, m]
 
 
 def advance(block: Array, u: Array, N: Array, dt: float, per_second: bool, lin: int) -> None:
@@ -552,7 +552,7 @@ def record_observation(
     if lin == Linearization.INVARIANT:  # δm = ξ_m + J m̂ ξ_θ, and the heading noise owed
         v = owed_direction(storage, d)[l : l + 2]
         M = landmark_to_cartesian(
-            M + owed[0] * np.outer(v, v), Sigma[l : l + 2, 2], Sigma[2, 2], mu[l : l + 2]
+            M + owed[0] * np.outer(v, v), Sigma[2, l : l + 2], Sigma[2, 2], mu[l : l + 2]
         )
     obs[OBS_LANDMARK : OBS_LANDMARK + 2] = mu[l : l + 2]
     obs[OBS_LANDMARK_COV : OBS_LANDMARK_COV + 4] = M.ravel()
