@@ -15,7 +15,9 @@ reader steps through in a debugger. `compiled` hands back the same functions com
    subtract_products`, a loop over Σ's upper triangle instead of numpy's d x d temporary.
 4. numba caches the machine code beside the source files (``cache=True``), under a name that
    carries a digest of every source involved and of the models' parameters: a changed model or
-   step is compiled afresh, and only the first run on a machine pays the compilation.
+   step is compiled afresh, and only the first run on a machine pays the compilation. Each
+   digest costs about 2.5 MB there; the cache keeps the `KEEP_DIGESTS` last used (`prune`), so
+   a teaching assistant who edits a model fifty times does not leave fifty copies behind.
 
 This module is the only one that imports numba; the filter imports it when asked for the
 compiled backend (`ekfslam.core.filter.config.FilterConfig.backend`).
@@ -24,6 +26,7 @@ compiled backend (`ekfslam.core.filter.config.FilterConfig.backend`).
 from __future__ import annotations
 
 import ast
+import contextlib
 import hashlib
 import importlib
 import importlib.metadata
@@ -33,6 +36,7 @@ import os
 import re
 import sys
 import textwrap
+import time
 import types
 import warnings
 from collections.abc import Callable
@@ -210,9 +214,51 @@ def compiled(roots: dict[str, Callable], models: dict[str, object]) -> types.Sim
         return njit(inline="always", error_model="numpy")(source)
 
     steps = rebind(roots, models, build, primitives=PRIMITIVES, replace=replace)
+    caches = (getattr(getattr(steps, n), "_cache", None) for n in roots)  # none: JIT disabled
+    paths = {getattr(c, "cache_path", None) for c in caches}
+    prune({_cache_dir()} | {Path(p) for p in paths if p is not None}, tag)
     for name in roots:
         setattr(steps, name, _FirstCall(steps, name, models))
     return steps
+
+
+#: How many digests (sets of sources and models, `_digest`) the cache keeps, the last used; one
+#: used within `RECENT_S` seconds is kept whatever its rank (another process may be loading it).
+KEEP_DIGESTS = 8
+RECENT_S = 3600.0
+#: A cached file's digest: numba's ``steps.sight_<digest>-496.py311.1.nbc`` (and ``.nbi``), the
+#: generated ``ekfslam_generated_advance_<digest>.py``, the marker ``ekfslam_used_<digest>.stamp``.
+_DIGEST_IN_NAME = re.compile(r"_([0-9a-f]{16})[-.]")
+
+
+def prune(folders: set[Path], tag: str) -> list[Path]:
+    """Mark the digest `tag` used now, and delete the files of every digest in `folders` but the
+    `KEEP_DIGESTS` last used and those used within `RECENT_S`; returns what it deleted. A digest
+    is used when a process makes its steps (its marker's time; without one, its newest file's).
+    A file another process deletes first, or a folder this one may not write, is passed over."""
+    with contextlib.suppress(OSError):
+        (_cache_dir() / f"ekfslam_used_{tag}.stamp").touch()
+    used: dict[str, float] = {}
+    files: dict[str, list[Path]] = {}
+    for folder in folders:
+        with contextlib.suppress(OSError):
+            for path in folder.iterdir():
+                found = _DIGEST_IN_NAME.search(path.name)
+                if found is None:
+                    continue
+                digest = found.group(1)
+                files.setdefault(digest, []).append(path)
+                with contextlib.suppress(OSError):
+                    used[digest] = max(used.get(digest, 0.0), path.stat().st_mtime)
+    now, deleted = time.time(), []
+    for digest in sorted(used, key=used.__getitem__, reverse=True)[KEEP_DIGESTS:]:
+        if digest == tag or now - used[digest] < RECENT_S:
+            continue
+        for path in files[digest]:
+            with contextlib.suppress(OSError):
+                path.unlink()
+                deleted.append(path)
+    return deleted
 
 
 class ModelNotCompiled(ConfigError):
