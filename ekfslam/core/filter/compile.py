@@ -194,6 +194,8 @@ def compiled(roots: dict[str, Callable], models: dict[str, object]) -> types.Sim
     """
     functions = closure(roots.values(), models, primitives=PRIMITIVES)
     tag = _digest(functions, models)
+    with contextlib.suppress(OSError):  # used now: before its generated step is read (`prune`)
+        (_cache_dir() / f"ekfslam_used_{tag}.stamp").touch()
     generated = {fn: _generated(fn, models, tag) for fn in functions if _straight_line(fn)}
     replace = {fn: g for fn, g in generated.items() if g is not None}
 
@@ -232,12 +234,11 @@ _DIGEST_IN_NAME = re.compile(r"_([0-9a-f]{16})[-.]")
 
 
 def prune(folders: set[Path], tag: str) -> list[Path]:
-    """Mark the digest `tag` used now, and delete the files of every digest in `folders` but the
+    """Delete the files of every digest in `folders` but `tag` (the one in use), the
     `KEEP_DIGESTS` last used and those used within `RECENT_S`; returns what it deleted. A digest
-    is used when a process makes its steps (its marker's time; without one, its newest file's).
-    A file another process deletes first, or a folder this one may not write, is passed over."""
-    with contextlib.suppress(OSError):
-        (_cache_dir() / f"ekfslam_used_{tag}.stamp").touch()
+    is used when a process makes its steps (`compiled` touches its marker; a digest without one
+    counts by its newest file). A file another process deletes first, or a folder this one may
+    not write, is passed over."""
     used: dict[str, float] = {}
     files: dict[str, list[Path]] = {}
     for folder in folders:
