@@ -124,10 +124,15 @@ def _dot(A, B):
 @overload(symmetric.subtract_products, jit_options=OPTIONS, inline="always")
 def _subtract_products(Sigma, d, A, B):
     def one_pass(Sigma, d, A, B):  # Σ[i, k] -= Σ_a A[a, i] B[a, k] for k >= i
+        n = A.shape[0]
         for i in range(d):
             row = Sigma[i, i:d]  # sliced, so that the loop starts at 0: LLVM vectorises it
-            for a in range(A.shape[0]):
-                x, b = A[a, i], B[a, i:d]
+            for a in range(0, n - 1, 2):  # two products a pass: half the reads and writes of Σ
+                x, y, b, c = A[a, i], A[a + 1, i], B[a, i:d], B[a + 1, i:d]
+                for k in range(d - i):
+                    row[k] -= x * b[k] + y * c[k]
+            if n % 2:
+                x, b = A[n - 1, i], B[n - 1, i:d]
                 for k in range(d - i):
                     row[k] -= x * b[k]
 

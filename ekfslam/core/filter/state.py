@@ -30,7 +30,7 @@ from ekfslam.core.filter.backend import steps_for
 from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.history import History, Recorder
 from ekfslam.core.filter.steps import Linearization, Storage
-from ekfslam.core.filter.symmetric import mirror, rows_of
+from ekfslam.core.filter.symmetric import diagonal_block, mirror
 from ekfslam.core.filter_checks import check_start
 from ekfslam.core.invariant import from_cartesian, landmark_to_cartesian, to_cartesian
 from ekfslam.core.models import ODOMETRY, RANGE_BEARING
@@ -143,7 +143,7 @@ class FilterState:
     @property
     def pose_covariance(self) -> Array:
         """The 3x3 pose block of Sigma (Cartesian for the invariant filter too), a copy."""
-        P = rows_of(self._storage.Sigma, 0, 3, 3)
+        P = diagonal_block(self._storage.Sigma, 0, 3)
         return to_cartesian(P, self._storage.mu[:3]) if self._invariant else P
 
     @property
@@ -170,7 +170,7 @@ class FilterState:
         self.settle()
         Sigma = self._storage.Sigma
         m = self._storage.mu[l : l + 2].copy()
-        P = rows_of(Sigma, l, 2, l + 2)[:, l:]
+        P = diagonal_block(Sigma, l, 2)
         if self._invariant:
             P = landmark_to_cartesian(P, Sigma[2, l : l + 2], Sigma[2, 2], m)
         return m, P

@@ -56,7 +56,7 @@ from ekfslam.core.filter.history import (
     ROW_T,
     Outcome,
 )
-from ekfslam.core.filter.symmetric import rows_of, set_rows, subtract_products
+from ekfslam.core.filter.symmetric import diagonal_block, rows_of, set_rows, subtract_products
 from ekfslam.core.invariant import (
     INVARIANT_NEW_LANDMARK_POSE,
     landmark_to_cartesian,
@@ -216,7 +216,7 @@ def predict(storage: Storage, d: int, batch: Batch, rows: Array) -> None:
         settle(storage, d)  # landmarks came in since: what is owed is owed to fewer rows
     block = np.zeros(BLOCK)  # the pose block's state through the batch, `advance`'s
     block[POSE:COV] = mu[r]
-    block[COV:PRODUCT] = rows_of(Sigma, 0, 3, 3).ravel()  # Σ[r, r]
+    block[COV:PRODUCT] = diagonal_block(Sigma, 0, 3).ravel()  # Σ[r, r]
     block[PRODUCT:BEFORE] = np.eye(3).ravel()
     block[BEFORE:OWED] = first[r]
     for k in range(u_all.shape[0]):
@@ -541,14 +541,14 @@ def record_observation(
     (a refused first sighting), so its estimate is NaN. Covariances are Cartesian."""
     mu, Sigma, _, owed, lin = storage
     t, landmark_id, z, outcome, event = observed
-    record_pose(row, t, mu[:3], rows_of(Sigma, 0, 3, 3), lin)
+    record_pose(row, t, mu[:3], diagonal_block(Sigma, 0, 3), lin)
     obs[OBS_T], obs[OBS_EVENT], obs[OBS_ID] = t, event, landmark_id
     obs[OBS_Z : OBS_Z + 2] = z
     obs[OBS_OUTCOME] = outcome
     if l < 0:
         obs[OBS_LANDMARK : OBS_LANDMARK_COV + 4] = np.nan
         return
-    M = rows_of(Sigma, l, 2, l + 2)[:, l:]  # the landmark's own block Σ[L, L]
+    M = diagonal_block(Sigma, l, 2)  # the landmark's own block Σ[L, L]
     if lin == Linearization.INVARIANT:  # δm = ξ_m + J m̂ ξ_θ, and the heading noise owed
         v = owed_direction(storage, d)[l : l + 2]
         M = landmark_to_cartesian(

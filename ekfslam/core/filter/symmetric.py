@@ -28,10 +28,18 @@ def rows_of(Sigma: Array, i: int, k: int, d: int) -> Array:
     """
     out = np.empty((k, d))
     out[:, :i] = Sigma[:i, i : i + k].T
+    out[:, i : i + k] = diagonal_block(Sigma, i, k)
     out[:, i + k : d] = Sigma[i : i + k, i + k : d]
+    return out
+
+
+def diagonal_block(Sigma: Array, i: int, k: int) -> Array:
+    """Σ[i : i + k, i : i + k] (k, k), its upper triangle mirrored: a new array (a pose's or a
+    landmark's own covariance, read without its rows)."""
+    out = np.empty((k, k))
     for a in range(k):
         for b in range(k):
-            out[a, i + b] = Sigma[i + a, i + b] if b >= a else Sigma[i + b, i + a]
+            out[a, b] = Sigma[i + a, i + b] if b >= a else Sigma[i + b, i + a]
     return out
 
 
