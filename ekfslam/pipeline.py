@@ -98,6 +98,7 @@ def replay(
     map_noise: NoiseConfig | None = None,
     passes: int = 1,
     recovery: RecoveryConfig | None = None,
+    replays: int = 1,
 ) -> ReplayResult:
     """Run the EKF over a log and return the estimate with its full history.
 
@@ -134,8 +135,16 @@ def replay(
     recovery : with the ids known, widen the pose covariance after a run of rejected sightings
         (`ekfslam.core.recovery`), so a filter that has lost its pose relocalises against its
         map; the times are in ``result.diagnosis.recoveries``. None (the default): never.
+    replays : how many replays like this one the caller makes in this process (a Monte Carlo,
+        a noise fit, a sweep). With ``FilterConfig(backend="auto")`` their events together
+        decide whether the compiled steps pay for their loading (`backend_for`): twenty replays
+        of a short run are a long one. 1 (the default): this replay alone.
     """
     check_replayable(run, "replay: run")
+    if not checks.is_whole(replays) or int(replays) < 1:
+        raise ConfigError(
+            f"replay: replays must be a whole number >= 1, got {checks.shown(replays)}"
+        )
     for name, value, kind, hint in (
         ("noise", noise, NoiseConfig, "e.g. NoiseConfig(sigma_range=0.05)"),
         ("config", config, FilterConfig, "e.g. FilterConfig(gate=None)"),
@@ -176,7 +185,8 @@ def replay(
     _check_passes(passes, hidden, config)
     started = time.perf_counter()  # the schedule counts: it is part of the replay's work
     steps = schedule(run, noise)
-    asked, config = config, backend_for(config, steps.events)  # "auto": compiled for long runs
+    # "auto": compiled for long runs, and for many short ones
+    asked, config = config, backend_for(config, steps.events * int(replays))
     each = sighting_noise(noise, run.detections)
     if np.ndim(each) == 3 and not hidden:  # each sighting its own Q (the run's, or by range)
         steps = dataclasses.replace(steps, Q=each)

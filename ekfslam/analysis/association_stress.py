@@ -93,14 +93,16 @@ def stress_study(
     if runs < 1:
         raise ValueError(f"runs must be at least 1, got {runs}")
     seeds = list(range(first_seed, first_seed + runs))
-    done = run_tasks(_stress_run, [(seed, k == 0) for k, seed in enumerate(seeds)], jobs, dask)
+    replays = len(seeds) * len(METHODS)  # together they choose the backend (`replay`)
+    tasks = [(seed, k == 0, replays) for k, seed in enumerate(seeds)]
+    done = run_tasks(_stress_run, tasks, jobs, dask)
     cases = {m: [d[0][m] for d in done] for m in METHODS}
     detections = [d[1] for d in done]
     wrong, tags, path = done[0][2]
     return StressStudy(seeds, cases, detections, tags, path, wrong)
 
 
-def _stress_run(seed: int, first: bool):
+def _stress_run(seed: int, first: bool, replays: int = 1):
     """One task of `stress_study`: ({method: StressCase}, detections, the first run's picture).
 
     The picture (wrong segments per method, tag map, true path) only when `first`, else empty.
@@ -112,10 +114,11 @@ def _stress_run(seed: int, first: bool):
     wrong: dict[str, Array] = {}
     for method in METHODS:
         if method == "known":
-            result = replay(run, noise)
+            result = replay(run, noise, replays=replays)
             found = None
         else:
-            result = replay(run, noise, association=AssociationConfig(method=method))
+            association = AssociationConfig(method=method)
+            result = replay(run, noise, association=association, replays=replays)
             result, found = assoc.score(run, result)
             if first:
                 wrong[method] = wrong_segments(run, result.association.estimated, found.mapping)

@@ -324,7 +324,8 @@ def compare(
         FilterConfig(linearization=lin, gate=gate, iterations=1 if lin == "fej" else iterations)
         for lin in linearizations
     ]
-    tasks = [(name, first_seed + i, wheel_noise_sigma, configs) for i in range(runs)]
+    replays = runs * len(configs)  # of the same length: together they decide the backend
+    tasks = [(name, first_seed + i, wheel_noise_sigma, configs, replays) for i in range(runs)]
     done = run_tasks(_one_run, tasks, jobs, dask)
     noise = done[-1][1]
     out = []
@@ -339,8 +340,14 @@ def compare(
     return tuple(out)
 
 
-def _one_run(name: str, seed: int, wheel_noise_sigma: float | None, configs: list[FilterConfig]):
-    """One Monte Carlo task: simulate seed, replay it with each config.
+def _one_run(
+    name: str,
+    seed: int,
+    wheel_noise_sigma: float | None,
+    configs: list[FilterConfig],
+    replays: int,
+):
+    """One Monte Carlo task: simulate seed, replay it with each config (one of `replays` like it).
 
     Returns ([(RunErrors, FilterCounts, seconds) per config], the noise the filter got).
     """
@@ -349,7 +356,7 @@ def _one_run(name: str, seed: int, wheel_noise_sigma: float | None, configs: lis
     per_config = []
     for config in configs:
         started = time.perf_counter()
-        result = replay(run, noise, config, start_pose=run.groundtruth.pose[0])
+        result = replay(run, noise, config, start_pose=run.groundtruth.pose[0], replays=replays)
         errors = run_errors(run, result)
         per_config.append((errors, result.counts, time.perf_counter() - started))
     return per_config, noise

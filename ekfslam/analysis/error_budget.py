@@ -82,15 +82,16 @@ def map_error(
     config: SimulationConfig,
     noise: NoiseConfig | None = None,
     filter_config: FilterConfig | None = None,
+    replays: int = 1,
 ) -> float:
     """Simulate `config`, replay it and return the average aligned map error of eq. (17) (m).
 
     noise : default the realistic robot's (`realistic_noise`), whichever sources are on, so
-    that rows of a budget differ only in the robot.
+    that rows of a budget differ only in the robot. replays : `replay`'s (a budget's count).
     """
     run = simulate(config)
     noise = realistic_noise() if noise is None else noise
-    summary = summarize(run, replay(run, noise, filter_config))
+    summary = summarize(run, replay(run, noise, filter_config, replays=replays))
     if summary.alignment is None:
         raise EkfSlamError(f"{run.meta.name}: no alignment ({summary.alignment_note})")
     return float(summary.alignment.mean_error)
@@ -124,9 +125,12 @@ def error_budget(
     if not seeds:
         raise ValueError("error_budget needs at least one seed")
 
+    replays = (2 + 2 * len(names)) * len(seeds)
+
     def by_seed(on: Sequence[str]) -> tuple[float, ...]:
         return tuple(
-            map_error(realistic(trajectory, tuple(on), seed=s), noise, filter_config) for s in seeds
+            map_error(realistic(trajectory, tuple(on), seed=s), noise, filter_config, replays)
+            for s in seeds
         )
 
     def mean_error(on: Sequence[str]) -> float:

@@ -138,13 +138,15 @@ def size_sweep(
     laps: int = 2,
 ) -> tuple[SweepPoint, ...]:
     """Simulate and replay every (trajectory, size, seed) with the default simulator settings."""
+    trajectories, sizes, seeds = tuple(trajectories), tuple(sizes), tuple(seeds)
+    replays = len(trajectories) * len(sizes) * len(seeds)  # together they choose the backend
     out = []
     for trajectory in trajectories:
         for size in sizes:
             for seed in seeds:
                 cfg = SimulationConfig(trajectory=trajectory, size=size, seed=seed, laps=laps)
                 run = simulate(cfg)
-                result = replay(run, noise)
+                result = replay(run, noise, replays=replays)
                 try:
                     error = align(result.landmarks, run.meta.tag_map).mean_error
                 except AlignmentError:

@@ -220,7 +220,7 @@ def fit_noise(
     began = time.perf_counter()
     sideways = bool(np.any(np.asarray(run.control_twist())[:, 1] != 0))
     fields = (*FITTED[:1], "sigma_y", *FITTED[1:]) if sideways else FITTED
-    cost = _Cost(run, start, config, fields)
+    cost = _Cost(run, start, config, fields, max_evaluations)
     x_start = np.log([max(getattr(start, f), BOUNDS[0]) for f in fields])
     # a start 100 times off leaves the simplex in a flat lost region or beside a local optimum
     # (R so wide that Q does not matter): first every σ scaled by one factor, the best taken
@@ -240,10 +240,10 @@ def fit_noise(
     best = found.x if found.fun <= cost(x0) else x0
     white = cost.noise(best)
     errors = _standard_errors(cost, best)
-    white_result = replay(run, white, config)
+    white_result = replay(run, white, config, replays=cost.replays)  # the search's backend
     rho = innovation_correlation(white_result.history, CORRELATION_GAP)
     noise = widened(white, rho)
-    result = replay(run, noise, config)
+    result = replay(run, noise, config, replays=cost.replays)
     tested = int(np.count_nonzero(np.isin(white_result.history.obs_outcome, _TESTED)))
     return NoiseFit(
         noise=noise,
@@ -311,9 +311,15 @@ class _Cost:
     """-ln L per detection of the run at ln σ = x (`fit_noise`'s objective), memoised."""
 
     def __init__(
-        self, run: RunLog, start: NoiseConfig, config: FilterConfig, fields: tuple[str, ...]
+        self,
+        run: RunLog,
+        start: NoiseConfig,
+        config: FilterConfig,
+        fields: tuple[str, ...],
+        replays: int,
     ) -> None:
         self.run, self.start, self.config, self.fields = run, start, config, fields
+        self.replays = replays  # the search's budget: its replays together choose the backend
         self.calls = 0
         self.per_sighting: dict[tuple, Array | None] = {}
 
@@ -326,7 +332,7 @@ class _Cost:
         if key not in self.per_sighting:
             self.calls += 1
             try:
-                result = replay(self.run, self.noise(x), self.config)
+                result = replay(self.run, self.noise(x), self.config, replays=self.replays)
             except EkfSlamError:  # the state overflowed: as bad as can be
                 self.per_sighting[key] = None
                 return None

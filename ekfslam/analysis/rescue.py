@@ -175,8 +175,11 @@ def replay_rescued(
     if first.diagnosis.ok or noise.R_per_step is not None:
         return Rescue(first, 1.0, first.diagnosis, tuple(tried))
     best, best_scale, best_ll = first, 1.0, tried[0][1]
+    replays = len(RESCUE_SCALES) + 1  # the rescue's replays together choose the backend
     for factor in RESCUE_SCALES:
-        result = pipeline.replay(run, scaled_motion(noise, factor), config, **kwargs)
+        result = pipeline.replay(
+            run, scaled_motion(noise, factor), config, replays=replays, **kwargs
+        )
         tried.append((f"x{factor:g}", log_likelihood(result), result.diagnosis.verdict))
         if tried[-1][1] > best_ll:
             best, best_scale, best_ll = result, factor, tried[-1][1]
@@ -184,7 +187,7 @@ def replay_rescued(
     base = config or FilterConfig()
     if best.diagnosis.misplaced and base.reinit_after is None:
         again = dataclasses.replace(base, reinit_after=RESCUE_REINIT_AFTER)
-        result = pipeline.replay(run, best.noise, again, **kwargs)
+        result = pipeline.replay(run, best.noise, again, replays=replays, **kwargs)
         tried.append(
             (f"x{best_scale:g} + re-init", log_likelihood(result), result.diagnosis.verdict)
         )

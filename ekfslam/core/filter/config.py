@@ -95,8 +95,9 @@ class FilterConfig:
         "numba" runs them compiled from that source (`ekfslam.core.filter.compile`: the first
         run on a machine compiles, about a minute, and caches); "auto" (the default) is
         "python" for a filter built directly, and `ekfslam.pipeline.replay` chooses "numba"
-        for a run of more than `COMPILE_ABOVE_EVENTS` events. Both give the same numbers to
-        rounding.
+        for a run of more than `COMPILE_ABOVE_EVENTS` events, or for a batch of replays that
+        together have more (its ``replays``: a Monte Carlo, a noise fit). Both give the same
+        numbers to rounding.
     """
 
     init: Literal["inverse", "seed"] = "inverse"

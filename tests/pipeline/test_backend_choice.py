@@ -1,0 +1,88 @@
+"""``FilterConfig(backend="auto")`` compiles a workload, not a replay: twenty short replays are a
+long run, and the package's own batches (Monte Carlo, noise fit, error budget, sweeps) say how
+many replays they make, so that notebooks 07-09 do not replay each short run as Python."""
+
+from __future__ import annotations
+
+import pytest
+
+from ekfslam import pipeline
+from ekfslam.analysis import association_stress, consistency, error_budget, laps, noise_fit
+from ekfslam.core.filter import config as filter_config
+from ekfslam.core.filter.config import COMPILE_ABOVE_EVENTS, FilterConfig
+from ekfslam.core.noise import default_noise
+from ekfslam.errors import ConfigError
+
+
+@pytest.fixture
+def chosen(monkeypatch) -> list[tuple[int, str]]:
+    """(events, backend) of every "auto" the replays resolve."""
+    seen: list[tuple[int, str]] = []
+    real = filter_config.backend_for
+
+    def recording(config: FilterConfig, events: int) -> FilterConfig:
+        out = real(config, events)
+        if config.backend == "auto":
+            seen.append((events, out.backend))
+        return out
+
+    monkeypatch.setattr(pipeline, "backend_for", recording)
+    return seen
+
+
+def test_replays_together_decide_the_backend(square, chosen) -> None:
+    events = pipeline.schedule(square, default_noise(square)).events
+    many = COMPILE_ABOVE_EVENTS // events + 1
+    alone, batch = pipeline.replay(square), pipeline.replay(square, replays=many)
+    assert chosen == [(events, "python"), (events * many, "numba")]
+    assert batch.counts == alone.counts  # the same filter, compiled
+    assert abs(batch.mu - alone.mu).max() < 1e-9
+
+
+@pytest.mark.parametrize("bad", [0, -3, 1.5, True, "20", None])
+def test_replays_must_be_a_whole_number_of_at_least_one(square, bad) -> None:
+    with pytest.raises(ConfigError, match="replay: replays must be a whole number >= 1"):
+        pipeline.replay(square, replays=bad)
+
+
+def counted(monkeypatch, module) -> list[int]:
+    """Every `replays` the module's replays were given (1 when it gave none)."""
+    seen: list[int] = []
+    real = pipeline.replay
+
+    def recording(*args, **kwargs):
+        seen.append(kwargs.get("replays", 1))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(module, "replay", recording)
+    return seen
+
+
+def test_a_monte_carlo_counts_every_run_of_every_linearization(monkeypatch) -> None:
+    seen = counted(monkeypatch, consistency)
+    consistency.compare("octagon", runs=3, linearizations=("standard", "fej"))
+    assert seen == [6] * 6
+
+
+def test_an_error_budget_counts_its_rows_and_seeds(monkeypatch) -> None:
+    seen = counted(monkeypatch, error_budget)
+    error_budget.error_budget("square", sources=("wheel slip",), seeds=(1, 2))
+    assert seen == [(2 + 2 * 1) * 2] * 8
+
+
+def test_a_noise_fit_counts_its_search(monkeypatch, square) -> None:
+    seen = counted(monkeypatch, noise_fit)
+    noise_fit.fit_noise(square, default_noise(square), FilterConfig(), max_evaluations=12)
+    assert len(seen) > 2 and set(seen) == {12}  # the search and the two replays after it
+
+
+def test_a_sweep_counts_its_points(monkeypatch) -> None:
+    seen = counted(monkeypatch, laps)
+    laps.size_sweep(("square",), sizes=(0.7, 1.0), seeds=(1,))
+    assert seen == [2, 2]
+
+
+def test_a_stress_study_counts_its_methods_and_seeds(monkeypatch) -> None:
+    seen = counted(monkeypatch, association_stress)
+    association_stress.stress_study(runs=1)
+    assert seen == [len(association_stress.METHODS)] * len(association_stress.METHODS)
