@@ -48,16 +48,8 @@ def check_start(pose: Any, pose_covariance: Any, config: Any, record: Any) -> No
 
 def check_predict(u: Any, R: Any, t: Any) -> None:
     """`EKFSLAM.predict(u, R, t)`: u (3,) finite, R a 3x3 covariance, t a finite time or None."""
-    if (
-        (type(u) is list or type(u) is tuple)
-        and type(R) is _ARRAY
-        and (t is None or type(t) in _REALS)
-        and R.dtype is _FLOAT
-        and R.shape == (3, 3)
-        and _GOOD_NOISE.get(_R_KEY) == R.tobytes()
-    ):  # what a loop of calls passes, step after step: Python floats, the same R
-        if _plain(u, 3) and (t is None or -MAX_TIME <= t <= MAX_TIME):
-            return
+    if _a_loops_call(u, R, t, _R_KEY):
+        return
     what = "an increment (dx, dy, dtheta) in m, m, rad"
     checks.array(u, "EKFSLAM.predict: u", (3,), what, bound=MAX_POSITION)
     _noise(R, "EKFSLAM.predict: R", 3)
@@ -111,17 +103,8 @@ def check_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> None:
     the plausible 1e7 m), Q a 2x2 positive-definite covariance, t a plausible time or None. (A
     negative range is the sensor's business, refused by the readers; the filter's algebra takes
     it.)"""
-    if (
-        type(landmark_id) is int
-        and (type(z) is list or type(z) is tuple)
-        and type(Q) is _ARRAY
-        and (t is None or type(t) in _REALS)
-        and Q.dtype is _FLOAT
-        and Q.shape == (2, 2)
-        and _GOOD_NOISE.get(_Q_KEY) == Q.tobytes()
-    ):  # what a loop of calls passes, event after event: Python floats, the same Q
-        if _plain(z, 2) and (t is None or -MAX_TIME <= t <= MAX_TIME):
-            return
+    if type(landmark_id) is int and _a_loops_call(z, Q, t, _Q_KEY):
+        return
     if not checks.is_whole(landmark_id) or not -(2**63) <= int(landmark_id) < 2**63:
         raise WrongTypeError(
             "EKFSLAM.update: landmark_id must be a whole number within 64 bits, got "
@@ -153,6 +136,23 @@ def check_observe(zs: Any, Q: Any, t: Any, name: str) -> None:
     checks.array(zs, f"{name}: zs", (None, 2), "sightings (range, bearing)", bound=MAX_POSITION)
     _noise(Q, f"{name}: Q", 2, definite=True)
     checks.real(t, f"{name}: t", lo=-MAX_TIME, hi=MAX_TIME, unit="s")
+
+
+def _a_loops_call(values: Any, noise: Any, t: Any, key: tuple[str, int]) -> bool:
+    """The fast path of `check_predict` and `check_update`: what a loop of the user's calls
+    passes, step after step (u or z a list or tuple of n floats within the bound, the noise the
+    same n x n float array found good before, t None or a plausible float). False: check in full.
+    """
+    n = key[1]
+    return (
+        (type(values) is list or type(values) is tuple)
+        and type(noise) is _ARRAY
+        and (t is None or (type(t) in _REALS and -MAX_TIME <= t <= MAX_TIME))
+        and noise.dtype is _FLOAT
+        and noise.shape == (n, n)
+        and _GOOD_NOISE.get(key) == noise.tobytes()
+        and _plain(values, n)
+    )
 
 
 def _plain(values: list | tuple, n: int) -> bool:
