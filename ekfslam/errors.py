@@ -9,6 +9,9 @@ The hierarchy (``docs/guide/errors.md`` shows each with an example)::
     │   └── WrongTypeError (TypeError)  an argument of the wrong type (a str for a σ)
     └── AlignmentError (ValueError)     the map cannot be aligned (eq. 17)
 
+`LabForbidden` (an ImportError) is what a graded sandbox of the lab raises where the package's
+own implementation of an exercise was: `Forbidden` stands for each such name.
+
 So ``except ValueError`` catches every bad input, setting or argument, and ``except OSError``
 every failed write, as for Python's own errors.
 
@@ -102,6 +105,38 @@ class WrongTypeError(ConfigError, TypeError):
     A TypeError, as Python's own are, and a `ConfigError` (so a ValueError) too: ``except
     ValueError`` around a call still catches every bad argument, of whichever kind.
     """
+
+
+class LabForbidden(ImportError):
+    """The package's implementation of a lab exercise, called while that exercise is graded:
+    the sandbox holds a stand-in that raises this (`ekfslam.cli.lab_sandbox` writes it)."""
+
+
+class Forbidden:
+    """A stand-in for a name of the package that a graded sandbox leaves out: importing it
+    works, so a notebook's other cells still run; calling it, or anything reached through it,
+    raises `LabForbidden` naming it."""
+
+    def __init__(self, name: str, exercise: str) -> None:
+        self._name, self._exercise = name, exercise
+
+    def __call__(self, *args: object, **kwargs: object) -> object:
+        raise LabForbidden(
+            f"the package's {self._name} is not available while exercise {self._exercise} is "
+            "graded: write it yourself"
+        )
+
+    def __getattr__(self, attr: str) -> Forbidden:
+        if attr.startswith("__"):
+            raise AttributeError(attr)
+        return Forbidden(f"{self._name}.{attr}", self._exercise)
+
+    def __mro_entries__(self, bases: tuple) -> tuple:
+        self()  # a class derived from a left-out class is a use of it
+        return ()
+
+    def __repr__(self) -> str:
+        return f"<{self._name}: left out while exercise {self._exercise} is graded>"
 
 
 class Interrupted(KeyboardInterrupt):

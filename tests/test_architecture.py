@@ -72,6 +72,7 @@ FILTER_MODULES = ("core.filter.ekf", "core.filter.state", "core.filter.compile")
 MATPLOTLIB_FLOORS = {"viz", "ui"}
 # optional or heavy dependencies a function may import late, with a `# lazy: why` comment
 LAZY_OK = {
+    "IPython",  # the lab sandbox's notebook shell, in that process only
     "cv2",
     "playwright",
     "rosbags",

@@ -11,12 +11,14 @@ is still `ekfslam.teaching.verdicts`.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
 from ekfslam.analysis.alignment import Alignment, align, align_least_squares, align_mean_distance
 from ekfslam.analysis.error_budget import ErrorBudget
-from ekfslam.analysis.replay_mistakes import WatchedEKF, diagnose
+from ekfslam.analysis.replay_mistakes import diagnose
+from ekfslam.analysis.watched_filter import FilterUnderTest, WatchedEKF
 from ekfslam.core import kinematics, models
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.noise import NoiseConfig, default_config, default_noise
@@ -28,7 +30,6 @@ from ekfslam.teaching.verdicts import (
     Array,
     Exercise,
     NotDone,
-    Shared,
     Wrong,
     as_array,
     attempt,
@@ -41,9 +42,13 @@ ROW = ("x0", "y0", "theta0", "mean_error")
 # --- exercise 8: the replay loop -----------------------------------------------------------------
 
 
-def landmarks_of(ekf: EKFSLAM) -> dict[int, Array]:
-    """{id: (2,)} the filter's map, as `ReplayResult.landmarks` holds it."""
-    return {int(i): ekf.mu[3 + 2 * j : 5 + 2 * j].copy() for j, i in enumerate(ekf.landmark_ids)}
+def landmarks_of(ekf: EKFSLAM | dict) -> dict[int, Array]:
+    """{id: (2,)} the filter's map (or a `FilterUnderTest.snapshot`'s), as
+    `ReplayResult.landmarks` holds it."""
+    mu, ids = (
+        (ekf["mu"], ekf["landmark_ids"]) if isinstance(ekf, dict) else (ekf.mu, ekf.landmark_ids)
+    )
+    return {int(i): np.asarray(mu[3 + 2 * j : 5 + 2 * j]).copy() for j, i in enumerate(ids)}
 
 
 def table1_row(landmarks: dict[int, Array], run: RunLog) -> Array:
@@ -72,27 +77,32 @@ def _replay_cases(rng: np.random.Generator) -> list[dict]:
 
 def _judge_replay(call: Callable, case: dict) -> None:
     run = case["run"]
-    ekf = WatchedEKF(run.meta.nominal_start, None, default_config(run))
-    call(("run", run), ("ekf", Shared(ekf)), ("noise", default_noise(run)))
-    got = ekf.counts
-    seen = got.initialised + got.accepted + got.rejected + got.refused + got.reinitialised
-    if got.predictions == 0 and seen == 0:
+    config = replace(default_config(run), backend="python")  # graded off the compiler
+    state = call(
+        ("run", run),
+        ("ekf", FilterUnderTest(run.meta.nominal_start, config)),
+        ("noise", default_noise(run)),
+    )
+    got = _counts(state)
+    mu, Sigma = _arrays(state)
+    seen = sum(got[k] for k in ("initialised", "accepted", "rejected", "refused", "reinitialised"))
+    if got["predictions"] == 0 and seen == 0:
         raise NotDone
-    same = ekf.mu.shape == case["mu"].shape and close(ekf.mu, case["mu"])
-    if not same or got.predictions != case["predictions"]:
-        mistake = diagnose(run, default_noise(run), ekf.mu, got.predictions)
+    same = mu.shape == case["mu"].shape and close(mu, case["mu"])
+    if not same or got["predictions"] != case["predictions"]:
+        mistake = diagnose(run, default_noise(run), mu, got["predictions"])
         if mistake is not None:
             raise Wrong(f"your numbers are those of a loop that {mistake}")
     n = len(run.detections.t)
     if seen != n:
         raise Wrong(f"your loop fed {seen} of the run's {n} detections to ekf.update.")
-    if got.predictions != case["predictions"]:
+    if got["predictions"] != case["predictions"]:
         raise Wrong(
-            f"your loop made {got.predictions} predictions: predict every control interval "
+            f"your loop made {got['predictions']} predictions: predict every control interval "
             "piece by piece, split at the detections inside it (each piece before the "
             "detection at its end), and on to the last control."
         )
-    if not same and (ekf.mu.shape != case["mu"].shape or not close(ekf.mu[:3], case["mu"][:3])):
+    if not same and (mu.shape != case["mu"].shape or not close(mu[:3], case["mu"][:3])):
         raise Wrong(
             "your final pose differs from the replay's: is each detection applied once the "
             "pose is predicted up to its time, each piece with u = twist·dt and its own R "
@@ -100,13 +110,36 @@ def _judge_replay(call: Callable, case: dict) -> None:
         )
     if not same:
         raise Wrong("your map differs from the replay's: is each detection fed at its time?")
-    if not close(ekf.Sigma, case["Sigma"], atol=1e-12):
+    if Sigma.shape != case["Sigma"].shape or not close(Sigma, case["Sigma"], atol=1e-12):
         raise Wrong(
             "your Σ differs from the replay's: each piece's R is V (M dt) Vᵀ at the heading "
             "before the step (eq. 9)."
         )
-    if not close(table1_row(landmarks_of(ekf), run), case["row"]):
+    if not close(table1_row(landmarks_of(state), run), case["row"]):
         raise Wrong("your map's Table 1 row differs from the replay's.")
+
+
+def _counts(state: object) -> dict[str, int]:
+    """The counts of a filter's snapshot, checked (a sandbox's answer is only data)."""
+    counts = state.get("counts") if isinstance(state, dict) else None
+    if not isinstance(counts, dict) or not all(
+        isinstance(counts.get(k), int) and not isinstance(counts.get(k), bool)
+        for k in ("predictions", "initialised", "accepted", "rejected", "refused", "reinitialised")
+    ):
+        raise Wrong("the filter's counts did not come back from your loop.")
+    return counts
+
+
+def _arrays(state: dict) -> tuple[Array, Array]:
+    try:
+        mu = np.asarray(state["mu"], dtype=float)
+        Sigma = np.asarray(state["Sigma"], dtype=float)
+        ids = state["landmark_ids"]
+    except (KeyError, TypeError, ValueError):
+        raise Wrong("the filter's state did not come back from your loop.") from None
+    if mu.ndim != 1 or Sigma.shape != (mu.size, mu.size) or not isinstance(ids, list):
+        raise Wrong("the filter's state did not come back from your loop.")
+    return mu, Sigma
 
 
 REPLAY_EXERCISE = Exercise(
@@ -116,6 +149,14 @@ REPLAY_EXERCISE = Exercise(
     _judge_replay,
     allowed=lambda: (WatchedEKF, RunLog, Controls, Detections, NoiseConfig, models, kinematics),
     returns=False,
+    keeps=(
+        "ekfslam.analysis.watched_filter",
+        "ekfslam.logs.runlog",
+        "ekfslam.core.noise",
+        "ekfslam.core.models",
+        "ekfslam.core.kinematics",
+    ),
+    denies=("ekfslam.core.filter.ekf:EKFSLAM.feed", "ekfslam.core.filter.steps:feed"),
 )
 
 
@@ -184,7 +225,7 @@ def _judge_alignment(call: Callable, case: dict) -> None:
 
 ALIGNMENT_EXERCISE = Exercise(
     "9", "align_map", _maps, _judge_alignment, allowed=lambda: (rotation, wrap_angle)
-)
+)  # its sandbox keeps the geometry only: every module of the alignment is left out
 
 
 def check_alignment(align_map: Callable[[Array, Array], object]) -> bool:

@@ -9,15 +9,18 @@ submission does to the package while it runs. Exercise 8's case is a run simulat
 detections fall between two control times). The key lives in the instructor's course folder,
 never in the students' copy.
 
-`grade(exercise, fn)` runs the exercise's judge (`ekfslam.teaching.verdicts`) on the key's cases
-(the key named by ``$EKFSLAM_LAB_KEY``), prints one line and returns the score, 0 to 1: the share
-of cases right, 0 when the function calls the package's own implementation or ignores its
-inputs. nbgrader reads that number as the cell's partial credit.
+The key also holds each prediction's outcome (`prediction_outcomes`): the solutions' own
+predictions, which the solution notebooks' experiments confirm when they run.
+
+Only the grader reads the key (``python -m ekfslam lab grade``, `ekfslam.cli.lab_worker`): it
+runs each exercise's judge on the key's cases, in its own process, calling the student's function
+in a sandbox; nothing of the key enters a student's process. `grade` is what an older course's
+hidden test cells call: it does nothing and returns None.
 """
 
 from __future__ import annotations
 
-import functools
+import ast
 import os
 import pickle
 import secrets
@@ -51,8 +54,7 @@ EXERCISES: dict[str, Exercise] = {
         ALIGNMENT_EXERCISE,
     )
 }
-KEY_ENV = "EKFSLAM_LAB_KEY"
-KEY_VERSION = 1
+KEY_VERSION = 2
 
 
 def hidden_run(rng: np.random.Generator):
@@ -81,39 +83,78 @@ def hidden_cases(seed: int) -> dict[str, list[dict]]:
     return cases
 
 
-def write_key(path: Path, seed: int | None = None) -> int:
-    """Draw the graded cases (from `seed`, else a fresh random one) and store them at `path`;
-    returns the seed."""
+def prediction_outcomes(notebooks: list[dict]) -> dict[str, dict[str, str]]:
+    """{grade id: {prediction key: outcome}} of the solved notebooks: each prediction check
+    (``check_prediction(name, ..., key="02-wheels")`` in a grade cell) and the value its
+    solution cell gives `name`."""
+    outcomes: dict[str, dict[str, str]] = {}
+    for nb in notebooks:
+        values: dict[str, str] = {}
+        for cell in nb["cells"]:
+            meta = cell.get("metadata", {}).get("nbgrader", {})
+            if cell.get("cell_type") != "code":
+                continue
+            try:
+                tree = ast.parse("".join(cell.get("source", [])))
+            except SyntaxError:  # IPython syntax (a magic): no prediction in it
+                continue
+            if meta.get("solution"):
+                for node in ast.walk(tree):
+                    if isinstance(node, ast.Assign) and isinstance(node.value, ast.Constant):
+                        for target in node.targets:
+                            if isinstance(target, ast.Name) and isinstance(node.value.value, str):
+                                values[target.id] = node.value.value
+            if not meta.get("grade"):
+                continue
+            for node in ast.walk(tree):
+                if not (
+                    isinstance(node, ast.Call)
+                    and getattr(node.func, "id", "") == "check_prediction"
+                ):
+                    continue
+                key = next((k.value for k in node.keywords if k.arg == "key"), None)
+                first = node.args[0] if node.args else None
+                if not isinstance(key, ast.Constant) or not isinstance(first, ast.Name):
+                    continue
+                if first.id not in values:
+                    raise ValueError(f"prediction {key.value}: no solved value of {first.id}")
+                outcomes.setdefault(meta["grade_id"], {})[key.value] = values[first.id]
+    return outcomes
+
+
+def write_key(path: Path, seed: int | None = None, solved: list[dict] | None = None) -> int:
+    """Draw the graded cases (from `seed`, else a fresh random one) and store them at `path`,
+    with the predictions' outcomes of the solved notebooks `solved`; returns the seed."""
     seed = secrets.randbits(63) if seed is None else seed
-    key = {"version": KEY_VERSION, "seed": seed, "cases": hidden_cases(seed)}
+    key = {
+        "version": KEY_VERSION,
+        "seed": seed,
+        "cases": hidden_cases(seed),
+        "predictions": prediction_outcomes(solved or []),
+    }
     path.write_bytes(pickle.dumps(key, protocol=pickle.HIGHEST_PROTOCOL))
     return seed
 
 
-@functools.cache
-def read_key(path: str) -> dict[str, list[dict]]:
-    """The graded cases stored at `path` by `write_key` (the instructor's own file)."""
+def read_key(path: str | os.PathLike) -> dict:
+    """The key stored at `path` by `write_key` (the instructor's own file): its "cases",
+    "predictions" and "seed"."""
     try:
-        key = pickle.loads(Path(path).read_bytes())
-    except (OSError, pickle.UnpicklingError, EOFError) as error:
-        raise InputError(path, None, f"not a lab key ({error})") from None
+        key = pickle.loads(Path(path).read_bytes())  # the instructor's own file, never a student's
+    except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError) as error:
+        raise InputError(str(path), None, f"not a lab key ({error})") from None
     if not isinstance(key, dict) or key.get("version") != KEY_VERSION:
-        raise InputError(path, None, "not a lab key of this ekfslam (run `lab release` again)")
-    return key["cases"]
+        raise InputError(str(path), None, "not a lab key of this ekfslam (run `lab release` again)")
+    return key
 
 
 def grade_exercise(number: str, fn: object, key: str | os.PathLike) -> Verdict:
-    """Exercise `number`'s verdict for `fn` on the graded cases in `key`."""
-    return run_exercise(EXERCISES[number], fn, read_key(str(key))[number])
+    """Exercise `number`'s verdict for `fn` on the graded cases in `key` (in this process: for
+    the instructor's own checks; students are graded by ``lab grade``, in sandboxes)."""
+    return run_exercise(EXERCISES[number], fn, read_key(key)["cases"][number])
 
 
-def grade(number: str, fn: object) -> float | None:
-    """The hidden test of exercise `number`: `fn` on the graded cases of ``$EKFSLAM_LAB_KEY``;
-    prints the verdict and returns the score, 0 to 1. Outside grading (no key: the instructor
-    runs the source notebook) it does nothing and returns None."""
-    key = os.environ.get(KEY_ENV)
-    if not key:
-        return None
-    verdict = grade_exercise(number, fn, key)
-    print(f"Graded on {verdict.total} cases you have not seen: {verdict.line}")
-    return round(verdict.score, 4)
+def grade(number: str, fn: object) -> None:
+    """What the hidden test cells of a course released before the sandboxed grader call: nothing
+    (the grader scores outside the notebook's process now)."""
+    return None

@@ -8,9 +8,8 @@ showing any code. Each mistake is one flag on `mistaken_loop`, the loop of eqs. 
 R = V (M dt) Vᵀ, eq. 9; each detection one update, eqs. 10-16, once the pose is predicted up to
 its time).
 
-`WatchedEKF` is the filter the check hands the student: the same filter, except that a motion
-noise that is not 3x3 or a measurement noise that is not 2x2 stops the check with the names
-(ours and the seed's are Thrun's, the reverse of filterpy's) instead of a bare shape error.
+The filter the check hands the student is `ekfslam.analysis.watched_filter.WatchedEKF` (kept
+apart: a graded sandbox holds it, and not this module, whose loop is the exercise's answer).
 """
 
 from __future__ import annotations
@@ -18,19 +17,12 @@ from __future__ import annotations
 from itertools import pairwise
 
 import numpy as np
-from numpy.typing import ArrayLike
 
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.models import motion_noise
 from ekfslam.core.noise import NoiseConfig, default_config
 from ekfslam.logs.runlog import RunLog
-from ekfslam.teaching.verdicts import Wrong, close
-
-SWAPPED = (
-    "ekf.{call} got a {shape} noise matrix: here, as in the seed and Thrun, R (3x3) is the motion "
-    "noise that predict takes and Q (2x2) the measurement noise that update takes (filterpy's "
-    "names are the other way round)."
-)
+from ekfslam.teaching.verdicts import close
 
 #: mistake -> what a loop with it does, as the check tells it (the typical ones, in this order)
 MISTAKES = {
@@ -47,22 +39,6 @@ MISTAKES = {
     "stops": "stops at the last detection: after it the robot drives on to the last control, "
     "and those predictions move the pose and grow its covariance.",
 }
-
-
-class WatchedEKF(EKFSLAM):
-    """`EKFSLAM` that refuses R and Q swapped with a verdict naming them (see the module)."""
-
-    def predict(self, u: ArrayLike, R: ArrayLike, t: float | None = None) -> None:
-        shape = np.shape(R)
-        if shape != (3, 3):
-            raise Wrong(SWAPPED.format(call="predict", shape="x".join(map(str, shape))))
-        super().predict(u, R, t)
-
-    def update(self, landmark_id: int, z: ArrayLike, Q: ArrayLike, t: float | None = None):
-        shape = np.shape(Q)
-        if shape != (2, 2):
-            raise Wrong(SWAPPED.format(call="update", shape="x".join(map(str, shape))))
-        return super().update(landmark_id, z, Q, t)
 
 
 def mistaken_loop(run: RunLog, ekf: EKFSLAM, noise: NoiseConfig, mistake: str | None) -> None:

@@ -1,29 +1,34 @@
 """``python -m ekfslam lab release DIR`` and ``lab grade SUBMISSIONS --csv FILE``: the lab as a
-course hands it out and grades it, on nbgrader.
+course hands it out and grades it.
 
-``release`` runs nbgrader's ``generate_assignment`` on the solution notebooks 02-07 in a course
-folder (``--course``, default ``lab-course``: the source notebooks with their hidden tests,
-nbgrader's gradebook, and the grading key of `ekfslam.analysis.lab_key`, cases drawn now from a
-fresh seed) and copies the students' copy into DIR: the notebooks with their stubs, the runs they
-read (also installed with the package, where the notebooks find them) and a README. No solution,
-no hidden test, no key.
+``release`` writes the students' copy into DIR (the notebooks 02-07 with their stubs, the runs
+they read, a README; no solution, no key) and the course folder (``--course``, default
+``lab-course``, relative to where the command runs): the solved notebooks, ``course.json`` (which
+exercises and predictions each notebook holds) and the grading key of
+`ekfslam.analysis.lab_key`, cases drawn now from a fresh seed. Both are written whole or not at
+all: a release that fails leaves neither folder behind.
 
 ``grade`` grades SUBMISSIONS, one folder per student holding that student's notebooks (and the
-``lab-predictions.json`` their first predictions were recorded in). Each student is graded in a
-process of its own, each notebook by nbgrader's ``autograde`` (its check cells restored from the
-course, its hidden tests run) within ``--timeout`` seconds; a notebook that is missing, cannot be
-read, kills its kernel or runs out of time scores 0 on its exercises, and the feedback says which
-and why. One student's submission never stops the others'. The CSV has one row per student:
-``student``, each exercise's score (0 to 1) under its number, each graded prediction, ``total``
-(the sum); beside it a feedback file per student.
+``lab-predictions.json`` their first predictions were recorded in). Every submission is copied
+before any is graded; each student is graded in a process of its own (`ekfslam.cli.lab_worker`),
+each exercise in a sandbox of its own (`ekfslam.cli.lab_sandbox`: bubblewrap; without it
+``grade`` refuses unless told ``--unsafe-no-sandbox``) within ``--timeout`` seconds. A notebook
+that is missing, cannot be read, kills its process or runs out of time scores 0 on its
+exercises, and the feedback says which and why. One student's submission never stops the
+others'. The CSV has one row per student: ``student``, each exercise's score (0 to 1) under its
+number, each graded prediction, ``total`` (the sum) and ``sandbox``; beside it a feedback file
+per student. ``--jobs N`` grades N students at once on this machine; ``--dask ADDRESS`` on a
+Dask cluster's workers (each needs bubblewrap too).
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import io
 import json
 import os
+import pickle
 import shutil
 import signal
 import subprocess
@@ -33,15 +38,27 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from ekfslam.analysis.lab_key import EXERCISES, KEY_ENV, write_key
+from ekfslam.analysis.lab_key import EXERCISES, read_key, write_key
+from ekfslam.analysis.parallel import run_tasks
 from ekfslam.cli import args as ca
-from ekfslam.errors import InputError
+from ekfslam.cli.lab_sandbox import INSTALL, seed_runs, unavailable
+from ekfslam.cli.lab_worker import MAX_FILE, clean, grade_task
+from ekfslam.errors import ConfigError, InputError
+from ekfslam.files import atomic_write_text
 from ekfslam.places import seed_run
-from ekfslam.teaching.make_lab import ASSIGNMENT, SOLUTIONS, generate_course
+from ekfslam.teaching.exercises import PREDICTIONS
+from ekfslam.teaching.make_lab import (
+    SOLUTIONS,
+    grader_meta,
+    read_notebook,
+    student_notebook,
+    write_notebook,
+)
 
 KEY = "key.pkl"
+LAYOUT = "course.json"
 DEFAULT_COURSE = Path("lab-course")
-NOTEBOOK_TIMEOUT_S = 300.0
+EXERCISE_TIMEOUT_S = 120.0
 #: the runs the lab's notebooks read (copied into the release beside them)
 LAB_RUNS = (
     "square-2laps",
@@ -57,8 +74,9 @@ Notebooks 02 to 07: exercises 1a to 9, each a function you write where a cell sa
 `# YOUR CODE HERE`, and a check cell below it that prints what is right or wrong. Until your
 function passes, the cells below use the package's version, so every notebook runs to its end.
 
-Install ekfslam (your instructor says from where; `pip install ekfslam` or the course's
-repository), then open the notebooks with `jupyter lab`. They read the seed's runs from the
+Install ekfslam from where your instructor says (it is not on PyPI: the course's copy of the
+repository, `pip install <that folder>`, or the wheel they hand out), then open the notebooks
+with `jupyter lab`. They read the seed's runs from the
 package (`ekfslam.places.seed_run`); `data/runs/` here holds the same runs to look at.
 
 **Predictions.** Some cells ask you to predict an outcome before the experiment runs. Your
@@ -66,8 +84,10 @@ first answer is recorded in `lab-predictions.json` beside the notebooks and is t
 counts: run each prediction cell once you have written your guess.
 
 **To hand in:** this folder's notebooks and `lab-predictions.json`, as they are, in one folder.
-Do not call the package's own version of an exercise from your function: the check notices it
-and the exercise then scores 0.
+Do not call the package's own version of an exercise from your function: the check notices it,
+and while your notebook is graded the package's version is not there at all (the exercise then
+scores 0). Each exercise is graded by running your notebook, on its own, up to that exercise's
+check cell: keep what your function needs in the cells above it.
 """
 
 
@@ -104,14 +124,25 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     grade.add_argument(
         "--timeout",
         type=ca.positive(),
-        default=NOTEBOOK_TIMEOUT_S,
-        help="seconds a notebook may run (default: %(default)g)",
+        default=EXERCISE_TIMEOUT_S,
+        help="seconds one exercise's sandbox may run, its notebook included (default: %(default)g)",
     )
     grade.add_argument(
         "--jobs",
         type=ca.whole(1, 64),
         default=max(1, os.cpu_count() or 1),
-        help="students graded at once (default: the cores, %(default)s)",
+        help="students graded at once on this machine (default: the cores, %(default)s)",
+    )
+    grade.add_argument(
+        "--dask",
+        metavar="ADDRESS",
+        help="grade on this Dask scheduler's workers (tcp://host:8786; each needs bubblewrap)",
+    )
+    grade.add_argument(
+        "--unsafe-no-sandbox",
+        action="store_true",
+        help="grade without a sandbox where none can be made (the notebooks can then read and "
+        "write whatever you can; the CSV and every feedback file say so)",
     )
     grade.set_defaults(func=cmd_grade)
 
@@ -144,29 +175,63 @@ def cmd_release(args: argparse.Namespace) -> int:
                 f"no lab notebook {', '.join(unknown)} (known: {', '.join(known)})",
             )
         sources = [known[n] for n in sorted(set(args.notebooks))]
+    release, course = args.dir.resolve(), args.course.resolve()
+    if release == course or release.is_relative_to(course) or course.is_relative_to(release):
+        raise InputError(str(args.dir), None, "the students' copy and the course must be apart")
     for folder in (args.dir, args.course):
-        if folder.exists() and any(folder.iterdir()):
+        if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
             if not args.overwrite:
                 raise InputError(str(folder), None, "is not empty (add --overwrite to replace it)")
-            shutil.rmtree(folder)
-    if args.dir.resolve().is_relative_to(args.course.resolve()):
-        raise InputError(str(args.dir), None, "the students' copy may not lie in the course")
-    args.course.mkdir(parents=True, exist_ok=True)
-    release = generate_course(args.course, sources)
-    seed = write_key(args.course / KEY, args.seed)
-    args.dir.mkdir(parents=True, exist_ok=True)
-    notebooks = sorted(release.glob("*.ipynb"))
-    for path in notebooks:
-        shutil.copyfile(path, args.dir / path.name)
-    for name in LAB_RUNS:
-        shutil.copytree(seed_run(name), args.dir / "data" / "runs" / name)
-    (args.dir / "README.md").write_text(STUDENT_README, encoding="utf-8")
-    print(f"wrote {args.dir}: {len(notebooks)} notebooks, {len(LAB_RUNS)} runs, README.md")
+    solved = [read_notebook(p) for p in sources]
+    staged = []
+    try:  # both folders made beside their targets, moved into place once whole
+        for target in (release, course):
+            target.parent.mkdir(parents=True, exist_ok=True)
+            staged.append(Path(tempfile.mkdtemp(prefix=f".{target.name}-", dir=target.parent)))
+        students, private = staged
+        for path, nb in zip(sources, solved, strict=True):
+            (students / path.name).write_text(
+                write_notebook(student_notebook(nb, str(path))), "utf-8"
+            )
+        for name in LAB_RUNS:
+            shutil.copytree(seed_run(name), students / "data" / "runs" / name)
+        (students / "README.md").write_text(STUDENT_README, encoding="utf-8")
+        (private / "source").mkdir()
+        for path in sources:
+            shutil.copyfile(path, private / "source" / path.name)
+        seed = write_key(private / KEY, args.seed, solved)
+        layout = course_layout(sources, solved, seed)
+        (private / LAYOUT).write_text(json.dumps(layout, indent=1) + "\n", encoding="utf-8")
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(students, 0o777 & ~mask)  # the hand-out, readable as any folder
+        os.chmod(private, 0o700)  # the course: the instructor's alone
+        for target, made in ((release, students), (course, private)):
+            if target.exists():
+                shutil.rmtree(target) if target.is_dir() else target.unlink()
+            made.rename(target)
+    finally:
+        for made in staged:
+            shutil.rmtree(made, ignore_errors=True)
+    print(f"wrote {args.dir}: {len(sources)} notebooks, {len(LAB_RUNS)} runs, README.md")
     print(
-        f"wrote {args.course}: the source notebooks with their hidden tests, the gradebook and "
-        f"the grading key (seed {seed}); keep it, and keep it from the students"
+        f"wrote {args.course}: the solved notebooks, the course's layout and the grading key "
+        f"(seed {seed}); keep it, and keep it from the students"
     )
     return 0
+
+
+def course_layout(sources: list[Path], solved: list[dict], seed: int) -> dict:
+    """What `grade` needs of the course besides the key: each notebook's exercises (by grade
+    id, in order) and predictions, and the CSV's columns."""
+    notebooks = {}
+    for path, nb in zip(sources, solved, strict=True):
+        ids = [grader_meta(c).get("grade_id") for c in nb["cells"] if grader_meta(c).get("grade")]
+        notebooks[path.stem] = {
+            "exercises": [i for i in ids if i in EXERCISES],
+            "predictions": [i for i in ids if i not in EXERCISES],
+        }
+    return {"version": 1, "seed": seed, "notebooks": notebooks}
 
 
 # --- grade -------------------------------------------------------------------------------------
@@ -174,71 +239,146 @@ def cmd_release(args: argparse.Namespace) -> int:
 
 def cmd_grade(args: argparse.Namespace) -> int:
     course = args.course
-    for needed in (course / KEY, course / "gradebook.db", course / "source" / ASSIGNMENT):
+    for needed in (course / KEY, course / LAYOUT, course / "source"):
         if not needed.exists():
             raise InputError(str(needed), None, "missing: run `lab release` into this course")
     if not args.submissions.is_dir():
         raise InputError(str(args.submissions), None, "is not a folder of student folders")
-    students = sorted(
-        p for p in args.submissions.iterdir() if p.is_dir() and not p.name.startswith(".")
-    )
-    if not students:
+    why = unavailable() if not args.unsafe_no_sandbox else None
+    if why is not None:
+        raise ConfigError(
+            f"lab grade: no sandbox to grade in: {why}; {INSTALL}; or add --unsafe-no-sandbox "
+            "to grade without one (the notebooks can then read and write whatever you can)"
+        )
+    sandboxed = not args.unsafe_no_sandbox
+    layout = _read_layout(course / LAYOUT)
+    key = read_key(course / KEY)
+    staged, dropped = stage(args.submissions)  # every submission copied before any is graded
+    if not staged:
         raise InputError(str(args.submissions), None, "holds no student folder")
     feedback = args.feedback or args.csv.with_name(args.csv.stem + "-feedback")
-    feedback.mkdir(parents=True, exist_ok=True)
-    notebooks = sorted((course / "source" / ASSIGNMENT).glob("*.ipynb"))
+    notebooks = _notebooks(course, layout)
     columns = course_columns(notebooks)
     started = time.perf_counter()
+    runs = seed_runs()
+    tasks = [
+        {
+            "student": student,
+            "files": files,
+            "course": {"notebooks": notebooks, "predictions": _outcomes(key, notebooks)},
+            "cases": key["cases"],
+            "timeout": args.timeout,
+            "sandboxed": sandboxed,
+            "runs": str(runs) if runs else None,
+        }
+        for student, files in staged.items()
+    ]
+    if args.dask:
+        results = run_tasks(grade_task, [(t,) for t in tasks], dask=args.dask)
+    else:
 
-    def one(folder: Path) -> dict:
-        result = grade_student(folder, course, args.timeout, len(notebooks))
-        print(f"{folder.name}: total {total(result, columns):.2f} of {len(columns)}", flush=True)
-        return result
+        def one(task: dict) -> dict:
+            result = grade_in_process(task, args.timeout * len(columns) + 60)
+            print(f"{task['student']}: total {total(result, columns):.2f} of {len(columns)}")
+            return result
 
-    with ThreadPoolExecutor(max_workers=args.jobs) as pool:
-        results = list(pool.map(one, students))
-    write_csv(args.csv, results, columns)
+        with ThreadPoolExecutor(max_workers=args.jobs) as pool:
+            results = list(pool.map(one, tasks))
+    for result, student in zip(results, staged, strict=True):
+        result["student"] = student  # the folder's name, whatever a worker sent back
+        result["dropped"] = dropped.get(student, [])
+    mode = "bubblewrap" if sandboxed else "none (--unsafe-no-sandbox)"
+    write_csv(args.csv, results, columns, mode)
+    feedback.mkdir(parents=True, exist_ok=True)
     for result in results:
-        text = feedback_text(result, columns)
-        (feedback / f"{result['student']}.txt").write_text(text, "utf-8")
+        atomic_write_text(
+            feedback / f"{result['student']}.txt", feedback_text(result, columns, mode)
+        )
     print(
-        f"graded {len(results)} students in {time.perf_counter() - started:.0f} s: wrote "
-        f"{args.csv} and {len(results)} feedback files in {feedback}"
+        f"graded {len(results)} students in {time.perf_counter() - started:.0f} s "
+        f"(sandbox: {mode}): wrote {args.csv} and {len(results)} feedback files in {feedback}"
     )
+    skipped = sum(len(v) for v in dropped.values())
+    if skipped:
+        print(f"left out {skipped} files that are not notebooks or {PREDICTIONS} (see feedback)")
     return 0
 
 
-def grade_student(folder: Path, course: Path, timeout: float, notebooks: int) -> dict:
-    """One student's grades, from a process of its own (killed, with its kernels, when it runs
-    past every notebook's time limit and a minute more)."""
+def _read_layout(path: Path) -> dict:
+    try:
+        layout = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as error:
+        raise InputError(str(path), None, f"not the course's layout ({error})") from None
+    if not isinstance(layout, dict) or layout.get("version") != 1:
+        raise InputError(str(path), None, "not a course of this ekfslam (run `lab release` again)")
+    return layout
+
+
+def _notebooks(course: Path, layout: dict) -> dict:
+    """Each notebook's exercises and predictions, with the students' copy as released (the
+    grader tells the student's own cells from it)."""
+    out = {}
+    for stem, entry in layout["notebooks"].items():
+        source = course / "source" / f"{stem}.ipynb"
+        released = student_notebook(read_notebook(source), str(source))
+        out[stem] = {**entry, "released": released}
+    return out
+
+
+def _outcomes(key: dict, notebooks: dict) -> dict:
+    wanted = {p for nb in notebooks.values() for p in nb["predictions"]}
+    return {k: v for k, v in key["predictions"].items() if k in wanted}
+
+
+def stage(submissions: Path) -> tuple[dict[str, dict[str, bytes]], dict[str, list[str]]]:
+    """Every student's notebooks and predictions file, read into memory now (a copy no student's
+    grading can change); the other entries of each folder, left out by name."""
+    staged: dict[str, dict[str, bytes]] = {}
+    dropped: dict[str, list[str]] = {}
+    for folder in sorted(submissions.iterdir()):
+        if folder.name.startswith(".") or folder.is_symlink() or not folder.is_dir():
+            continue
+        files, left = {}, []
+        for entry in sorted(folder.iterdir()):
+            wanted = entry.suffix == ".ipynb" or entry.name == PREDICTIONS
+            if not wanted:
+                left.append(f"{entry.name} (not a notebook)")
+            elif entry.is_symlink() or not entry.is_file():
+                left.append(f"{entry.name} (not a plain file)")
+            elif entry.stat().st_size > MAX_FILE:
+                left.append(f"{entry.name} (over {MAX_FILE // 2**20} MiB)")
+            else:
+                files[entry.name] = entry.read_bytes()
+        staged[folder.name] = files
+        dropped[folder.name] = left
+    return staged, dropped
+
+
+def grade_in_process(task: dict, limit: float) -> dict:
+    """`grade_task(task)` in a process of its own, killed with everything it started when it
+    runs past `limit` seconds."""
     with tempfile.TemporaryDirectory(prefix="ekfslam-lab-") as tmp:
-        out = Path(tmp) / "result.json"
-        command = [
-            sys.executable,
-            "-m",
-            "ekfslam.cli.lab_worker",
-            str(folder.resolve()),
-            str(course.resolve()),
-            str(out),
-            str(timeout),
-        ]
-        env = {**os.environ, KEY_ENV: str((course / KEY).resolve()), "MPLBACKEND": "Agg"}
-        process = subprocess.Popen(
-            command,
-            env=env,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-            start_new_session=True,  # its kernels too: one signal ends them all
-        )
-        try:
-            _, err = process.communicate(timeout=timeout * notebooks + 60)
-        except subprocess.TimeoutExpired:
-            os.killpg(process.pid, signal.SIGKILL)
-            process.communicate()
-            return _failed(folder.name, f"grading stopped after {timeout * notebooks + 60:g} s")
+        task_file, out = Path(tmp) / "task.pickle", Path(tmp) / "result.json"
+        task_file.write_bytes(pickle.dumps(task, protocol=pickle.HIGHEST_PROTOCOL))
+        command = [sys.executable, "-m", "ekfslam.cli.lab_worker", str(task_file), str(out)]
+        with open(Path(tmp) / "stderr.txt", "wb") as err:
+            process = subprocess.Popen(
+                command,
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=err,
+                start_new_session=True,  # its sandboxes too: one signal ends them all
+            )
+            try:
+                process.wait(timeout=limit)
+            except subprocess.TimeoutExpired:
+                os.killpg(process.pid, signal.SIGKILL)
+                process.wait()
+                return _failed(task["student"], f"grading stopped after {limit:g} s")
         if process.returncode != 0 or not out.exists():
-            last = (err or b"").decode("utf-8", "replace").strip().splitlines()[-1:] or ["?"]
-            return _failed(folder.name, f"the grader failed: {last[0]}")
+            text = (Path(tmp) / "stderr.txt").read_bytes()[-4000:].decode("utf-8", "replace")
+            last = text.strip().splitlines()[-1:] or ["?"]
+            return _failed(task["student"], f"the grader failed: {clean(last[0])}")
         return json.loads(out.read_text("utf-8"))
 
 
@@ -246,15 +386,10 @@ def _failed(student: str, why: str) -> dict:
     return {"student": student, "scores": {}, "lines": {}, "notebooks": {"(all)": why}}
 
 
-def course_columns(notebooks: list[Path]) -> list[str]:
-    """The CSV's score columns: the grade ids of the course's check cells, the exercises first
-    (1a, 1b, 2a, ... 9), then the graded predictions (predict-02, ...)."""
-    ids = []
-    for path in notebooks:
-        for cell in json.loads(path.read_text(encoding="utf-8"))["cells"]:
-            meta = cell.get("metadata", {}).get("nbgrader", {})
-            if meta.get("grade"):
-                ids.append(meta["grade_id"])
+def course_columns(notebooks: dict) -> list[str]:
+    """The CSV's score columns: the exercises first (1a, 1b, 2a, ... 9), then the graded
+    predictions (predict-02, ...)."""
+    ids = [i for nb in notebooks.values() for i in nb["exercises"] + nb["predictions"]]
     return [n for n in EXERCISES if n in ids] + [i for i in ids if i not in EXERCISES]
 
 
@@ -262,23 +397,29 @@ def total(result: dict, columns: list[str]) -> float:
     return float(sum(result["scores"].get(c, 0.0) for c in columns))
 
 
-def write_csv(path: Path, results: list[dict], columns: list[str]) -> None:
+def write_csv(path: Path, results: list[dict], columns: list[str], mode: str) -> None:
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(["student", *columns, "total", "sandbox"])
+    for r in results:
+        scores = [f"{r['scores'].get(c, 0.0):.4g}" for c in columns]
+        writer.writerow([r["student"], *scores, f"{total(r, columns):.4g}", mode])
     path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="", encoding="utf-8") as f:
-        writer = csv.writer(f)
-        writer.writerow(["student", *columns, "total"])
-        for r in results:
-            scores = [f"{r['scores'].get(c, 0.0):.4g}" for c in columns]
-            writer.writerow([r["student"], *scores, f"{total(r, columns):.4g}"])
+    atomic_write_text(path, out.getvalue())
 
 
-def feedback_text(result: dict, columns: list[str]) -> str:
+def feedback_text(result: dict, columns: list[str], mode: str) -> str:
     lines = [f"Lab feedback for {result['student']}", ""]
-    lines += [f"{name}: {status}" for name, status in sorted(result["notebooks"].items())]
+    if not mode.startswith("bubblewrap"):
+        lines += ["GRADED WITHOUT A SANDBOX (--unsafe-no-sandbox)", ""]
+    lines += [
+        f"{name}: {clean(status, 600)}" for name, status in sorted(result["notebooks"].items())
+    ]
+    lines += [f"left out: {clean(d)}" for d in result.get("dropped", [])]
     lines.append("")
     for column in columns:
         score = result["scores"].get(column, 0.0)
         lines.append(f"{column}: {score:.2f}")
-        lines += [f"    {line}" for line in result["lines"].get(column, [])]
+        lines += [f"    {clean(line)}" for line in result["lines"].get(column, [])]
     lines += ["", f"total: {total(result, columns):.2f} of {len(columns)}"]
     return "\n".join(lines) + "\n"

@@ -1,163 +1,217 @@
-"""One student's grading for ``python -m ekfslam lab grade``, in a process of its own:
-``python -m ekfslam.cli.lab_worker STUDENT_FOLDER COURSE RESULT.json TIMEOUT``.
+"""One student's grading for ``python -m ekfslam lab grade``: the grader's side, which alone holds
+the key. ``python -m ekfslam.cli.lab_worker TASK.pickle RESULT.json`` (a process per student, so
+one submission never stops the others), or `grade_task` on a Dask worker.
 
-The student's folder is copied into a private copy of the course (its own gradebook, so students
-are graded side by side), and nbgrader's ``autograde`` grades each notebook on its own: the check
-cells restored from the course's source (a student's edit of one does not count), every cell
-executed, the hidden tests run against the key of ``$EKFSLAM_LAB_KEY``. A notebook has
-``TIMEOUT`` seconds in all (`DeadlineExecute`); once they are spent every further cell gets a
-second, and the notebook scores 0. Each grade cell's score is nbgrader's (an error or output on
-stderr is 0; the hidden test's number is the partial credit); the lines it printed become the
-student's feedback. The result is written as JSON for the parent.
+For each exercise of each notebook, the student's notebook runs in a sandbox of its own
+(`ekfslam.cli.lab_sandbox`) up to that exercise's check cell; the exercise's judge
+(`ekfslam.teaching.verdicts`) then runs here, on the key's cases, calling the student's function
+in the sandbox for each input it needs; the score and every line of feedback are computed here.
+A notebook that is missing or unreadable, a function that is not defined, a sandbox that dies,
+runs out of time or answers what is not a value: that exercise scores 0, and the feedback says
+why. No check cell of the student's notebook decides anything (the sandbox's checks say yes and
+judge nothing), and no output of the notebook is read: a silenced cell or a printed "Right!"
+earns nothing. Predictions are read from the submitted ``lab-predictions.json`` only and
+compared with the outcomes the release recorded from the solutions.
 """
 
 from __future__ import annotations
 
+import ast
 import json
-import logging
-import shutil
+import pickle
+import re
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-import nbformat
-from nbconvert.preprocessors import ClearMetadataPreprocessor
-from nbgrader.converters import Autograde
-from nbgrader.coursedir import CourseDirectory
-from nbgrader.preprocessors import (
-    AssignLatePenalties,
-    CheckCellMetadata,
-    Execute,
-    IgnorePattern,
-    LimitOutput,
-    SaveAutoGrades,
-)
-from nbgrader.utils import determine_grade
-from traitlets import Float
-
+from ekfslam.analysis.lab_key import EXERCISES
+from ekfslam.cli.lab_sandbox import Sandbox, SandboxAnswer, SandboxFailed, package_for
 from ekfslam.teaching.exercises import PREDICTIONS
-from ekfslam.teaching.make_lab import ASSIGNMENT, nbgrader_config
+from ekfslam.teaching.make_lab import grader_meta
+from ekfslam.teaching.verdicts import run_exercise
 
-TIMED_OUT = "CellTimeoutError"
-
-
-class DeadlineExecute(Execute):
-    """nbgrader's Execute with one time limit for the whole notebook, not one per cell."""
-
-    notebook_timeout = Float(300.0).tag(config=True)
-
-    def preprocess(self, nb, resources=None, km=None):  # type: ignore[no-untyped-def]
-        deadline = time.monotonic() + self.notebook_timeout
-        self.timeout_func = lambda cell: max(deadline - time.monotonic(), 1.0)
-        return super().preprocess(nb, resources, km)
+MAX_FILE = 20 * 2**20  # bytes of one submitted file
+MAX_LINE = 300
+_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u200b-\u200f\u202a-\u202e\u2066-\u2069]")
+#: packages built in this process, per exercise (a Dask worker grades many students)
+_PACKAGES: dict[tuple[str, bool], Path] = {}
+_PACKAGE_ROOT: list[tempfile.TemporaryDirectory] = []
 
 
-def grade(folder: Path, course: Path, timeout: float) -> dict:
-    """The student's scores (grade id -> 0..1), the lines each check printed, and each
-    notebook's status."""
-    student = folder.name
-    names = sorted(p.stem for p in (course / "source" / ASSIGNMENT).glob("*.ipynb"))
+def clean(text: object, limit: int = MAX_LINE) -> str:
+    """`text` on one line, without control characters (a terminal's escape codes)."""
+    return _CONTROL.sub("", " ".join(str(text).split()))[:limit]
+
+
+def packages(numbers: list[str], sandboxed: bool) -> dict[str, Path]:
+    """Each exercise's sandbox package, built once per process."""
+    if not _PACKAGE_ROOT:
+        _PACKAGE_ROOT.append(tempfile.TemporaryDirectory(prefix="ekfslam-lab-packages-"))
+    root = Path(_PACKAGE_ROOT[0].name)
+    for n in numbers:
+        if (n, sandboxed) not in _PACKAGES:
+            folder = root / f"{n}-{'sandbox' if sandboxed else 'plain'}"
+            _PACKAGES[(n, sandboxed)] = package_for(EXERCISES[n], folder, sandboxed=sandboxed)
+    return {n: _PACKAGES[(n, sandboxed)] for n in numbers}
+
+
+def _student_cells(notebook: dict, released: dict | None) -> list[str]:
+    """The sources of the student's own code: the answer cells and any cell not in the
+    students' copy as released."""
+    known = set()
+    if released is not None:
+        known = {"".join(c.get("source", [])) for c in released.get("cells", [])}
+    own = []
+    for cell in notebook.get("cells", []):
+        if not isinstance(cell, dict) or cell.get("cell_type") != "code":
+            continue
+        source = cell.get("source", "")
+        source = "".join(source) if isinstance(source, list) else str(source)
+        if grader_meta(cell).get("solution") or source not in known:
+            own.append(source)
+    return own
+
+
+def derives(sources: list[str]) -> bool:
+    """True when the student's own code asks sympy to differentiate (``.jacobian``, ``diff``):
+    read from the source here, not reported by the student's process."""
+    for source in sources:
+        try:
+            tree = ast.parse(source)
+        except SyntaxError:
+            continue  # IPython syntax (a magic): no derivation to find in it
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call):
+                f = node.func
+                name = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", "")
+                if name in ("jacobian", "diff"):
+                    return True
+    return False
+
+
+def grade_predictions(raw: bytes | None, outcomes: dict[str, dict[str, str]]) -> dict:
+    """Each prediction's score from the submitted file: the share of its keys whose recorded
+    first answer is the outcome."""
+    scores, lines = {}, {}
+    recorded: dict = {}
+    problem = None
+    if raw is None:
+        problem = f"no {PREDICTIONS} was handed in: predictions score 0"
+    else:
+        try:
+            recorded = json.loads(raw.decode("utf-8"))
+        except (UnicodeDecodeError, ValueError, RecursionError):
+            problem = f"{PREDICTIONS} is not JSON: predictions score 0"
+        if not isinstance(recorded, dict):
+            recorded, problem = {}, problem or f"{PREDICTIONS} is not a JSON object"
+    for grade_id, keys in outcomes.items():
+        right = [recorded.get(k) == outcome for k, outcome in keys.items()]
+        scores[grade_id] = round(sum(right) / len(right), 4) if right else 0.0
+        said = [k for k in keys if isinstance(recorded.get(k), str)]
+        lines[grade_id] = (
+            [problem]
+            if problem
+            else [
+                f"{k}: recorded {clean(recorded[k], 60)!r}, "
+                + ("right" if recorded[k] == keys[k] else "not what happened")
+                for k in said
+            ]
+            or ["no prediction recorded"]
+        )
+    return {"scores": scores, "lines": lines}
+
+
+def grade_task(task: dict) -> dict:
+    """One student's result: {"student", "scores", "lines", "notebooks"}; `task` holds the
+    student's files (name -> bytes), the key's cases, the course's layout and the limits."""
+    student, files, course = task["student"], task["files"], task["course"]
+    sandboxed, timeout = task["sandboxed"], float(task["timeout"])
+    numbers = [n for nb in course["notebooks"].values() for n in nb["exercises"]]
+    built = packages(numbers, sandboxed)
     result: dict = {"student": student, "scores": {}, "lines": {}, "notebooks": {}}
+    runs = task.get("runs")
     with tempfile.TemporaryDirectory(prefix="ekfslam-grade-") as tmp:
-        root = Path(tmp)
-        shutil.copytree(course / "source", root / "source")
-        shutil.copyfile(course / "gradebook.db", root / "gradebook.db")
-        submitted = root / "submitted" / student / ASSIGNMENT
-        shutil.copytree(folder, submitted)
-        for name in names:
-            path = submitted / f"{name}.ipynb"
-            if not path.is_file():
-                result["notebooks"][name] = "missing: its exercises score 0"
-                continue
+        for stem, layout in course["notebooks"].items():
             started = time.monotonic()
-            try:
-                nbformat.read(path, as_version=4)
-            except Exception as error:
-                result["notebooks"][name] = f"not a readable notebook ({type(error).__name__})"
+            name = f"{stem}.ipynb"
+            raw = files.get(name)
+            if raw is None:
+                result["notebooks"][stem] = "missing: its exercises score 0"
                 continue
-            status = _autograde(root, student, name, timeout)
-            graded = root / "autograded" / student / ASSIGNMENT / f"{name}.ipynb"
-            if status is None and graded.is_file():
-                status = _collect(nbformat.read(graded, as_version=4), result, timeout)
-            result["notebooks"][name] = status or f"graded in {time.monotonic() - started:.0f} s"
+            try:
+                notebook = json.loads(raw.decode("utf-8"))
+                if not isinstance(notebook, dict) or not isinstance(notebook.get("cells"), list):
+                    raise ValueError("no list of cells")
+            except (UnicodeDecodeError, ValueError, RecursionError) as error:
+                result["notebooks"][stem] = f"not a readable notebook ({clean(error, 80)})"
+                continue
+            path = Path(tmp) / name
+            path.write_bytes(raw)
+            own = _student_cells(notebook, layout.get("released"))
+            problems = []
+            for n in layout["exercises"]:
+                score, lines, trouble = _grade_exercise(
+                    n, built[n], path, task["cases"][n], own, timeout, sandboxed, runs
+                )
+                result["scores"][n], result["lines"][n] = score, lines
+                problems += trouble
+            status = f"graded in {time.monotonic() - started:.0f} s"
+            if problems:
+                status += "; " + "; ".join(dict.fromkeys(problems))
+            result["notebooks"][stem] = clean(status, 600)
+    predicted = grade_predictions(files.get(PREDICTIONS), course["predictions"])
+    result["scores"] |= predicted["scores"]
+    result["lines"] |= predicted["lines"]
+    result["lines"] = {k: [clean(line) for line in v] for k, v in result["lines"].items()}
     return result
 
 
-def _autograde(root: Path, student: str, notebook: str, timeout: float) -> str | None:
-    """nbgrader's autograde of one notebook; None when it ran, else why it could not."""
-    config = nbgrader_config(root, database=True)
-    config.CourseDirectory.student_id = student
-    config.CourseDirectory.notebook_id = notebook
-    config.Autograde.autograde_preprocessors = [
-        DeadlineExecute,
-        IgnorePattern,
-        ClearMetadataPreprocessor,
-        LimitOutput,
-        SaveAutoGrades,
-        AssignLatePenalties,
-        CheckCellMetadata,
-    ]
-    config.DeadlineExecute.notebook_timeout = timeout
-    config.Execute.interrupt_on_timeout = True
-    converter = Autograde(coursedir=CourseDirectory(config=config), config=config)
-    converter.log.setLevel(logging.CRITICAL)
-    converter.force = True
-    started = time.monotonic()
+def _grade_exercise(
+    n: str,
+    package: Path,
+    notebook: Path,
+    cases: list[dict],
+    own: list[str],
+    timeout: float,
+    sandboxed: bool,
+    runs: str | None,
+) -> tuple[float, list[str], list[str]]:
+    exercise = EXERCISES[n]
     try:
-        converter.start()
-    except Exception as error:  # a dead kernel, a broken notebook: the student's, not ours
-        if time.monotonic() - started >= timeout:  # a kernel that did not stop when told
-            return f"did not finish within {timeout:g} s: its exercises score 0"
-        return f"could not be run ({type(error).__name__}): its exercises score 0"
-    return None
-
-
-def _collect(nb, result: dict, timeout: float) -> str | None:
-    """Scores and printed lines of the grade cells of an autograded notebook; a status when the
-    notebook ran out of time (then each of its exercises scores 0)."""
-    hung = any(
-        out.get("output_type") == "error" and out.get("ename") == TIMED_OUT
-        for cell in nb.cells
-        for out in cell.get("outputs", [])
-    )
-    errors = []
-    for i, cell in enumerate(nb.cells):
-        meta = cell.metadata.get("nbgrader", {})
-        outputs = cell.get("outputs", [])
-        if meta.get("grade") and cell.cell_type == "code":
-            grade_id = meta["grade_id"]
-            score, points = determine_grade(cell)
-            result["scores"][grade_id] = 0.0 if hung else round(float(score or 0.0) / points, 4)
-            result["lines"][grade_id] = _printed(outputs)
-        elif cell.cell_type == "code":
-            errors += [
-                f"cell {i} raised {o.get('ename')}: {o.get('evalue')}"[:200]
-                for o in outputs
-                if o.get("output_type") == "error"
-            ]
-    if hung:
-        return f"did not finish within {timeout:g} s: its exercises score 0"
-    if errors:
-        return "ran, with errors outside the checks: " + "; ".join(errors)
-    return None
-
-
-def _printed(outputs: list) -> list[str]:
-    lines = []
-    for out in outputs:
-        if out.get("output_type") == "stream":
-            lines += [line for line in out.get("text", "").splitlines() if line.strip()]
-        elif out.get("output_type") == "error":
-            lines.append(f"{out.get('ename')}: {out.get('evalue')}"[:300])
-    return lines
+        with Sandbox(
+            package,
+            notebook,
+            exercise,
+            n,
+            timeout,
+            sandboxed=sandboxed,
+            runs=Path(runs) if runs else None,
+        ) as box:
+            if not box.defined:
+                why = f"Exercise {n}: your notebook does not define {exercise.function} before "
+                why += "its check"
+                first = f" ({box.errors[-1]})" if box.errors else "."
+                return 0.0, [why + first], []
+            answer = SandboxAnswer(box, derives(own))
+            verdict = run_exercise(exercise, answer, cases)
+            said = verdict.line
+            if not verdict.done:
+                said = f"Exercise {n}: not done yet: {exercise.function} is still the stub."
+            line = f"Graded on {verdict.total} cases you have not seen: {said}"
+            return round(verdict.score, 4), [line], []
+    except SandboxFailed as failed:
+        if str(failed) == "timeout":
+            why = f"did not finish within {timeout:g} s"
+        else:
+            why = str(failed)
+        return 0.0, [f"Exercise {n}: scores 0: {clean(why)}"], [f"exercise {n}: {clean(why, 120)}"]
 
 
 def main(argv: list[str]) -> int:
-    folder, course, out, timeout = Path(argv[0]), Path(argv[1]), Path(argv[2]), float(argv[3])
-    result = grade(folder, course, timeout)
-    result["predictions_file"] = (folder / PREDICTIONS).is_file()
-    out.write_text(json.dumps(result), encoding="utf-8")
+    task_path, out = Path(argv[0]), Path(argv[1])
+    task = pickle.loads(task_path.read_bytes())  # the grader's own file, written for this run
+    out.write_text(json.dumps(grade_task(task)), encoding="utf-8")
     return 0
 
 

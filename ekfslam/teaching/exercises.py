@@ -17,7 +17,6 @@ book and filterpy use the reverse).
 from __future__ import annotations
 
 import json
-import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -52,8 +51,6 @@ from ekfslam.teaching.verdicts import (
 
 #: The file beside the notebook that keeps each prediction's first answer (`check_prediction`).
 PREDICTIONS = "lab-predictions.json"
-#: Set by nbgrader while it grades (`autograde`): predictions are read, never recorded.
-GRADING_ENV = "NBGRADER_EXECUTION"
 
 
 def check_answer(answer: object, expected: ArrayLike, atol: float = 1e-6) -> bool:
@@ -117,8 +114,8 @@ def check_prediction(
 
     With a `key` the first valid prediction is recorded in `PREDICTIONS` beside the notebook and
     is the one judged ever after: changing the cell and running it again after seeing the outcome
-    does not change it. While the lab is graded nothing is recorded: a prediction that was never
-    recorded scores nothing.
+    does not change it. The grader reads the recorded file the student hands in, and nothing
+    else (`ekfslam.cli.lab_worker.grade_predictions`).
     """
     if outcome not in choices:
         raise ValueError(f"outcome {outcome!r} is not one of {list(choices)}")
@@ -131,9 +128,6 @@ def check_prediction(
                 "that counts."
             )
         prediction = first
-    elif key is not None and os.environ.get(GRADING_ENV):
-        print(f"No prediction was recorded for {key} before the experiment ran.")
-        return False
     if prediction is None:
         print(f"Not answered yet: write your prediction ({listed}) before you run the experiment.")
         return False
@@ -199,7 +193,22 @@ def _judge_twist(call: Callable, case: dict) -> None:
         raise Wrong("right for one wheel at a time but not for several: is it linear?")
 
 
-TWIST_EXERCISE = Exercise("1a", "twist_from_wheels", _twist_cases, _judge_twist)
+#: what computes a twist or its noise from wheel speeds: left out while 1a or 1b is graded
+_TWIST_WORK = (
+    "ekfslam.core.kinematics:wheels_to_twist",
+    "ekfslam.core.kinematics:twist_to_wheels",
+    "ekfslam.core.kinematics:wheel_noise_to_twist_covariance",
+    "ekfslam.core.kinematics:MecanumGeometry.twist_to_wheels_matrix",
+)
+
+TWIST_EXERCISE = Exercise(
+    "1a",
+    "twist_from_wheels",
+    _twist_cases,
+    _judge_twist,
+    keeps=("ekfslam.core.kinematics",),
+    denies=(*_TWIST_WORK, "ekfslam.core.kinematics:MecanumGeometry.wheels_to_twist_matrix"),
+)
 
 
 def check_twist(twist_from_wheels: Callable[[Array, MecanumGeometry], object]) -> bool:
@@ -240,6 +249,8 @@ TWIST_COVARIANCE_EXERCISE = Exercise(
     _twist_covariance_cases,
     _judge_twist_covariance,
     allowed=lambda: (MecanumGeometry.wheels_to_twist_matrix,),  # exercise 1a's J
+    keeps=("ekfslam.core.kinematics",),
+    denies=_TWIST_WORK,
 )
 
 
@@ -294,6 +305,12 @@ MOTION_JACOBIANS_EXERCISE = Exercise(
     _judge_motion_jacobians,
     numeric=False,
     differentiates=True,
+    keeps=("ekfslam.teaching.symbols", "ekfslam.core.models"),
+    denies=(
+        "ekfslam.core.models:motion_jacobian",
+        "ekfslam.core.models:motion_control_jacobian",
+        "ekfslam.core.models:motion_noise",
+    ),
 )
 
 
@@ -330,7 +347,14 @@ def _judge_motion_noise(call: Callable, case: dict) -> None:
     entry_verdict(got, want, "R", POSE_NAMES, POSE_NAMES)
 
 
-MOTION_NOISE_EXERCISE = Exercise("2b", "motion_noise_R", _motion_noise_cases, _judge_motion_noise)
+MOTION_NOISE_EXERCISE = Exercise(
+    "2b",
+    "motion_noise_R",
+    _motion_noise_cases,
+    _judge_motion_noise,
+    keeps=("ekfslam.teaching.symbols", "ekfslam.core.models"),
+    denies=("ekfslam.core.models:motion_noise", "ekfslam.core.models:motion_control_jacobian"),
+)
 
 
 def check_motion_noise(motion_noise_R: Callable[[Array, Array], object]) -> bool:
@@ -447,6 +471,7 @@ PREDICT_EXERCISE = Exercise(
     _predict_cases,
     _judge_predict,
     allowed=lambda: (models.motion, models.motion_jacobian, wrap_angle),  # eq. (6), 2a's G
+    keeps=("ekfslam.teaching.symbols", "ekfslam.core.models"),
 )
 
 

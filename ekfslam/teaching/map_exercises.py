@@ -122,6 +122,8 @@ OBSERVATION_MODEL_EXERCISE = Exercise(
     _judge_observation_model,
     numeric=False,
     differentiates=True,
+    keeps=("ekfslam.teaching.symbols", "ekfslam.core.models"),
+    denies=("ekfslam.core.models:observation", "ekfslam.core.models:observation_jacobians"),
 )
 
 
@@ -147,6 +149,8 @@ PREDICTED_OBSERVATION_EXERCISE = Exercise(
     _observation_cases,
     _judge_predicted_observation,
     allowed=lambda: (wrap_angle,),
+    keeps=("ekfslam.teaching.symbols", "ekfslam.core.models"),
+    denies=("ekfslam.core.models:observation", "ekfslam.core.models:observation_jacobians"),
 )
 
 
@@ -222,6 +226,7 @@ NEW_LANDMARK_EXERCISE = Exercise(
     _new_landmark_cases,
     _judge_new_landmark,
     allowed=lambda: (models.inverse_observation, models.inverse_observation_jacobians, wrap_angle),
+    keeps=("ekfslam.teaching.symbols", "ekfslam.core.models"),
 )
 
 
@@ -282,7 +287,9 @@ def _judge_joseph(call: Callable, case: dict) -> None:
     raise Wrong(f"your Σ is wrong with {gain} (Joseph's form holds for any gain).")
 
 
-JOSEPH_EXERCISE = Exercise("6a", "joseph", _joseph_cases, _judge_joseph)
+JOSEPH_EXERCISE = Exercise(
+    "6a", "joseph", _joseph_cases, _judge_joseph, keeps=("ekfslam.core.models",)
+)
 
 
 def check_joseph(joseph: Callable[[Array, Array, Array, Array], object]) -> bool:
@@ -435,6 +442,8 @@ UPDATE_EXERCISE = Exercise(
     _judge_update,
     allowed=lambda: (models.observation, models.observation_jacobians, wrap_angle, _WatchedJoseph),
     session=_watching_joseph,
+    watches="joseph",
+    keeps=("ekfslam.core.models",),
 )
 
 
@@ -506,7 +515,12 @@ def _judge_nis_gate(call: Callable, case: dict) -> None:
 
 
 NIS_GATE_EXERCISE = Exercise(
-    "7", "nis_gate", _gate_cases, _judge_nis_gate, allowed=lambda: (wrap_angle,)
+    "7",
+    "nis_gate",
+    _gate_cases,
+    _judge_nis_gate,
+    allowed=lambda: (wrap_angle,),
+    keeps=("ekfslam.core.models",),
 )
 
 

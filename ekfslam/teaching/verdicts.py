@@ -82,7 +82,13 @@ class Exercise:
     (functions, classes, modules); `numeric` answers must vary with their inputs;
     `differentiates`: sympy must derive the answer (`.jacobian`, `.diff`); a function that
     `returns` nothing (exercise 8) is judged by what it did; `session(fn)` wraps every case
-    (exercise 6b watches the student's `joseph`) and may raise `Wrong` when it ends."""
+    (exercise 6b watches the student's `joseph`, named by `watches`) and may raise `Wrong` when
+    it ends.
+
+    While the lab is graded the function runs in a sandbox (`ekfslam.cli.lab_sandbox`) that
+    holds of the package only the modules `keeps` names (and what they import), with the
+    functions of `denies` (``module:qualname``) raising: the package's own answer and whatever
+    does the same work are absent there."""
 
     number: str
     function: str
@@ -93,14 +99,43 @@ class Exercise:
     differentiates: bool = False
     returns: bool = True
     session: Callable[[Callable], contextlib.AbstractContextManager] | None = None
+    watches: str | None = None
+    keeps: tuple[str, ...] = ()
+    denies: tuple[str, ...] = ()
 
 
-@dataclass(frozen=True)
-class Shared:
-    """An input the student's function gets as it is, not a copy (exercise 8's filter, which
-    the function is meant to drive)."""
+class Driven:
+    """An input the student's function drives rather than reads (exercise 8's filter): the
+    function gets `build()`'s object, and the judge gets `snapshot(obj)` afterwards in place of
+    the function's return value. Subclasses say what is built."""
 
-    value: object
+    def build(self) -> object:
+        raise NotImplementedError
+
+    def snapshot(self, built: object) -> object:
+        raise NotImplementedError
+
+
+class Remote:
+    """A student's function that runs elsewhere (the grader's sandbox): `invoke(args)` returns
+    {"result"} or {"raised", "message", "forbidden"} with "mutated"; `differentiates` is what
+    the grader read of the answer's source; `session(name)` watches a notebook function."""
+
+    differentiated: bool = False
+
+    def invoke(self, args: list) -> dict:
+        raise NotImplementedError
+
+    def session(self, exercise: Exercise) -> contextlib.AbstractContextManager:
+        return contextlib.nullcontext()
+
+
+class Raised(Exception):
+    """What a student's function raised in the sandbox (its type's name and message)."""
+
+    def __init__(self, ename: str, message: str) -> None:
+        super().__init__(message)
+        self.ename = ename
 
 
 @dataclass
@@ -114,8 +149,11 @@ class _Calls:
     differentiated: bool = False
 
     def __call__(self, *named: tuple[str, object]) -> object:
+        if isinstance(self.fn, Remote):
+            return self._remote(named)
         originals = [value for _, value in named]
-        given = [v.value if isinstance(v, Shared) else copy.deepcopy(v) for v in originals]
+        built = {i: v.build() for i, v in enumerate(originals) if isinstance(v, Driven)}
+        given = [built[i] if i in built else copy.deepcopy(v) for i, v in enumerate(originals)]
         with warnings.catch_warnings(), contextlib.redirect_stderr(io.StringIO()):
             warnings.simplefilter("ignore")  # a warning on stderr would cost the grade
             result, watch = tripwire.call_watched(self.fn, tuple(given), self.allowed)
@@ -124,16 +162,44 @@ class _Calls:
                 f"you called the package's {watch.forbidden[0]}: write it yourself."
             ) from None
         self.differentiated |= watch.differentiated
-        for (name, original), after in zip(named, given, strict=True):
-            if not isinstance(original, Shared) and not _same(original, after):
-                raise Wrong(
-                    f"your function changed the {name} it was given: compute a new array "
-                    "(np.array(x) copies one) and leave its inputs as they were."
-                )
+        for i, ((name, original), after) in enumerate(zip(named, given, strict=True)):
+            if i not in built and not _same(original, after):
+                raise _changed(name)
+        for i, thing in built.items():
+            result = originals[i].snapshot(thing)
+        return self._keep(result)
+
+    def _remote(self, named: tuple[tuple[str, object], ...]) -> object:
+        answer = self.fn.invoke([value for _, value in named])
+        self.differentiated |= self.fn.differentiated
+        if answer.get("forbidden"):
+            what = str(answer.get("message", "")).removeprefix("the package's ")
+            what = what.split(" is not available", 1)[0]
+            raise Tripped(f"you called the package's {what}: write it yourself.")
+        if "result" not in answer:
+            ename, message = str(answer.get("raised")), str(answer.get("message", ""))
+            if ename == "NotImplementedError":
+                raise NotImplementedError(message)
+            if ename == "Wrong":
+                raise Wrong(message)
+            raise Raised(ename, message)
+        for i in answer["mutated"]:
+            if 0 <= i < len(named) and not isinstance(named[i][1], Driven):
+                raise _changed(named[i][0])
+        return self._keep(answer["result"])
+
+    def _keep(self, result: object) -> object:
         if result is None and self.returns:
             raise NotDone
         self.results.append(result)
         return result
+
+
+def _changed(name: str) -> Wrong:
+    return Wrong(
+        f"your function changed the {name} it was given: compute a new array "
+        "(np.array(x) copies one) and leave its inputs as they were."
+    )
 
 
 def _same(a: object, b: object) -> bool:
@@ -190,7 +256,12 @@ def run_exercise(exercise: Exercise, fn: Callable, cases: list[dict]) -> Verdict
     n = exercise.number
     calls = _Calls(fn, tripwire.code_objects(exercise.allowed()), exercise.returns)
     passed, wrong, crashed = 0, [], []
-    session = exercise.session(fn) if exercise.session else contextlib.nullcontext()
+    if isinstance(fn, Remote):
+        session = fn.session(exercise)
+    elif exercise.session:
+        session = exercise.session(fn)
+    else:
+        session = contextlib.nullcontext()
     with _precision():
         try:
             with session:
@@ -208,6 +279,8 @@ def run_exercise(exercise: Exercise, fn: Callable, cases: list[dict]) -> Verdict
                         wrong.append(str(outcome) or "your function returned None.")
                     except NotImplementedError:
                         raise NotDone from None
+                    except Raised as error:
+                        crashed.append(f"{error.ename}: {error}")
                     except Exception as error:
                         crashed.append(f"{type(error).__name__}: {error}")
         except NotDone:

@@ -80,7 +80,6 @@ def test_the_first_prediction_is_recorded_and_a_rerun_cannot_change_it(
     tmp_path, monkeypatch, capsys
 ) -> None:
     monkeypatch.chdir(tmp_path)  # Jupyter runs a notebook in its own folder
-    monkeypatch.delenv("NBGRADER_EXECUTION", raising=False)
     assert check_prediction("smaller", "larger", CHOICES, WHY, key="06-sigma") is False
     assert json.loads((tmp_path / PREDICTIONS).read_text()) == {"06-sigma": "smaller"}
     capsys.readouterr()
@@ -96,7 +95,6 @@ def test_nothing_is_recorded_before_a_valid_prediction_and_keys_are_apart(
     tmp_path, monkeypatch, capsys
 ) -> None:
     monkeypatch.chdir(tmp_path)
-    monkeypatch.delenv("NBGRADER_EXECUTION", raising=False)
     check_prediction(None, "larger", CHOICES, WHY, key="a")
     check_prediction("bigger", "larger", CHOICES, WHY, key="a")
     assert not (tmp_path / PREDICTIONS).exists()
@@ -105,14 +103,18 @@ def test_nothing_is_recorded_before_a_valid_prediction_and_keys_are_apart(
     assert recorded_predictions(tmp_path) == {"a": "larger", "b": "smaller"}
 
 
-def test_while_grading_only_a_recorded_prediction_counts(tmp_path, monkeypatch, capsys) -> None:
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.setenv("NBGRADER_EXECUTION", "autograde")
-    assert check_prediction("larger", "larger", CHOICES, WHY, key="06-sigma") is False
-    assert "No prediction was recorded for 06-sigma" in capsys.readouterr().out
-    assert not (tmp_path / PREDICTIONS).exists()
-    (tmp_path / PREDICTIONS).write_text(json.dumps({"06-sigma": "larger"}))
-    assert check_prediction("smaller", "larger", CHOICES, WHY, key="06-sigma") is True
+def test_the_grader_scores_the_handed_in_file_and_nothing_else() -> None:
+    from ekfslam.cli.lab_worker import grade_predictions
+
+    outcomes = {"predict-06": {"06-sigma": "larger", "06-error": "smaller"}}
+    both = json.dumps({"06-sigma": "larger", "06-error": "smaller"}).encode()
+    assert grade_predictions(both, outcomes)["scores"] == {"predict-06": 1.0}
+    half = json.dumps({"06-sigma": "larger", "06-error": "larger"}).encode()
+    assert grade_predictions(half, outcomes)["scores"] == {"predict-06": 0.5}
+    for bad in (None, b"{not json", b"[1, 2]", b'{"06-sigma": ["larger"]}', b"\xff\xfe"):
+        graded = grade_predictions(bad, outcomes)
+        assert graded["scores"] == {"predict-06": 0.0}, bad
+        assert graded["lines"]["predict-06"], bad
 
 
 @given(st.lists(st.sampled_from(CHOICES), min_size=1, max_size=6))
