@@ -30,19 +30,28 @@ from ekfslam.geometry import wrap_angle
 
 Array = NDArray[np.float64]
 
-# Real symbols: sympy then simplifies sqrt(q)^2 to q and takes conjugates as the identity.
-x, y, theta = sp.symbols("x y theta", real=True)
-du_x, du_y, dtheta = sp.symbols("du_x du_y dtheta", real=True)
-m_x, m_y = sp.symbols("m_x m_y", real=True)
-r, phi = sp.symbols("r phi", real=True)
-delta_x, delta_y = sp.symbols("delta_x delta_y", real=True)
-q = sp.Symbol("q", positive=True)
-sigma_r, sigma_phi = sp.symbols("sigma_r sigma_phi", positive=True)
+from ekfslam.teaching.symbols import (  # noqa: E402 (the notebooks' names, kept apart)
+    CONTROL,
+    LANDMARK,
+    MEASUREMENT,
+    POSE,
+    delta_x,
+    delta_y,
+    dtheta,
+    du_x,
+    du_y,
+    m_x,
+    m_y,
+    phi,
+    q,
+    r,
+    sigma_phi,
+    sigma_r,
+    theta,
+    x,
+    y,
+)
 
-POSE = (x, y, theta)
-CONTROL = (du_x, du_y, dtheta)
-LANDMARK = (m_x, m_y)
-MEASUREMENT = (r, phi)
 #: Control-increment covariance M (u-space), a general 3x3 matrix of symbols.
 M_SYMBOLS = sp.ImmutableMatrix(3, 3, sp.symbols("M_0:3(0:3)", real=True))
 
