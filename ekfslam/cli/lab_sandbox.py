@@ -39,7 +39,7 @@ from pathlib import Path
 
 from ekfslam.places import seed_runs_dir
 from ekfslam.teaching.lab_wire import WireError, decode, encode, read_frame, write_frame
-from ekfslam.teaching.verdicts import Exercise, Remote, Wrong
+from ekfslam.teaching.verdicts import Exercise, Remote, Unanswered, Wrong
 
 PACKAGE = Path(__file__).resolve().parents[1]
 #: what every sandbox keeps: the producer and what it imports
@@ -80,7 +80,7 @@ INSTALL = (
 )
 
 
-class SandboxFailed(Exception):
+class SandboxFailed(Unanswered):
     """The sandbox could not run the notebook (a dead or hung process, a broken answer)."""
 
 
@@ -399,6 +399,8 @@ class Sandbox:
             raise SandboxFailed(self._why(str(error))) from None
 
     def _why(self, what: str) -> str:
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            self.process.wait(timeout=2)  # a process that ended on its own says how
         self.kill()
         code = self.process.returncode
         tail = self.log.read_bytes()[-2000:].decode("utf-8", "replace").strip().splitlines()
@@ -407,7 +409,7 @@ class Sandbox:
             extra = " (its CPU time ran out)" if name == "SIGXCPU" else ""
             return f"the notebook's process was killed by {name}{extra}"
         last = tail[-1] if tail else what
-        return f"the notebook's process ended ({last[:200]})"
+        return f"the notebook's process ended (exit status {code}: {last[:200]})"
 
     def call(self, args: list) -> dict:
         """The student's function on `args`: {"result": value} or {"raised", "message",

@@ -130,6 +130,11 @@ class Remote:
         return contextlib.nullcontext()
 
 
+class Unanswered(Exception):
+    """Where a `Remote` function runs could not answer (the grader's sandbox died or ran out of
+    time): no verdict on the function, the grader says why."""
+
+
 class Raised(Exception):
     """What a student's function raised in the sandbox (its type's name and message)."""
 
@@ -166,7 +171,7 @@ class _Calls:
             if i not in built and not _same(original, after):
                 raise _changed(name)
         for i, thing in built.items():
-            result = originals[i].snapshot(thing)
+            return self._keep(originals[i].snapshot(thing), driven=True)
         return self._keep(result)
 
     def _remote(self, named: tuple[tuple[str, object], ...]) -> object:
@@ -186,12 +191,14 @@ class _Calls:
         for i in answer["mutated"]:
             if 0 <= i < len(named) and not isinstance(named[i][1], Driven):
                 raise _changed(named[i][0])
-        return self._keep(answer["result"])
+        return self._keep(answer["result"], driven=any(isinstance(v, Driven) for _, v in named))
 
-    def _keep(self, result: object) -> object:
+    def _keep(self, result: object, driven: bool = False) -> object:
+        """`result` for the judge; a driven input's snapshot is no return value (the function
+        itself returns nothing), so the results hold None for it."""
         if result is None and self.returns:
             raise NotDone
-        self.results.append(result)
+        self.results.append(None if driven else result)
         return result
 
 
@@ -269,7 +276,7 @@ def run_exercise(exercise: Exercise, fn: Callable, cases: list[dict]) -> Verdict
                     try:
                         exercise.judge(calls, case)
                         passed += 1
-                    except Tripped:
+                    except (Tripped, Unanswered):
                         raise
                     except (Wrong, NotDone) as outcome:
                         if isinstance(outcome, NotDone) and not any(

@@ -10,6 +10,8 @@ import re
 import numpy as np
 import pytest
 
+from ekfslam.errors import InputError
+
 from ekfslam import EKFSLAM
 from ekfslam.analysis import lab_checks as lc
 from ekfslam.core.steps import new_landmark_step, predict_step
@@ -66,7 +68,7 @@ def test_the_student_notebooks_are_current() -> None:
 
 
 def student_cells() -> dict[str, str]:
-    """exercise -> the source of its cell in the students' copy (nbgrader's stub in place)."""
+    """exercise -> the source of its cell in the students' copy (the stub in place)."""
     cells = {}
     for path in sorted(make_lab.SOLUTIONS.glob("*.ipynb")):
         student = make_lab.NOTEBOOKS / path.name
@@ -95,7 +97,7 @@ def test_the_students_copy_holds_no_solution_and_no_hidden_test() -> None:
         student = (make_lab.NOTEBOOKS / path.name).read_text(encoding="utf-8")
         source = path.read_text(encoding="utf-8")
         assert "BEGIN SOLUTION" in source and "BEGIN SOLUTION" not in student, path.name
-        assert "HIDDEN TESTS" in source and "HIDDEN TESTS" not in student, path.name
+        assert "HIDDEN TESTS" not in student and "lab_key" not in student, path.name
         assert "lab_key" not in student and "grade(" not in student, path.name
 
 
@@ -159,7 +161,7 @@ def test_make_lab_refuses_a_broken_source_in_one_line(monkeypatch, tmp_path, cap
     monkeypatch.setattr(make_lab, "SOLUTIONS", tmp_path / "solutions")
     assert make_lab.main([]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("make_lab: ") and "nbgrader could not generate the lab" in err
+    assert err.startswith("make_lab: ") and "05-y.ipynb: not a readable notebook" in err
     assert err.count("\n") == 1
     assert not (tmp_path / "05-y.ipynb").exists()  # nothing written half-way
 
@@ -225,3 +227,47 @@ def test_check_update_says_when_the_update_does_not_use_joseph_or_joseph_is_a_st
     assert "does not call your joseph(Sigma, K, H, Q) of exercise 6a" in out
     cell = _exercise_6(("I_KH = np.eye(len(Sigma)) - K @ H", "raise NotImplementedError"))
     assert "exercise 6a is not done yet" in verdict(mx.check_update, cell["update"], capsys)
+
+
+def test_an_unclosed_solution_region_is_refused_naming_the_cell() -> None:
+    nb = {
+        "cells": [
+            {
+                "cell_type": "code",
+                "metadata": {"nbgrader": {"solution": True}},
+                "source": ["def f():\n", "    # BEGIN SOLUTION\n", "    return 1\n"],
+            }
+        ]
+    }
+    with pytest.raises(InputError, match="cell 0: a region opened and never closed"):
+        make_lab.student_notebook(nb, "x.ipynb")
+
+
+def test_the_students_copy_keeps_no_solution_and_no_hidden_test() -> None:
+    src = {
+        "cells": [
+            {
+                "cell_type": "code",
+                "metadata": {"nbgrader": {"solution": True, "grade_id": "a"}},
+                "outputs": [1],
+                "execution_count": 3,
+                "source": ["x = None\n", "    # BEGIN SOLUTION\n", "x = 42\n", "# END SOLUTION"],
+            },
+            {
+                "cell_type": "code",
+                "metadata": {"nbgrader": {"grade": True, "locked": True}},
+                "source": [
+                    "check(x)\n",
+                    "### BEGIN HIDDEN TESTS\n",
+                    "secret()\n",
+                    "### END HIDDEN TESTS",
+                ],
+            },
+        ]
+    }
+    out = make_lab.student_notebook(src)
+    answer, check = out["cells"]
+    assert answer["source"] == ["x = None\n", f"    {make_lab.STUB}"]
+    assert answer["outputs"] == [] and answer["execution_count"] is None
+    assert check["source"] == ["check(x)"] and check["metadata"]["editable"] is False
+    assert src["cells"][0]["source"][2] == "x = 42\n"  # the source is left as it was
