@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # System packages the tests need, from Debian's archive: Chromium for tests/integration/test_browser.py
-# (driven by Playwright for Python, which must never download a browser of its own).
+# (driven by Playwright for Python, which must never download a browser of its own), and
+# bubblewrap, the sandbox `lab grade` runs each student's notebook in (tests/integration/test_lab*.py).
 # Idempotent, no prompts; run as root (or with passwordless sudo) on Debian.
 set -euo pipefail
 
-PACKAGES=(chromium fonts-dejavu-core)
+PACKAGES=(chromium fonts-dejavu-core bubblewrap)
 
 missing=()
 for package in "${PACKAGES[@]}"; do

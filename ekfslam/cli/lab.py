@@ -41,7 +41,7 @@ from pathlib import Path
 from ekfslam.analysis.lab_key import EXERCISES, read_key, write_key
 from ekfslam.analysis.parallel import run_tasks
 from ekfslam.cli import args as ca
-from ekfslam.cli.lab_sandbox import INSTALL, seed_runs, unavailable
+from ekfslam.cli.lab_sandbox import INSTALL, package_for, seed_runs, unavailable
 from ekfslam.cli.lab_worker import MAX_FILE, clean, grade_task
 from ekfslam.errors import ConfigError, InputError
 from ekfslam.files import atomic_write_text
@@ -261,6 +261,12 @@ def cmd_grade(args: argparse.Namespace) -> int:
     columns = course_columns(notebooks)
     started = time.perf_counter()
     runs = seed_runs()
+    built = None if args.dask else tempfile.TemporaryDirectory(prefix="ekfslam-lab-packages-")
+    numbers = [n for nb in notebooks.values() for n in nb["exercises"]]
+    ready = {
+        n: str(package_for(EXERCISES[n], Path(built.name) / n, sandboxed=sandboxed))
+        for n in (numbers if built else [])
+    }
     tasks = [
         {
             "student": student,
@@ -270,6 +276,7 @@ def cmd_grade(args: argparse.Namespace) -> int:
             "timeout": args.timeout,
             "sandboxed": sandboxed,
             "runs": str(runs) if runs else None,
+            "packages": ready,  # empty on Dask: each worker builds its own
         }
         for student, files in staged.items()
     ]
@@ -282,7 +289,7 @@ def cmd_grade(args: argparse.Namespace) -> int:
             print(f"{task['student']}: total {total(result, columns):.2f} of {len(columns)}")
             return result
 
-        with ThreadPoolExecutor(max_workers=args.jobs) as pool:
+        with built, ThreadPoolExecutor(max_workers=args.jobs) as pool:
             results = list(pool.map(one, tasks))
     for result, student in zip(results, staged, strict=True):
         result["student"] = student  # the folder's name, whatever a worker sent back

@@ -450,6 +450,8 @@ class Sandbox:
     def close(self) -> None:
         with contextlib.suppress(OSError, SandboxFailed):
             write_frame(self._requests, {"bye": True})
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            self.process.wait(timeout=2)  # let it end, so its time is counted; then no mercy
         self.kill()
         for fd in (self._requests, self._answers):
             with contextlib.suppress(OSError):

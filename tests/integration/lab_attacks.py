@@ -294,8 +294,7 @@ CORPUS: list[tuple[str, str, str]] = [
         PROCESSES,
         "writes a 1 GiB file",
         "with open('big.bin', 'wb') as f:\n"
-        "    for _ in range(1024):\n        f.write(b'x' * 2**20)\n"
-        + when("False"),
+        "    for _ in range(1024):\n        f.write(b'x' * 2**20)\n" + when("False"),
     ),
     (
         PROCESSES,

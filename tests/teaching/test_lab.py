@@ -10,11 +10,10 @@ import re
 import numpy as np
 import pytest
 
-from ekfslam.errors import InputError
-
 from ekfslam import EKFSLAM
 from ekfslam.analysis import lab_checks as lc
 from ekfslam.core.steps import new_landmark_step, predict_step
+from ekfslam.errors import InputError
 from ekfslam.logs.runlog import read_run
 from ekfslam.teaching import exercises as ex
 from ekfslam.teaching import make_lab
