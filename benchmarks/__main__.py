@@ -12,7 +12,7 @@ from ekfslam.cli.main import exit_with, main
 COMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("benchmarks.cli.bench", "time replays and per-step costs against map size"),
     "tune": ("benchmarks.cli.tune", "time the live tuning panel's change-to-figure latency"),
-    "lab": ("benchmarks.cli.lab", "time lab grade on a class of sandboxed submissions"),
+    "grading": ("benchmarks.cli.grading", "time lab grade on a class of sandboxed submissions"),
 }
 DESCRIPTION = "The ekfslam project's benchmarks: the filter, the commands, the live panel."
 

@@ -1,4 +1,4 @@
-"""``python -m benchmarks lab [--students N] [--jobs J] [--repeats R]``: the lab's grading time.
+"""``python -m benchmarks grading [--students N] [--jobs J] [--repeats R]``: the lab's grading time.
 
 From a fresh folder, as an instructor would: ``lab release`` of the whole lab (notebooks 02-07),
 then N submissions (a third the solutions, a third the release's stubs, a third the solutions
