@@ -205,8 +205,10 @@ def _judge_alignment(call: Callable, case: dict) -> None:
     got[2] = wrap_angle(float(got[2]))
     moved = X @ rotation(got[2]).T + got[:2]
     mine = float(np.mean(np.hypot(*(moved - Y).T)))
-    # eq. (17)'s minimum is flat (a mean of distances): any transform within 1 nm of it is right
-    if close(got, params, atol=1e-6) or mine <= case["mean_error"] + 1e-9:
+    # eq. (17)'s minimum is flat (a mean of distances): a transform whose mean distance is within
+    # 0.1 µm of it is right (a generic optimiser, Powell's, stops ~1e-8 above it; least squares
+    # leaves at least 2e-6 more on 600 drawn maps)
+    if close(got, params, atol=1e-6) or mine <= case["mean_error"] + 1e-7:
         return
     if np.allclose(got, _inverse(params), rtol=0, atol=1e-4):
         raise Wrong(

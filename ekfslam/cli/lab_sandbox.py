@@ -35,6 +35,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 from ekfslam.places import seed_runs_dir
@@ -120,7 +121,7 @@ def _imports(name: str) -> set[str]:
         return set()
     found = set()
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+    for node in _walk_run_time(ast.parse(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.Import):
             found |= {a.name for a in node.names}
         elif isinstance(node, ast.ImportFrom):
@@ -133,6 +134,20 @@ def _imports(name: str) -> set[str]:
             found.add(module)
             found |= {f"{module}.{a.name}" for a in node.names}
     return {m for m in found if m.split(".")[0] == "ekfslam" and _module_file(m)}
+
+
+def _walk_run_time(tree: ast.AST) -> Iterator[ast.AST]:
+    """`ast.walk(tree)` without the ``if TYPE_CHECKING:`` blocks: what they import never runs (the
+    facade's names are imported there for the type checker; a sandbox that kept them kept the
+    whole filter, alignment and replay, the answers of exercises 3 to 9)."""
+    todo = [tree]
+    while todo:
+        node = todo.pop()
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            todo += node.orelse
+            continue
+        yield node
+        todo += ast.iter_child_nodes(node)
 
 
 def closure(roots: tuple[str, ...] | list[str]) -> set[str]:
@@ -319,6 +334,24 @@ def _bwrap(package: Path, notebook: Path, runs: Path | None, fds: tuple[int, int
     return argv
 
 
+def read_answer(answer: object) -> dict:
+    """The notebook process's answer to a call, as `Remote.invoke` returns it: {"result"} (the
+    value decoded; one that does not decode is the student's "unreadable result") or {"raised",
+    "message", "forbidden"}, with "mutated" the indexes of inputs changed in place."""
+    if not isinstance(answer, dict):
+        raise SandboxFailed("the notebook's process answered nonsense")
+    if "result" in answer:
+        try:
+            answer["result"] = decode(answer["result"])
+        except (WireError, ValueError, TypeError) as error:
+            answer = {"raised": "an unreadable result", "message": str(error)[:200]}
+    mutated = answer.get("mutated", [])
+    answer["mutated"] = (
+        [i for i in mutated if isinstance(i, int)] if isinstance(mutated, list) else []
+    )
+    return answer
+
+
 class Sandbox:
     """One exercise's producer for one student's notebook: start it with `open`, then `call`
     the student's function, `watch`/`watched` a notebook function, and `close` (or leave the
@@ -415,19 +448,7 @@ class Sandbox:
         """The student's function on `args`: {"result": value} or {"raised", "message",
         "forbidden"}, with "mutated" (the indexes of inputs it changed)."""
         self._send({"call": encode(list(args))})
-        answer = self._receive()
-        if not isinstance(answer, dict):
-            raise SandboxFailed("the notebook's process answered nonsense")
-        if "result" in answer:
-            try:
-                answer["result"] = decode(answer["result"])
-            except (WireError, ValueError, TypeError) as error:
-                answer = {"raised": "an unreadable result", "message": str(error)[:200]}
-        mutated = answer.get("mutated", [])
-        answer["mutated"] = (
-            [i for i in mutated if isinstance(i, int)] if isinstance(mutated, list) else []
-        )
-        return answer
+        return read_answer(self._receive())
 
     def watch(self, name: str) -> bool:
         self._send({"watch": name})

@@ -29,7 +29,7 @@ from ekfslam.analysis.lab_key import EXERCISES
 from ekfslam.cli.lab_sandbox import Sandbox, SandboxAnswer, SandboxFailed, package_for
 from ekfslam.teaching.exercises import PREDICTIONS
 from ekfslam.teaching.make_lab import grader_meta
-from ekfslam.teaching.verdicts import run_exercise
+from ekfslam.teaching.verdicts import JudgeFailed, run_exercise
 
 MAX_FILE = 20 * 2**20  # bytes of one submitted file
 MAX_LINE = 300
@@ -201,6 +201,14 @@ def _grade_exercise(
                 said = f"Exercise {n}: not done yet: {exercise.function} is still the stub."
             line = f"Graded on {verdict.total} cases you have not seen: {said}"
             return round(verdict.score, 4), [line], []
+    except JudgeFailed as failed:  # the check's own error: the instructor hears of it
+        said = "the grader could not judge your answer (its own error, not yours): your "
+        said += "instructor has been told"
+        return (
+            0.0,
+            [f"Exercise {n}: scores 0 for now: {said}."],
+            [f"exercise {n}: the judge failed: {clean(str(failed), 120)}"],
+        )
     except SandboxFailed as failed:
         if str(failed) == "timeout":
             why = f"did not finish within {timeout:g} s"

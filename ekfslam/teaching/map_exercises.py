@@ -280,8 +280,8 @@ def _judge_joseph(call: Callable, case: dict) -> None:
         raise Wrong("the measurement noise's share K Q Kᵀ is missing.")
     if close(got, I_KH.T @ Sigma @ I_KH + K @ Q @ K.T, atol=1e-12):
         raise Wrong("the transposes are on the wrong side: (I - KH) comes first.")
-    if close(got, I_KH @ Sigma @ I_KH.T + K @ Q, atol=1e-12):
-        raise Wrong("the noise term is K Q Kᵀ, not K Q.")
+    if close(got, I_KH @ Sigma @ I_KH.T + K @ K.T, atol=1e-12):
+        raise Wrong("the noise term is K Q Kᵀ: Q is missing from it.")
     if not close(got, got.T, atol=1e-12):
         raise Wrong(f"your Σ is not symmetric (with {gain}).")
     raise Wrong(f"your Σ is wrong with {gain} (Joseph's form holds for any gain).")
@@ -323,11 +323,18 @@ def _update_cases(rng: np.random.Generator) -> list[dict]:
     mu, Sigma, j, z = cases[-1]
     mu[2] = np.pi - 1e-3
     truth = observation(mu[:3], mu[3 + 2 * j : 5 + 2 * j])
-    for step in np.linspace(0.02, 0.3, 15):  # a bearing that turns the heading past π
-        z = _turning_past_pi(mu, Sigma, j, truth, step)
+    for _ in range(100):  # a Σ whose heading no bearing turns past π is drawn again
+        steps = np.linspace(0.02, 0.3, 15)  # a bearing that turns the heading past π
+        z = next(
+            (z for t in steps if (z := _turning_past_pi(mu, Sigma, j, truth, t)) is not None), None
+        )
         if z is not None:
             break
-    cases[-1][3] = z
+        A = rng.normal(size=Sigma.shape)
+        Sigma = 1e-3 * (A @ A.T + np.eye(len(Sigma)))
+    else:
+        raise RuntimeError("no sighting turns the heading past π: the cases cannot be drawn")
+    cases[-1][1], cases[-1][3] = Sigma, z
     out = []
     for mu, Sigma, j, z in cases:
         s = update_steps(mu, Sigma, j, z, Q_LAB)

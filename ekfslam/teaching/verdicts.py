@@ -143,6 +143,15 @@ class Raised(Exception):
         self.ename = ename
 
 
+class JudgeFailed(Unanswered):
+    """The check itself failed on a case (its own error, not the student's function's): no
+    verdict on the function; the student is told to ask the instructor, who is told the error."""
+
+
+#: what a student's function may raise that means something to the judge (a stub, a verdict)
+_PASSING = (NotImplementedError, Wrong, NotDone, Unanswered)
+
+
 @dataclass
 class _Calls:
     """The student's function as the judge calls it: copies in, tripwire on, results kept."""
@@ -161,7 +170,12 @@ class _Calls:
         given = [built[i] if i in built else copy.deepcopy(v) for i, v in enumerate(originals)]
         with warnings.catch_warnings(), contextlib.redirect_stderr(io.StringIO()):
             warnings.simplefilter("ignore")  # a warning on stderr would cost the grade
-            result, watch = tripwire.call_watched(self.fn, tuple(given), self.allowed)
+            try:
+                result, watch = tripwire.call_watched(self.fn, tuple(given), self.allowed)
+            except _PASSING:
+                raise
+            except Exception as error:  # the student's own: told as theirs, never the judge's
+                raise Raised(type(error).__name__, str(error)) from None
         if watch.forbidden:
             raise Tripped(
                 f"you called the package's {watch.forbidden[0]}: write it yourself."
@@ -288,8 +302,8 @@ def run_exercise(exercise: Exercise, fn: Callable, cases: list[dict]) -> Verdict
                         raise NotDone from None
                     except Raised as error:
                         crashed.append(f"{error.ename}: {error}")
-                    except Exception as error:
-                        crashed.append(f"{type(error).__name__}: {error}")
+                    except Exception as error:  # the student's errors arrive as Raised
+                        raise JudgeFailed(f"{type(error).__name__}: {error}") from error
         except NotDone:
             return Verdict(n, 0.0, 0, len(cases), _not_done(n), done=False)
         except Tripped as tripped:
@@ -337,7 +351,15 @@ def attempt(exercise: Exercise, fn: Callable, cases: list[dict] | None = None) -
     one line; True when every case is right, so the next cells can use the student's function."""
     if cases is None:
         cases = exercise.make_cases(np.random.default_rng(RNG_SEED))
-    verdict = run_exercise(exercise, fn, cases)
+    try:
+        verdict = run_exercise(exercise, fn, cases)
+    except JudgeFailed as failed:
+        print(
+            f"Exercise {exercise.number}: the check could not judge your answer (its own error, "
+            f"not yours: {failed}); please tell your instructor. The cells below use the "
+            "package's version."
+        )
+        return False
     if verdict.right:
         print(f"{verdict.line} The cells below use your function.")
     elif not verdict.done:
