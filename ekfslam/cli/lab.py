@@ -286,7 +286,11 @@ def cmd_grade(args: argparse.Namespace) -> int:
 
         def one(task: dict) -> dict:
             result = grade_in_process(task, args.timeout * len(columns) + 60)
-            print(f"{task['student']}: total {total(result, columns):.2f} of {len(columns)}")
+            cpu = result.get("sandbox_cpu", 0.0)
+            print(
+                f"{task['student']}: total {total(result, columns):.2f} of {len(columns)} "
+                f"(its sandboxes: {cpu:.1f} s CPU)"
+            )
             return result
 
         with built, ThreadPoolExecutor(max_workers=args.jobs) as pool:

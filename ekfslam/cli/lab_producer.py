@@ -21,6 +21,7 @@ import copy
 import io
 import json
 import os
+import resource
 import sys
 import warnings
 
@@ -140,6 +141,16 @@ def call(fn, args: list) -> dict:
     return answer
 
 
+def _cpu_seconds() -> float:
+    """This process's CPU time and its finished children's: what the grading of one exercise
+    cost (the sandbox's PID namespace hides it from the grader's own accounting)."""
+    me, children = (
+        resource.getrusage(resource.RUSAGE_SELF),
+        resource.getrusage(resource.RUSAGE_CHILDREN),
+    )
+    return me.ru_utime + me.ru_stime + children.ru_utime + children.ru_stime
+
+
 def serve(setup: dict, REQUESTS: int, ANSWERS: int) -> None:
     with open(setup["notebook"], encoding="utf-8") as f:
         try:
@@ -157,6 +168,7 @@ def serve(setup: dict, REQUESTS: int, ANSWERS: int) -> None:
         except WireError:
             return
         if not isinstance(request, dict) or request.get("bye"):
+            write_frame(ANSWERS, {"cpu": _cpu_seconds()})  # for the grader's timings only
             return
         if "watch" in request:
             target = namespace.get(str(request["watch"]))

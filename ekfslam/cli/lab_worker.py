@@ -131,6 +131,7 @@ def grade_task(task: dict) -> dict:
     given = task.get("packages")  # built once by `lab grade` for its local workers
     built = {n: Path(p) for n, p in given.items()} if given else packages(numbers, sandboxed)
     result: dict = {"student": student, "scores": {}, "lines": {}, "notebooks": {}}
+    spent: list[float] = []  # CPU seconds of each sandbox, as it reported them
     runs = task.get("runs")
     with tempfile.TemporaryDirectory(prefix="ekfslam-grade-") as tmp:
         for stem, layout in course["notebooks"].items():
@@ -153,7 +154,7 @@ def grade_task(task: dict) -> dict:
             problems = []
             for n in layout["exercises"]:
                 score, lines, trouble = _grade_exercise(
-                    n, built[n], path, task["cases"][n], own, timeout, sandboxed, runs
+                    n, built[n], path, task["cases"][n], own, timeout, sandboxed, runs, spent
                 )
                 result["scores"][n], result["lines"][n] = score, lines
                 problems += trouble
@@ -165,6 +166,7 @@ def grade_task(task: dict) -> dict:
     result["scores"] |= predicted["scores"]
     result["lines"] |= predicted["lines"]
     result["lines"] = {k: [clean(line) for line in v] for k, v in result["lines"].items()}
+    result["sandbox_cpu"] = round(sum(spent), 2)
     return result
 
 
@@ -177,8 +179,10 @@ def _grade_exercise(
     timeout: float,
     sandboxed: bool,
     runs: str | None,
+    spent: list[float],
 ) -> tuple[float, list[str], list[str]]:
     exercise = EXERCISES[n]
+    box = None
     try:
         with Sandbox(
             package,
@@ -215,6 +219,9 @@ def _grade_exercise(
         else:
             why = str(failed)
         return 0.0, [f"Exercise {n}: scores 0: {clean(why)}"], [f"exercise {n}: {clean(why, 120)}"]
+    finally:
+        if box is not None:
+            spent.append(box.cpu)
 
 
 def main(argv: list[str]) -> int:

@@ -96,6 +96,11 @@ def test_the_documented_commands_run_as_typed_from_a_fresh_folder(text, mode, tm
         shutil.copy(source / "02-robot-and-arena.ipynb", submissions / student)
     done = run(grade, python, env, folder)
     assert done.returncode == 0, (grade, done.stderr[-3000:])
+    # each student's line says what its sandboxes cost, as they reported it at their close
+    cpu = dict(
+        re.findall(r"^(\w+): total .* \(its sandboxes: ([0-9.]+) s CPU\)$", done.stdout, re.M)
+    )
+    assert set(cpu) == {"alice", "bob"} and float(cpu["alice"]) > 0.1, done.stdout
     csv_path = folder / shlex.split(grade)[shlex.split(grade).index("--csv") + 1]
     rows = {r["student"]: r for r in csv.DictReader(csv_path.open(encoding="utf-8"))}
     assert (rows["alice"]["1a"], rows["alice"]["1b"]) == ("1", "1"), rows["alice"]
