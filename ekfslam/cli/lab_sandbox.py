@@ -39,7 +39,14 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from ekfslam.places import seed_runs_dir
-from ekfslam.teaching.lab_wire import WireError, decode, encode, read_frame, write_frame
+from ekfslam.teaching.lab_wire import (
+    WireError,
+    decode,
+    encode,
+    parse_source,
+    read_frame,
+    write_frame,
+)
 from ekfslam.teaching.verdicts import Exercise, Remote, Unanswered, Wrong
 
 PACKAGE = Path(__file__).resolve().parents[1]
@@ -121,7 +128,7 @@ def _imports(name: str) -> set[str]:
         return set()
     found = set()
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-    for node in _walk_run_time(ast.parse(path.read_text(encoding="utf-8"))):
+    for node in _walk_run_time(parse_source(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.Import):
             found |= {a.name for a in node.names}
         elif isinstance(node, ast.ImportFrom):
@@ -193,7 +200,7 @@ def _checks_module(name: str, exercise: str) -> str:
 
 def _deny(source: str, module: str, qualnames: list[str], exercise: str) -> str:
     """`source` with the body of each function `qualnames` (``f``, ``Class.method``) raising."""
-    tree = ast.parse(source)
+    tree = parse_source(source)
     left = set(qualnames)
 
     def visit(body: list, prefix: str) -> None:
@@ -208,7 +215,7 @@ def _deny(source: str, module: str, qualnames: list[str], exercise: str) -> str:
                         f"the package's {module}.{qualname} is not available while exercise "
                         f"{exercise} is graded: write it yourself"
                     )
-                    raise_ = ast.parse(
+                    raise_ = parse_source(
                         f"raise __import__('ekfslam.errors').errors.LabForbidden({message!r})"
                     ).body
                     node.body = raise_

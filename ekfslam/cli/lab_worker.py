@@ -22,12 +22,14 @@ import pickle
 import re
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
 from ekfslam.analysis.lab_key import EXERCISES
 from ekfslam.cli.lab_sandbox import Sandbox, SandboxAnswer, SandboxFailed, package_for
 from ekfslam.teaching.exercises import PREDICTIONS
+from ekfslam.teaching.lab_wire import parse_source
 from ekfslam.teaching.make_lab import grader_meta
 from ekfslam.teaching.verdicts import JudgeFailed, run_exercise
 
@@ -37,6 +39,7 @@ _CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u200b-\u200f\u202a-\u202e\u
 #: packages built in this process, per exercise (a Dask worker grades many students)
 _PACKAGES: dict[tuple[str, bool], Path] = {}
 _PACKAGE_ROOT: list[tempfile.TemporaryDirectory] = []
+_BUILDING = threading.Lock()
 
 
 def clean(text: object, limit: int = MAX_LINE) -> str:
@@ -45,7 +48,13 @@ def clean(text: object, limit: int = MAX_LINE) -> str:
 
 
 def packages(numbers: list[str], sandboxed: bool) -> dict[str, Path]:
-    """Each exercise's sandbox package, built once per process."""
+    """Each exercise's sandbox package, built once per process (by one thread: a Dask worker
+    grades students in several)."""
+    with _BUILDING:
+        return _packages(numbers, sandboxed)
+
+
+def _packages(numbers: list[str], sandboxed: bool) -> dict[str, Path]:
     if not _PACKAGE_ROOT:
         _PACKAGE_ROOT.append(tempfile.TemporaryDirectory(prefix="ekfslam-lab-packages-"))
     root = Path(_PACKAGE_ROOT[0].name)
@@ -78,7 +87,7 @@ def derives(sources: list[str]) -> bool:
     read from the source here, not reported by the student's process."""
     for source in sources:
         try:
-            tree = ast.parse(source)
+            tree = parse_source(source)
         except SyntaxError:
             continue  # IPython syntax (a magic): no derivation to find in it
         for node in ast.walk(tree):
