@@ -192,21 +192,26 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], object]) -> Pa
     OSError becomes an `OutputError` naming `path`.
     """
     path = Path(path)
-    with uninterrupted():  # the temporary file exists only where the clean-up below sees it
-        tmp = _temporary(path)
+    tmp: Path | None = None
     try:
+        # the temporary file exists only where the clean-up below sees it: an interrupt held
+        # back while it is made is raised on leaving the block, inside this try
+        with uninterrupted():
+            tmp = _temporary(path)
         write(tmp)
         # mkstemp's file is private (0600); give it the mode the file has or a new one would get
         os.chmod(tmp, path.stat().st_mode & 0o777 if path.exists() else 0o666 & ~_umask())
         with uninterrupted():
             os.replace(tmp, path)
     except OSError as err:
-        tmp.unlink(missing_ok=True)
+        if tmp is not None:
+            tmp.unlink(missing_ok=True)
         if isinstance(err, OutputError):
             raise
         raise OutputError(path, f"cannot write it ({_reason(err)})") from None
     except BaseException:
-        tmp.unlink(missing_ok=True)
+        if tmp is not None:
+            tmp.unlink(missing_ok=True)
         raise
     return path
 

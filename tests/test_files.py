@@ -177,3 +177,27 @@ def test_a_signal_in_the_middle_of_a_write_leaves_nothing_and_ends_in_one_line(t
     assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
     assert err.startswith("interrupted (")
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("writer", ["atomic_write", "atomic_write_all"])
+def test_a_signal_while_the_temporary_file_is_made_leaves_no_temporary_file(
+    tmp_path, monkeypatch, writer
+) -> None:
+    """A SIGINT that arrives while the temporary file is being made is held back and raised as
+    its step ends; `atomic_write` once raised it before its clean-up was in place, and the
+    ``.partial`` file stayed (seen under load in the corpus's "SIGINT in run --plot's write")."""
+    made = files._temporary
+
+    def interrupted_while_made(path: Path) -> Path:
+        tmp = made(path)
+        files._raise(signal.SIGINT, None)  # as the handler does inside an uninterrupted step
+        return tmp
+
+    monkeypatch.setattr(files, "_temporary", interrupted_while_made)
+    target = tmp_path / "fig.png"
+    with pytest.raises(Interrupted):
+        if writer == "atomic_write":
+            files.atomic_write(target, lambda tmp: tmp.write_bytes(b"x"))
+        else:
+            files.atomic_write_all({target: lambda tmp: tmp.write_bytes(b"x")})
+    assert list(tmp_path.iterdir()) == []
