@@ -4,9 +4,10 @@ Monte Carlo studies (`ekfslam.analysis.consistency.compare`, `robustness.outlier
 `association_stress.stress_study`) and noise sweeps (`mrclam_tuning.tune_noise`) are lists of
 independent tasks. `run_tasks` maps a module-level function over them through joblib: in this
 process (jobs=1), on local processes (jobs=N, or None for every core; joblib's loky backend), or
-on a Dask cluster (`dask="tcp://host:8786"`, joblib's dask backend; needs the optional extra
-``pip install ekfslam[dask]``). Every task carries its own seed, fixed before dispatch, and the
-results come back in the tasks' order, so a study gives the same numbers whatever the backend.
+on a Dask cluster (`dask="tcp://host:8786"`, joblib's dask backend; needs the optional extra,
+``pip install -e '.[dask]'`` from a checkout: the package is not on PyPI). Every task carries
+its own seed, fixed before dispatch, and the results come back in the tasks' order, so a study
+gives the same numbers whatever the backend.
 """
 
 from __future__ import annotations
@@ -52,7 +53,8 @@ def _on_dask(fn: Callable[..., Any], tasks: list[tuple], address: str) -> list[A
         from distributed import Client  # lazy: optional extra ekfslam[dask], 1 s to import
     except ImportError:
         raise ConfigError(
-            f"--dask {address}: dask.distributed is not installed (pip install 'ekfslam[dask]')"
+            f"--dask {address}: dask.distributed is not installed "
+            "(from the checkout: pip install -e '.[dask]')"
         ) from None
     try:
         client = Client(address, timeout=DASK_TIMEOUT)
