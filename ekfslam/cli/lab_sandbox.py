@@ -484,7 +484,7 @@ class Sandbox:
             if isinstance(cpu, float) and 0 <= cpu < 1e6:
                 self.cpu = cpu  # as the sandbox reports it: a timing, never a grade
         with contextlib.suppress(subprocess.TimeoutExpired):
-            self.process.wait(timeout=2)  # let it end, so its time is counted; then no mercy
+            self.process.wait(timeout=2)  # let it end on its own (it has said bye); then no mercy
         self.kill()
         for fd in (self._requests, self._answers):
             with contextlib.suppress(OSError):
