@@ -319,15 +319,16 @@ def _bwrap(package: Path, notebook: Path, runs: Path | None, fds: tuple[int, int
     for path in SYSTEM:
         if os.path.lexists(path):
             argv += ["--ro-bind", path, path]
+    work = "/tmp/lab"
+    argv += ["--proc", "/proc", "--dev", "/dev"]
+    argv += ["--size", str(LIMITS["tmp"]), "--tmpfs", "/tmp", "--dir", "/tmp/home", "--dir", work]
+    # the environment after the private /tmp: a clone (and its venv) under /tmp stays visible
     for prefix in sorted({sys.base_prefix, sys.prefix, sys.exec_prefix}):
         if not prefix.startswith("/usr"):
             argv += ["--ro-bind", prefix, prefix]
     python = Path(sys.executable)
     if not str(python).startswith(("/usr", sys.prefix, sys.base_prefix)):
         argv += ["--ro-bind", str(python.parent), str(python.parent)]
-    work = "/tmp/lab"
-    argv += ["--proc", "/proc", "--dev", "/dev"]
-    argv += ["--size", str(LIMITS["tmp"]), "--tmpfs", "/tmp", "--dir", "/tmp/home", "--dir", work]
     argv += ["--ro-bind", str(package), str(PACKAGE)]  # the sandbox's package, where it is found
     if runs is not None:  # the seed's runs, where `ekfslam.places.seed_run` finds them
         argv += ["--ro-bind", str(runs), str(PACKAGE / "runs")]
