@@ -141,6 +141,25 @@ def load_mrclam(
         A missing folder or file, a robot outside 1-5, or a malformed file (the message names
         the file, the 1-based line and the problem).
     """
+    run, report, _ = load_robot(dataset_dir, robot, max_range, fix_barcode_swap)
+    return run, report
+
+
+def load_robot(
+    dataset_dir: str | Path,
+    robot: int,
+    max_range: float | None = DEFAULT_MAX_RANGE,
+    fix_barcode_swap: bool = True,
+) -> tuple[RunLog, MrclamLoadReport, Array]:
+    """`load_mrclam`, and the robot's sightings of the other robots it drops, for a team.
+
+    Returns
+    -------
+    (RunLog, MrclamLoadReport, (K, 4) array)
+        As `load_mrclam`, and the sightings of robots (subjects 1-5) in time order as rows
+        (t [s], subject, range [m], bearing [rad] wrapped to [-π, π)); those beyond `max_range`
+        are not among them (the report counts them in ``robot_sightings_dropped``).
+    """
     folder = Path(dataset_dir)
     if not isinstance(robot, int | np.integer) or isinstance(robot, bool) or robot not in ROBOTS:
         raise InputError(folder, None, f"robot must be 1 to 5 (MRCLAM has 5 robots), got {robot!r}")
@@ -237,6 +256,15 @@ def load_mrclam(
         time_offsets=time_offsets(odometry[:, 0], measurements[:, 0]),
     )
     run = RunLog(meta=meta, controls=controls, detections=detections, groundtruth=truth)
+    near_robot = robot_sighting & ~beyond_range(measurements[:, 2], max_range)
+    robots_seen = np.column_stack(
+        [
+            measurements[near_robot, 0],
+            subjects[near_robot].astype(np.float64),
+            measurements[near_robot, 2],
+            _wrapped(measurements[near_robot, 3]),
+        ]
+    )
     # the measurements share the odometry's clock; the Vicon truth's cover is only reported
     names = (paths["Odometry"].name, paths["Measurement"].name, paths["Groundtruth"].name)
     check_time_spans(dataclasses.replace(run, groundtruth=None), folder, names, lines=False)
@@ -250,7 +278,7 @@ def load_mrclam(
         names[2]: lambda row: data_line(paths["Groundtruth"], int(gt_order[row])),
     }
     check_across_files(run, folder, names, sorted_rows=lines)
-    return run, report
+    return run, report, robots_seen
 
 
 def interpolate_pose(t: ArrayLike, pose: ArrayLike, at: float) -> Array:
