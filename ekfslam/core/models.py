@@ -18,6 +18,8 @@ function                            record field    what it is
 `inverse_observation`               ``g``           where a sighting puts a landmark, eq. (12)
 `inverse_observation_jacobians`     ``G``           ∂g/∂pose and ∂g/∂z
 `innovation`                        ``innovation``  ν = z - ẑ, the bearing wrapped
+`robot_observation`                 ``h``           another robot's (r, φ), eq. (13)'s form
+`robot_observation_jacobians`       ``H``           its blocks ∂h/∂observer, ∂h/∂target
 ==================================  ==============  ===========================================
 
 These functions are the only place the models are written. Everything that needs a model reads
@@ -159,6 +161,31 @@ def inverse_observation_jacobians(pose: ArrayLike, z: ArrayLike) -> tuple[Array,
     return G_pose, G_z
 
 
+# ------------------------------------------------------------- a robot seen by another robot
+def robot_observation(observer: ArrayLike, target: ArrayLike) -> Array:
+    """ẑ = (r, φ) of the target robot's centre seen from the observer's: eq. (13) with the
+    target's position as the landmark. A robot's barcode is a landmark that moves, so the model
+    is the landmark's; only its second block differs (`robot_observation_jacobians`).
+
+    Raises
+    ------
+    DegenerateGeometry
+        When the two robots' centres are within 1e-6 m.
+    """
+    return observation(observer, target)
+
+
+def robot_observation_jacobians(observer: ArrayLike, target: ArrayLike) -> tuple[Array, Array]:
+    """∂ẑ/∂observer (2x3) and ∂ẑ/∂target (2x3) of `robot_observation`: eq. (14)'s two blocks, the
+    landmark's block padded with a zero column, since a target's heading does not move its
+    centre."""
+    H_observer, H_position = observation_jacobians(observer, target)
+    H_target = np.array(
+        ((H_position[0, 0], H_position[0, 1], 0.0), (H_position[1, 0], H_position[1, 1], 0.0))
+    )
+    return H_observer, H_target
+
+
 def observation_noise(sigma_range: float, sigma_bearing: float) -> Array:
     """Q, eq. (11): diag(σ_r², σ_φ²) with σ_r in m and σ_φ in rad."""
     return np.diag([float(sigma_range) ** 2, float(sigma_bearing) ** 2])
@@ -202,6 +229,22 @@ class SensorModel:
     name: str
 
 
+@dataclass(frozen=True)
+class RelativeModel:
+    """What one robot measures of another: the model of a sighting that links two pose blocks.
+
+    h(observer, target) -> ẑ (2,); H(observer, target) -> (H_a (2, 3), H_b (2, 3)), ∂h/∂observer
+    and ∂h/∂target; innovation(z, z_hat) -> ν (2,). The two poses are (x, y, θ) blocks of one
+    state; a correction with it changes both robots (and, through Σ, the map). name : how
+    messages call it.
+    """
+
+    h: Callable
+    H: Callable
+    innovation: Callable
+    name: str
+
+
 #: The seed's robot: a body-frame increment composed onto the pose, eqs. (4)-(7).
 ODOMETRY = MotionModel(f=motion, F_x=motion_jacobian, F_v=motion_control_jacobian, name="odometry")
 
@@ -213,4 +256,12 @@ RANGE_BEARING = SensorModel(
     G=inverse_observation_jacobians,
     innovation=innovation,
     name="range-bearing",
+)
+
+#: A robot's range and bearing to another robot's centre (MRCLAM's barcodes on the robots).
+ROBOT_RANGE_BEARING = RelativeModel(
+    h=robot_observation,
+    H=robot_observation_jacobians,
+    innovation=innovation,
+    name="robot range-bearing",
 )

@@ -35,6 +35,7 @@ from ekfslam.teaching.symbols import (  # noqa: E402 (the notebooks' names, kept
     LANDMARK,
     MEASUREMENT,
     POSE,
+    TARGET,
     delta_x,
     delta_y,
     dtheta,
@@ -48,8 +49,11 @@ from ekfslam.teaching.symbols import (  # noqa: E402 (the notebooks' names, kept
     sigma_phi,
     sigma_r,
     theta,
+    theta_b,
     x,
+    x_b,
     y,
+    y_b,
 )
 
 #: Control-increment covariance M (u-space), a general 3x3 matrix of symbols.
@@ -61,6 +65,9 @@ _LATEX_NAMES = {
     dtheta: r"\Delta \theta",
     m_x: r"\mu_{j,x}",
     m_y: r"\mu_{j,y}",
+    x_b: "x_b",
+    y_b: "y_b",
+    theta_b: r"\theta_b",
     delta_x: r"\delta_x",
     delta_y: r"\delta_y",
     sigma_r: r"\sigma_r",
@@ -133,6 +140,15 @@ def observation_model() -> SymbolicModel:
     dx, dy = m_x - x, m_y - y
     z_hat = [sp.sqrt(dx**2 + dy**2), sp.atan2(dy, dx) - theta]
     return _model("observation", "(13)", LANDMARK, z_hat, (r"\hat{z}", "H_{pose}", "H_{landmark}"))
+
+
+@cache
+def robot_observation_model() -> SymbolicModel:
+    """Another robot seen by this one: ẑ = (√q, atan2(δy, δx) - θ) with δ = (x_b, y_b) - (x, y);
+    H_a = ∂ẑ/∂pose (this robot), H_b = ∂ẑ/∂(x_b, y_b, θ_b) (the robot it sees)."""
+    dx, dy = x_b - x, y_b - y
+    z_hat = [sp.sqrt(dx**2 + dy**2), sp.atan2(dy, dx) - theta]
+    return _model("robot_observation", "(13)", TARGET, z_hat, (r"\hat{z}", "H_a", "H_b"))
 
 
 @cache

@@ -123,7 +123,12 @@ OBSERVATION_MODEL_EXERCISE = Exercise(
     numeric=False,
     differentiates=True,
     keeps=("ekfslam.teaching.symbols", "ekfslam.core.models"),
-    denies=("ekfslam.core.models:observation", "ekfslam.core.models:observation_jacobians"),
+    denies=(
+        "ekfslam.core.models:observation",
+        "ekfslam.core.models:observation_jacobians",
+        "ekfslam.core.models:robot_observation",  # eq. (13) again, for a robot's centre
+        "ekfslam.core.models:robot_observation_jacobians",
+    ),
 )
 
 
@@ -150,7 +155,12 @@ PREDICTED_OBSERVATION_EXERCISE = Exercise(
     _judge_predicted_observation,
     allowed=lambda: (wrap_angle,),
     keeps=("ekfslam.teaching.symbols", "ekfslam.core.models"),
-    denies=("ekfslam.core.models:observation", "ekfslam.core.models:observation_jacobians"),
+    denies=(
+        "ekfslam.core.models:observation",
+        "ekfslam.core.models:observation_jacobians",
+        "ekfslam.core.models:robot_observation",  # eq. (13) again, for a robot's centre
+        "ekfslam.core.models:robot_observation_jacobians",
+    ),
 )
 
 

@@ -20,5 +20,7 @@ sigma_r, sigma_phi = sp.symbols("sigma_r sigma_phi", positive=True)
 
 POSE = (x, y, theta)
 CONTROL = (du_x, du_y, dtheta)
+x_b, y_b, theta_b = sp.symbols("x_b y_b theta_b", real=True)  # a robot another robot sees
 LANDMARK = (m_x, m_y)
+TARGET = (x_b, y_b, theta_b)
 MEASUREMENT = (r, phi)

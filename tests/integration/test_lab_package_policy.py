@@ -63,10 +63,15 @@ ANSWERS: dict[str, list[str]] = {
         "from ekfslam.teaching import derivations\nderivations.observation_model()",
         "from ekfslam.core.models import observation_jacobians\n"
         "observation_jacobians(np.zeros(3), np.ones(2))",
+        "from ekfslam.teaching import derivations\nderivations.robot_observation_model()",
+        "from ekfslam.core.models import robot_observation_jacobians\n"
+        "robot_observation_jacobians(np.zeros(3), np.ones(3))",
     ],
     "4b": [
         "from ekfslam.core.models import observation\nobservation(np.zeros(3), np.ones(2))",
         "from ekfslam.core import models\nmodels.observation(np.zeros(3), np.ones(2))",
+        "from ekfslam.core import models\nmodels.robot_observation(np.zeros(3), np.ones(3))",
+        "from ekfslam.core import models\nmodels.ROBOT_RANGE_BEARING.h(np.zeros(3), np.ones(3))",
         "from ekfslam.core.steps import update_steps\nupdate_steps",
     ],
     "5": [
