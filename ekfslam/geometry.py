@@ -49,3 +49,21 @@ def transform_points(pose: ArrayLike, points: ArrayLike) -> NDArray[np.float64]:
     x, y, t = np.asarray(pose, dtype=float)
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     return pts @ rotation(t).T + np.array([x, y])
+
+
+def weighted_kabsch(
+    X: NDArray[np.float64], Y: NDArray[np.float64], w: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Minimise Σ w_i ‖R(θ) X_i + t − Y_i‖² in closed form; returns (x, y, θ).
+
+    In 2-D the optimal angle is atan2 of the weighted cross and dot sums of the centred points,
+    which is always a proper rotation (no SVD, no reflection fix needed).
+    """
+    w = w / w.sum()
+    x_bar, y_bar = w @ X, w @ Y
+    A, B = X - x_bar, Y - y_bar
+    cross = float(w @ (A[:, 0] * B[:, 1] - A[:, 1] * B[:, 0]))
+    dot = float(w @ (A[:, 0] * B[:, 0] + A[:, 1] * B[:, 1]))
+    theta = math.atan2(cross, dot)  # atan2(0, 0) = 0 when the rotation is undetermined
+    t = y_bar - rotation(theta) @ x_bar
+    return np.array([t[0], t[1], theta])

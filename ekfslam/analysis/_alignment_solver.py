@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ekfslam.geometry import rotation
+from ekfslam.geometry import rotation, weighted_kabsch
 
 Array = NDArray[np.float64]
 
@@ -70,22 +70,6 @@ def minimise(X: Array, Y: Array, tol: float, budget: int) -> tuple[Array, int, b
             return params, used, True
         d = distances(params, X, Y)  # Newton gave way to IRLS near another exact fit: try it
     return min(tried, key=lambda p: float(distances(p, X, Y).sum())), used, False
-
-
-def weighted_kabsch(X: Array, Y: Array, w: Array) -> Array:
-    """Minimise Σ w_i ‖R(θ) X_i + t − Y_i‖² in closed form; returns (x, y, θ).
-
-    In 2-D the optimal angle is atan2 of the weighted cross and dot sums of the centred points,
-    which is always a proper rotation (no SVD, no reflection fix needed).
-    """
-    w = w / w.sum()
-    x_bar, y_bar = w @ X, w @ Y
-    A, B = X - x_bar, Y - y_bar
-    cross = float(w @ (A[:, 0] * B[:, 1] - A[:, 1] * B[:, 0]))
-    dot = float(w @ (A[:, 0] * B[:, 0] + A[:, 1] * B[:, 1]))
-    theta = math.atan2(cross, dot)  # atan2(0, 0) = 0 when the rotation is undetermined
-    t = y_bar - rotation(theta) @ x_bar
-    return np.array([t[0], t[1], theta])
 
 
 def distances(params: Array, X: Array, Y: Array) -> Array:
