@@ -42,6 +42,7 @@ FLOOR_OF = {
     "sim": "sim",
     "vision": "vision",
     "pipeline": "pipeline",
+    "team": "pipeline",  # a team's logs joined to the joint filter, as pipeline's replay
     "analysis": "analysis",
     "viz": "viz",
     "ui": "ui",
