@@ -89,6 +89,9 @@ class RobotTrack:
         robots in the joint state; seen_by : how many sightings of it others used (accepted).
     alone : landmark sightings it used in its own filter before it entered.
     skipped : robot sightings before the observer or the target entered (or before its log).
+    recoveries : s on the team's clock, when recovery widened its pose covariance.
+    lost_at_end : its last `RecoveryConfig.after` (20) landmark sightings were all rejected: its
+        pose at the end cannot be trusted.
     """
 
     t: Array
@@ -98,6 +101,8 @@ class RobotTrack:
     seen_by: int
     alone: int
     skipped: int
+    recoveries: tuple[float, ...] = ()
+    lost_at_end: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -160,6 +165,11 @@ class _Robot:
     alone: int = 0
     skipped: int = 0
     recovery: Recovery | None = None
+    rejected_in_a_row: int = 0
+
+
+#: Rejected sightings in a row at the end of a run that mark a robot as lost (`RobotTrack`).
+LOST_AFTER = RecoveryConfig().after
 
 
 def replay_team(
@@ -244,6 +254,10 @@ def replay_team(
                 stepper = state[a].recovery or _OneRobot(joint, a)
                 outcome = stepper.update(int(det.tag_id[k]), z, Q_of[a], t)
                 state[a].landmarks[outcome.label] += 1
+                if outcome == Outcome.REJECTED:
+                    state[a].rejected_in_a_row += 1
+                elif outcome == Outcome.ACCEPTED:
+                    state[a].rejected_in_a_row = 0
                 _record(state[a], t, joint.pose(a))
             else:
                 alone[a].update(a, z, int(det.tag_id[k]), Q_of[a])
@@ -373,6 +387,8 @@ def _track(robot: _Robot) -> RobotTrack:
         seen_by=robot.seen_by,
         alone=robot.alone,
         skipped=robot.skipped,
+        recoveries=tuple(robot.recovery.times) if robot.recovery is not None else (),
+        lost_at_end=robot.rejected_in_a_row >= LOST_AFTER,
     )
 
 

@@ -14,6 +14,7 @@ from ekfslam.analysis.evaluation import SEED_TABLE1, RunSummary, seed_experiment
 from ekfslam.analysis.rescue import replay_rescued as rescued_replay
 from ekfslam.cli import animate as animate_args
 from ekfslam.cli import args as ca
+from ekfslam.cli import team as team_cli
 from ekfslam.cli.common import (
     add_founding_arguments,
     add_hypotheses_argument,
@@ -44,6 +45,7 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         "run", type=ca.given_path, help="a run folder (run.json ...) or a MRCLAM dataset folder"
     )
     ca.add_robot_argument(run)
+    team_cli.add_team_argument(run)
     ca.add_replay_start_arguments(run)
     ca.add_plot_argument(run, "write the seed's Figure 2 for the run to FILE")
     animate_args.add_animate_arguments(run)
@@ -142,6 +144,8 @@ def _match_needs_hidden_ids(args: argparse.Namespace) -> str | None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    if getattr(args, "robots", None):  # a team: its robots in one joint filter
+        return team_cli.cmd_team(args)
     run, report = load_run(args)
     hidden = getattr(args, "association", "known") != "known"
     # with the ids hidden, a noise whose Σ the association's χ² tests can trust

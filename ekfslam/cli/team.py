@@ -1,0 +1,195 @@
+"""``python -m ekfslam run DATASET --robots all`` (or ``--robots 1 3 5``): a MRCLAM dataset's
+robots replayed through one joint filter (`ekfslam.team.replay_team`).
+
+Prints the joint map's Table 1 row (eq. 17 against the true landmarks) and, per robot, how it
+entered the map, its trajectory error against Vicon where there is one, the sightings it used
+(landmarks, robots) and whether its filter lost it (a run of rejected sightings at the end, and
+how often recovery widened its pose); ``--json`` carries the same, ``--plot FILE`` draws the
+robots' trajectories and the one map.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ekfslam.analysis.alignment import align
+from ekfslam.analysis.evaluation import interpolate_poses
+from ekfslam.cli import args as ca
+from ekfslam.errors import InputError
+from ekfslam.files import save_figure
+from ekfslam.logs.mrclam.load import BARCODES, ROBOTS, find_dataset
+from ekfslam.logs.mrclam.team import load_mrclam_team
+from ekfslam.team import TeamResult, replay_team
+from ekfslam.viz.tables import COMMAND_LINE, table1_row
+
+
+def robots_argument(text: str) -> str | int:
+    """``all`` or a robot's number (1-5), for ``--robots``."""
+    if text == "all":
+        return text
+    return ca.one_of(ROBOTS, "MRCLAM robots")(text)
+
+
+def add_team_argument(p: argparse.ArgumentParser) -> None:
+    """``--robots all | N [N ...]``: replay these robots together, in one map."""
+    p.add_argument(
+        "--robots",
+        nargs="+",
+        type=robots_argument,
+        metavar="N",
+        help="MRCLAM only: replay these robots (all, or numbers 1-5) together in one joint "
+        "filter, each robot's sightings of the others correcting both poses; prints the joint "
+        "map's Table 1 row and each robot's entry, trajectory error and sightings",
+    )
+
+
+def chosen_robots(folder: Path, values: list) -> tuple[int, ...]:
+    """The robots ``--robots`` names: all five for ``all``; each number once."""
+    if "all" in values:
+        if len(values) > 1:
+            raise InputError(folder, None, "--robots: give all, or robot numbers, not both")
+        return ROBOTS
+    twice = sorted({v for v in values if values.count(v) > 1})
+    if twice:
+        raise InputError(folder, None, f"--robots: robot {twice[0]} is named twice")
+    return tuple(sorted(values))
+
+
+def cmd_team(args: argparse.Namespace) -> int:
+    """The team replay of ``run DATASET --robots ...``."""
+    for option, default in (("association", "known"), ("noise", "auto"), ("animate", None)):
+        if getattr(args, option, default) != default:
+            name = option.replace("_", "-")
+            raise InputError(
+                args.run,
+                None,
+                f"--{name} is not available with --robots yet (a team replays "
+                "with the landmarks' ids and each robot's documented noise)",
+            )
+    if getattr(args, "robot", None) is not None:
+        raise InputError(args.run, None, "give --robot N (one robot) or --robots (a team)")
+    folder = _dataset_folder(args.run)
+    team, report = load_mrclam_team(
+        folder, chosen_robots(folder, args.robots), max_range=getattr(args, "max_range", None)
+    )
+    result = replay_team(team)
+    out = team_dict(team, result, report)
+    if args.plot is not None:
+        # matplotlib only for a figure (about 0.3 s)
+        plotting = importlib.import_module("ekfslam.viz.team_plot")
+        fig = plotting.team_figure(team, result, align(result.landmarks, team.tag_map))
+        out["plot"] = str(save_figure(fig, args.plot))
+    if args.json:
+        print(json.dumps(out, indent=2, allow_nan=False))
+    else:
+        print(team_lines(out))
+    return 0
+
+
+def _dataset_folder(path: Path) -> Path:
+    folder = Path(path)
+    if not folder.exists() and str(folder).isdigit() and int(str(folder)) in ca.MRCLAM_DATASETS:
+        folder = find_dataset(int(str(folder)))
+    if not (folder / BARCODES).is_file():
+        raise InputError(folder, None, f"--robots needs a MRCLAM dataset folder (no {BARCODES})")
+    return folder
+
+
+def team_dict(team, result: TeamResult, report) -> dict:
+    """The JSON of a team replay: the joint map's alignment at the top level (as a single
+    run's), ``robots`` keyed by number, ``seconds``, and what was loaded and dropped."""
+    a = align(result.landmarks, team.tag_map)
+    robots = {}
+    for robot in result.robots:
+        run, track, entry = team.runs[robot], result.tracks[robot], result.entries.get(robot)
+        ate = None
+        if run.groundtruth is not None and entry is not None:
+            truth, inside = interpolate_poses(run.groundtruth, track.t)
+            error = track.pose[inside, :2] - truth[inside, :2]
+            ate = float(np.sqrt(np.mean(np.sum(error**2, axis=1)))) if inside.any() else None
+        robots[str(robot)] = {
+            "entry": None
+            if entry is None
+            else {
+                "how": entry.how,
+                "seconds": round(entry.seconds, 3),
+                "landmarks": list(entry.landmarks),
+                "residual_m": entry.residual,
+                "described": entry.describe(),
+            },
+            "trajectory": {
+                "ate_rmse": ate,
+                "reason": None if ate is not None else "no Vicon ground truth for this robot",
+            },
+            "sightings": {
+                "landmarks": track.landmarks,
+                "robots": track.robots_seen,
+                "seen_by_others_accepted": track.seen_by,
+                "alone_before_entering": track.alone,
+                "skipped": track.skipped,
+            },
+            "diagnosis": {
+                "recoveries_s": [round(t - team.span()[0], 3) for t in track.recoveries],
+                "lost_at_end": track.lost_at_end,
+                "verdict": "lost" if track.lost_at_end else "ok",
+            },
+        }
+    return {
+        "name": result.name,
+        "alignment": {
+            "x0": a.x0,
+            "y0": a.y0,
+            "theta0": a.theta0,
+            "mean_error": a.mean_error,
+            "rmse": a.rmse,
+            "landmarks_matched": len(a.ids),
+        },
+        "robots": robots,
+        "seconds": result.seconds,
+        "loaded": report.as_dict(),
+    }
+
+
+def team_lines(out: dict) -> str:
+    """The terminal's table: the joint map's Table 1 row, then a line per robot."""
+    layout = COMMAND_LINE
+    n = layout.number
+    a = out["alignment"]
+    head = (
+        f"{'Map':<{layout.name}}{'x0':>{n}}{'y0':>{n}}{'theta0':>{n}}"
+        f"{layout.error_title:>{layout.error}}"
+    )
+    row = table1_row(out["name"], (a["x0"], a["y0"], a["theta0"], a["mean_error"]), layout)
+    lines = [head, row, ""]
+    for robot, r in out["robots"].items():
+        entry = r["entry"]["described"] if r["entry"] else NEVER
+        ate = r["trajectory"]["ate_rmse"]
+        s = r["sightings"]
+        lines.append(
+            f"robot {robot}: entered {entry}; trajectory error "
+            + (f"{ate:.3f} m" if ate is not None else "n/a (no Vicon)")
+            + f"; landmark sightings {_counts(s['landmarks'])}; robot sightings "
+            f"{_counts(s['robots'])}; {r['diagnosis']['verdict']}"
+            + (
+                f" ({len(r['diagnosis']['recoveries_s'])} recoveries)"
+                if r["diagnosis"]["recoveries_s"]
+                else ""
+            )
+        )
+    lines.append(f"{len(out['robots'])} robots in {out['seconds']:.1f} s")
+    return "\n".join(lines)
+
+
+#: Why a robot never entered the joint map.
+NEVER = "never: its own map did not share 3 landmarks, spread 1 m or more, with the joint map"
+
+
+def _counts(counts: dict) -> str:
+    if not counts:
+        return "none"
+    return ", ".join(f"{n} {label}" for label, n in sorted(counts.items()))
