@@ -26,6 +26,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "studies.cli.budget",
         "the realistic robot's error budget: each error source alone and all but it",
     ),
+    "team-mrclam": (
+        "studies.cli.team_mrclam",
+        "each MRCLAM dataset's robots alone and in one joint map: map and trajectory errors",
+    ),
     "vision-eval": (
         "studies.cli.vision_eval",
         "score range and bearing from rendered frames against the truth",
