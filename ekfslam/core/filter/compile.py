@@ -12,7 +12,7 @@ reader steps through in a debugger. `compiled` hands back the same functions com
    functions (`ekfslam.core.models.MotionModel`, `SensorModel`), compiled the same way, and so
    is every other function of ekfslam that a compiled function calls, down to the models.
 3. One primitive has a compiled form of its own: `ekfslam.core.filter.symmetric.
-   subtract_products`, a loop over Σ's upper triangle instead of numpy's d x d temporary.
+   subtract_products`, one loop over Σ instead of numpy's d x d temporary.
 4. numba caches the machine code beside the source files (``cache=True``), under a name that
    carries a digest of every source involved and of the models' parameters: a changed model or
    step is compiled afresh, and only the first run on a machine pays the compilation. Each
@@ -123,17 +123,17 @@ def _dot(A, B):
 
 @overload(symmetric.subtract_products, jit_options=OPTIONS, inline="always")
 def _subtract_products(Sigma, d, A, B):
-    def one_pass(Sigma, d, A, B):  # Σ[i, k] -= Σ_a A[a, i] B[a, k] for k >= i
+    def one_pass(Sigma, d, A, B):  # Σ[i, k] -= Σ_a A[a, i] B[a, k], every k: rows contiguous
         n = A.shape[0]
         for i in range(d):
-            row = Sigma[i, i:d]  # sliced, so that the loop starts at 0: LLVM vectorises it
+            row = Sigma[i, :d]
             for a in range(0, n - 1, 2):  # two products a pass: half the reads and writes of Σ
-                x, y, b, c = A[a, i], A[a + 1, i], B[a, i:d], B[a + 1, i:d]
-                for k in range(d - i):
+                x, y, b, c = A[a, i], A[a + 1, i], B[a, :d], B[a + 1, :d]
+                for k in range(d):
                     row[k] -= x * b[k] + y * c[k]
             if n % 2:
-                x, b = A[n - 1, i], B[n - 1, i:d]
-                for k in range(d - i):
+                x, b = A[n - 1, i], B[n - 1, :d]
+                for k in range(d):
                     row[k] -= x * b[k]
 
     return one_pass

@@ -14,7 +14,7 @@ same steps with the lift matrices F_x (eq. 8) and F_x,j (eq. 14); `ekfslam.teach
 is that literal form, kept as the test oracle.
 
 Cost per step with n landmarks: prediction O(n) (only the pose rows and columns change), update
-O(n²) (one symmetric low-rank correction of the upper triangle), landmark initialisation O(n).
+O(n²) (one symmetric low-rank correction of Σ, in one pass), landmark initialisation O(n).
 `python -m benchmarks bench` measures it.
 
 With `FilterConfig(linearization="invariant")` (Barrau & Bonnabel 2015) the storage holds the
@@ -469,7 +469,7 @@ class EKFSLAM(FilterState):
         s, m = self._storage, slice(3, 3 + 2 * n)
         self._dim = 3 + 2 * n
         s.mu[m] = s.first[m] = means.ravel()
-        s.Sigma[:3, m] = 0.0
+        s.Sigma[:3, m] = s.Sigma[m, :3] = 0.0
         s.Sigma[m, m] = np.asarray(covariance, dtype=float)
         for j in range(n):
             self._ids.append(j)

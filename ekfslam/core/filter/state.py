@@ -2,8 +2,9 @@
 
 `FilterState` holds μ and Σ (`ekfslam.core.filter.steps.Storage`) in arrays that grow
 geometrically, so adding a landmark never copies the matrix (except on the rare doubling of the
-capacity); the storage beyond the state is kept at zero, and the steps keep only Σ's lower
-triangle current (`ekfslam.core.filter.symmetric`). It owns the slots (landmark id -> slot j,
+capacity); the storage beyond the state is kept at zero, and the steps keep both of Σ's
+triangles current (`ekfslam.core.filter.symmetric`): any read of it, a kept view included, is
+the current value. It owns the slots (landmark id -> slot j,
 state rows 3 + 2j and 4 + 2j), the counts and the recorder, the step functions it runs
 (`ekfslam.core.filter.backend`), and everything a reader asks of the filter: μ, Σ, the pose, a
 landmark, the map, the history.
@@ -30,7 +31,7 @@ from ekfslam.core.filter.backend import steps_for
 from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.history import History, Recorder
 from ekfslam.core.filter.steps import Linearization, Storage
-from ekfslam.core.filter.symmetric import diagonal_block, mirror
+from ekfslam.core.filter.symmetric import diagonal_block
 from ekfslam.core.filter_checks import check_start
 from ekfslam.core.invariant import from_cartesian, landmark_to_cartesian, to_cartesian
 from ekfslam.core.models import ODOMETRY, RANGE_BEARING
@@ -116,13 +117,12 @@ class FilterState:
     def Sigma(self) -> Array:
         """The state covariance (3 + 2n, 3 + 2n), a view into the pre-allocated storage.
 
-        The steps keep only its upper triangle current (`ekfslam.core.filter.symmetric`); reading
-        it fills in the lower one, O(n²). Read it again after a step rather than keeping the
-        view. With `linearization="invariant"` it is the Cartesian covariance of (x, y, θ, m),
+        Both triangles are current after every step (`ekfslam.core.filter.symmetric`), so a
+        kept view reads the current Σ (until the storage grows: read it again after a landmark
+        is added). With `linearization="invariant"` it is the Cartesian covariance of (x, y, θ, m),
         a new array, T P Tᵀ from `invariant_covariance` (`ekfslam.core.invariant.to_cartesian`).
         """
         self.settle()
-        mirror(self._storage.Sigma, self._dim)
         P = self._storage.Sigma[: self._dim, : self._dim]
         return to_cartesian(P, self.mu) if self._invariant else P
 
@@ -132,7 +132,6 @@ class FilterState:
         if not self._invariant:
             raise AttributeError("only a filter with linearization='invariant' has one")
         self.settle()
-        mirror(self._storage.Sigma, self._dim)
         return self._storage.Sigma[: self._dim, : self._dim].copy()
 
     @property
