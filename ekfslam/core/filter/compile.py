@@ -229,12 +229,23 @@ def compiled(roots: dict[str, Callable], models: dict[str, object]) -> types.Sim
     return steps
 
 
+def warm_stamp(roots: dict[str, Callable], models: dict[str, object]) -> Path:
+    """The marker ``ekfslam_warm_<digest>.stamp`` that says the cache holds the machine code of
+    these roots for these models, as a loop of the filter's steps calls them (``python -m
+    ekfslam warm`` writes it once it has called each): a filter whose backend is "auto" loads
+    the compiled steps then, in a second, instead of compiling them for a minute
+    (`ekfslam.core.filter.backend.auto_steps`)."""
+    tag = _digest(closure(roots.values(), models, primitives=PRIMITIVES), models)
+    return _cache_dir() / f"ekfslam_warm_{tag}.stamp"
+
+
 #: How many digests (sets of sources and models, `_digest`) the cache keeps, the last used; one
 #: used within `RECENT_S` seconds is kept whatever its rank (another process may be loading it).
 KEEP_DIGESTS = 8
 RECENT_S = 3600.0
 #: A cached file's digest: numba's ``steps.sight_<digest>-496.py311.1.nbc`` (and ``.nbi``), the
-#: generated ``ekfslam_generated_advance_<digest>.py``, the marker ``ekfslam_used_<digest>.stamp``.
+#: generated ``ekfslam_generated_advance_<digest>.py``, the markers ``ekfslam_used_<digest>.stamp``
+#: and ``ekfslam_warm_<digest>.stamp``.
 _DIGEST_IN_NAME = re.compile(r"_([0-9a-f]{16})[-.]")
 
 

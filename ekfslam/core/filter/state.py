@@ -20,6 +20,7 @@ heading noise, which `steps.settle` adds before Σ is read.
 from __future__ import annotations
 
 import copy
+import math
 import types
 from dataclasses import fields
 from typing import Self
@@ -27,7 +28,7 @@ from typing import Self
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ekfslam.core.filter.backend import steps_for
+from ekfslam.core.filter.backend import auto_steps, steps_for
 from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.history import History, Recorder
 from ekfslam.core.filter.steps import Linearization, Storage
@@ -38,6 +39,9 @@ from ekfslam.core.models import ODOMETRY, RANGE_BEARING
 from ekfslam.geometry import wrap_angle
 
 Array = NDArray[np.float64]
+
+#: How often (events) a filter on backend "auto" asks whether the compiled steps pay (`_ran`).
+LOOK_EVERY = 1000
 
 
 def _storage(capacity: int, linearization: int) -> Storage:
@@ -86,10 +90,17 @@ class FilterState:
         self.slot: dict[int, int] = {}
         self._counts = dict.fromkeys((f.name for f in fields(FilterCounts)), 0)
         self._recorder = Recorder() if record else None
-        backend = "python" if self.config.backend == "auto" else self.config.backend
         self.motion = self.config.motion or ODOMETRY
         self.sensor = self.config.sensor or RANGE_BEARING
-        self._steps = steps_for(self.motion, self.sensor, backend)
+        self._events = 0  # run on the Python steps since "auto" last looked (`auto_steps`)
+        self._look_at = math.inf  # ... when it looks again
+        if self.config.backend == "auto":
+            self._steps = auto_steps(self.motion, self.sensor, 0)
+            if self._steps is None:
+                self._steps = steps_for(self.motion, self.sensor, "python")
+                self._look_at = LOOK_EVERY
+        else:
+            self._steps = steps_for(self.motion, self.sensor, self.config.backend)
 
     def clone(self) -> Self:
         """An independent copy of the state, without a history: one hypothesis of
@@ -190,6 +201,17 @@ class FilterState:
         `ekfslam.core.filter.steps.settle`); a correction adds it in its own pass instead."""
         if self._storage.owed[0]:
             self._steps.settle(self._arrays, self._dim)
+
+    def _ran(self, events: int) -> None:
+        """Count events run on the Python steps of backend "auto"; every `LOOK_EVERY`, ask
+        whether the compiled steps pay now (`ekfslam.core.filter.backend.auto_steps`) and take
+        them if so: the numbers stay the same to rounding, the rest of the run is faster."""
+        self._events += events
+        if self._events >= self._look_at:
+            steps = auto_steps(self.motion, self.sensor, self._events)
+            self._events = 0
+            if steps is not None:
+                self._steps, self._look_at = steps, math.inf
 
     def _grow(self) -> None:
         d, old = self._dim, self._storage
