@@ -60,6 +60,8 @@ def check_predict(u: Any, R: Any, t: Any) -> None:
 def check_predict_many(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> None:
     """`EKFSLAM.predict_many(us, dts, ts, M, R)`: K increments, K durations >= 0, K times, and
     exactly one of M (per second) and R (per step), a 3x3 covariance."""
+    if _one_plain_step(us, dts, ts, M, R):
+        return
     if (
         R is None
         and type(M) is _ARRAY
@@ -96,6 +98,38 @@ def check_predict_many(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> None:
     )  # R ignores them; K all the same
     if smallest < 0.0:
         raise ConfigError(f"{name}: dts must be durations >= 0 s, got {smallest!r}")
+
+
+def _one_plain_step(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> bool:
+    """The fast path of `check_predict_many` for a user's loop, one step a call: us (1, 3),
+    dts (1,), ts (1,) float64 arrays and the M found good before, read as six Python floats
+    (a NaN fails every comparison, so it takes the full check, which names it)."""
+    if (
+        R is not None
+        or type(us) is not _ARRAY
+        or type(dts) is not _ARRAY
+        or type(ts) is not _ARRAY
+        or type(M) is not _ARRAY
+        or us.shape != (1, 3)
+        or dts.shape != (1,)
+        or ts.shape != (1,)
+        or us.dtype is not _FLOAT
+        or dts.dtype is not _FLOAT
+        or ts.dtype is not _FLOAT
+        or M.dtype is not _FLOAT
+        or M.shape != (3, 3)
+        or _GOOD_NOISE.get(_M_KEY) != M.tobytes()
+    ):
+        return False
+    ((a, b, c),), (d,), (t,) = us.tolist(), dts.tolist(), ts.tolist()
+    p = MAX_POSITION
+    return (
+        -p <= a <= p
+        and -p <= b <= p
+        and -p <= c <= p
+        and 0.0 <= d <= MAX_TIME
+        and -MAX_TIME <= t <= MAX_TIME
+    )
 
 
 def check_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> None:

@@ -11,8 +11,11 @@ reader steps through in a debugger. `compiled` hands back the same functions com
 2. The names ``motion`` and ``sensor`` in the steps are bound to the chosen models'
    functions (`ekfslam.core.models.MotionModel`, `SensorModel`), compiled the same way, and so
    is every other function of ekfslam that a compiled function calls, down to the models.
-3. One primitive has a compiled form of its own: `ekfslam.core.filter.symmetric.
-   subtract_products`, one loop over Σ instead of numpy's d x d temporary.
+3. Three primitives have a compiled form of their own: `ekfslam.core.filter.symmetric.
+   subtract_products`, one loop over Σ instead of numpy's d x d temporary, and
+   `ekfslam.core.filter.steps.cholesky` and `positive`, loops where the Python steps call
+   numpy (LAPACK for a 2x2 costs more than its arithmetic, compiled; loops cost more than
+   LAPACK, interpreted).
 4. numba caches the machine code beside the source files (``cache=True``), under a name that
    carries a digest of every source involved and of the models' parameters: a changed model or
    step is compiled afresh, and only the first run on a machine pays the compilation. Each
@@ -47,6 +50,7 @@ import numpy as np
 from numba import njit
 from numba.extending import overload
 
+from ekfslam.core.filter import steps as filter_steps
 from ekfslam.core.filter import symmetric
 from ekfslam.core.filter.rebinding import called, closure, named, rebind
 from ekfslam.errors import ConfigError
@@ -67,7 +71,9 @@ def small_matmul(A, B):
 
 
 #: functions compiled by a form of their own, not from their source
-PRIMITIVES = frozenset({small_matmul, symmetric.subtract_products})
+PRIMITIVES = frozenset(
+    {small_matmul, symmetric.subtract_products, filter_steps.cholesky, filter_steps.positive}
+)
 
 
 @overload(small_matmul, jit_options=OPTIONS)
@@ -137,6 +143,41 @@ def _subtract_products(Sigma, d, A, B):
                     row[k] -= x * b[k]
 
     return one_pass
+
+
+@overload(filter_steps.cholesky, jit_options=OPTIONS, inline="always")
+def _cholesky(S):
+    def loops(S):  # C[i, j] from S's lower triangle, row by row
+        k = S.shape[0]
+        C = np.zeros((k, k))
+        for i in range(k):
+            for j in range(i + 1):
+                dot = 0.0
+                for t in range(j):
+                    dot += C[i, t] * C[j, t]
+                total = S[i, j] - dot
+                C[i, j] = np.sqrt(total) if i == j else total / C[j, j]
+        return C
+
+    return loops
+
+
+@overload(filter_steps.positive, jit_options=OPTIONS, inline="always")
+def _positive(C):
+    def loops(C):  # every entry finite, every pivot > 0, det = (Π pivots)² in (0, inf)
+        k = C.shape[0]
+        product = 1.0
+        for i in range(k):
+            for j in range(k):
+                if not np.isfinite(C[i, j]):
+                    return False
+            if not C[i, i] > 0.0:
+                return False
+            product *= C[i, i]
+        det = product * product
+        return 0.0 < det < np.inf
+
+    return loops
 
 
 class _MatMulToCall(ast.NodeTransformer):

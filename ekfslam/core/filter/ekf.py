@@ -62,6 +62,11 @@ def _rows(values: ArrayLike, width: int | None = None) -> Array:
     return a if width is None else a.reshape(-1, width)
 
 
+def _contiguous(values: ArrayLike) -> Array:
+    """Values as a C-ordered float array, as they are when they are one already (`_rows`)."""
+    return np.ascontiguousarray(values, dtype=float)
+
+
 #: each outcome's `Outcome.label`, looked up once per sighting
 _LABEL = {outcome: outcome.label for outcome in Outcome}
 
@@ -204,7 +209,7 @@ class EKFSLAM(FilterState):
         N = M if per_second else R
         if validate:
             check_predict_many(us, dts, ts, M, R)
-            us, dts, ts, N = _rows(us, 3), _rows(dts), _rows(ts), _rows(N)
+            us, dts, ts, N = _rows(us, 3), _contiguous(dts), _contiguous(ts), _contiguous(N)
         self._propagate((us, dts, ts, N, per_second))
 
     def _propagate(self, batch: tuple) -> None:
@@ -313,7 +318,7 @@ class EKFSLAM(FilterState):
         self._events += 1
         if self._events >= self._look_at:
             self._ran(0)
-        z, Q = _rows(z), _rows(Q)
+        z, Q = _contiguous(z), _contiguous(Q)
         row, obs, event = self._rows_for_observation()
         j = self.slot.get(landmark_id)
         if j is not None and self._plain:  # the commonest case, in as few Python steps as it takes

@@ -460,22 +460,23 @@ def apart(pose: Array, landmark: Array) -> bool:
 
 
 def cholesky(S: Array) -> Array:
-    """The lower-triangular C with C Cᵀ = S (k x k, from S's lower triangle); NaN where S is not
-    positive definite."""
-    k = S.shape[0]
-    C = np.zeros((k, k))
-    for i in range(k):
-        for j in range(i + 1):
-            total = S[i, j] - C[i, :j] @ C[j, :j]
-            C[i, j] = np.sqrt(total) if i == j else total / C[j, j]
-    return C
+    """The lower-triangular C with C Cᵀ = S (k x k); NaN where S is not positive definite.
+
+    numpy's (LAPACK's) here; compiled, a loop over S's lower triangle (`ekfslam.core.filter.
+    compile`), since for a 2x2 the call into LAPACK costs more than its arithmetic."""
+    try:
+        return np.linalg.cholesky(S)
+    except np.linalg.LinAlgError:
+        return np.full(S.shape, np.nan)
 
 
 def positive(C: Array) -> bool:
     """Did `cholesky` succeed, with a determinant a float holds: every pivot finite and positive,
-    and det S = Π C_ii² neither 0 nor inf (noise so small, or so large, that S means nothing)?"""
-    det = np.prod(np.diag(C)) ** 2
-    return bool(np.all(np.diag(C) > 0.0) and np.all(np.isfinite(C)) and 0.0 < det < np.inf)
+    and det S = Π C_ii² neither 0 nor inf (noise so small, or so large, that S means nothing)?
+    Compiled, a loop over C (`ekfslam.core.filter.compile`)."""
+    pivots = np.diag(C)
+    det = np.prod(pivots) ** 2
+    return bool(np.isfinite(C).all() and (pivots > 0.0).all() and 0.0 < det < np.inf)
 
 
 def solve_lower(C: Array, b: Array) -> Array:

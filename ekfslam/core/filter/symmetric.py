@@ -58,10 +58,16 @@ def subtract_products(Sigma: Array, d: int, A: Array, B: Array) -> None:
     ρ v vᵀ is added as A = -u, B = u with u = √ρ v. Aᵀ B is then symmetric in exact
     arithmetic and A[a, i] B[a, k] = ±(the same two floats' product) as A[a, k] B[a, i], so
     the compiled form (`ekfslam.core.filter.compile`), one pass over all of Σ, keeps (i, k)
-    and (k, i) the same float; this numpy form takes the upper triangle of Aᵀ B and mirrors it.
+    and (k, i) the same float. This numpy form does too: Wᵀ W is BLAS's symmetric product
+    (numpy sees one operand the other's transpose), and otherwise the upper triangle of Aᵀ B is
+    mirrored.
     """
-    P = np.triu(A[:, :d].T @ B[:, :d])
-    Sigma[:d, :d] -= P + np.triu(P, 1).T
+    if A is B:
+        W = A[:, :d]
+        Sigma[:d, :d] -= W.T @ W
+    else:
+        P = np.triu(A[:, :d].T @ B[:, :d])
+        Sigma[:d, :d] -= P + np.triu(P, 1).T
 
 
 def block(Sigma: Array, rows: Array, columns: Array) -> Array:
