@@ -145,7 +145,7 @@ def _subtract_products(Sigma, d, A, B):
     return one_pass
 
 
-@overload(filter_steps.cholesky, jit_options=OPTIONS, inline="always")
+@overload(filter_steps.cholesky, jit_options=OPTIONS)
 def _cholesky(S):
     def loops(S):  # C[i, j] from S's lower triangle, row by row
         k = S.shape[0]
@@ -162,7 +162,7 @@ def _cholesky(S):
     return loops
 
 
-@overload(filter_steps.positive, jit_options=OPTIONS, inline="always")
+@overload(filter_steps.positive, jit_options=OPTIONS)
 def _positive(C):
     def loops(C):  # every entry finite, every pivot > 0, det = (Π pivots)² in (0, inf)
         k = C.shape[0]
