@@ -5,7 +5,9 @@
 `EKFSLAM.predict_many`, `EKFSLAM.update`, `EKFSLAM.pose` and `EKFSLAM.pose_covariance` every
 step, as a robot's online loop or a student's loop calls them, with the default config and with
 ``backend="numba"`` named, FEJ and invariant; and through ukfm's own EKF loop, reimplemented
-faithfully (`benchmarks.ukfm_slam2d.run_ukfm_ekf`). ukfm's sighting is the landmark's position
+faithfully (`benchmarks.ukfm_slam2d.run_ukfm_ekf`); and PythonRobotics' EKF SLAM on its own
+world (`benchmarks.pythonrobotics_ekf`: 4 tags, 500 steps of 0.1 s, its own association)
+against the same user's loop on that world, ids given. ukfm's sighting is the landmark's position
 in the robot's frame with noise σ² I; the loop hands the filter its range and bearing, with Q
 = σ² diag(1, 1/r²) (the same noise, to first order).
 
@@ -25,6 +27,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from benchmarks import pythonrobotics_ekf as pr
 from benchmarks.ukfm_slam2d import DT, OBS_STD, ODO_STD, STEPS, World, run_ukfm_ekf, simulate
 from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 
@@ -38,6 +41,9 @@ CONFIGS: dict[str, FilterConfig] = {
     "ekfslam invariant": FilterConfig(linearization="invariant"),
 }
 UKFM = "ukfm ekf (reimplemented)"
+#: PythonRobotics' world: its loop, and the user's loop through ekfslam's default config
+PR, PR_OURS = "pythonrobotics ekf_slam (reimplemented)", "ekfslam default, on its world"
+PR_RUNS = 5
 
 
 def run_user_loop(world: World, config: FilterConfig) -> np.ndarray:
@@ -60,6 +66,28 @@ def run_user_loop(world: World, config: FilterConfig) -> np.ndarray:
             Q = np.array([[sigma2, 0.0], [0.0, sigma2 / (r * r)]])
             f.update(int(i), np.array([r, math.atan2(y, x)]), Q, t)
         out[n] = f.pose
+        f.pose_covariance  # noqa: B018 (read every step, as the user's loop does)
+    return out
+
+
+def run_user_loop_pr(world: pr.World) -> np.ndarray:
+    """The user's loop on PythonRobotics' world, as `run_user_loop`: the control (v, ω) over
+    DT as the body increment (v DT, 0, ω DT), its noise R_sim per second, Q_sim per sighting.
+    The start is known (Σ0 = 0): PythonRobotics starts at P0 = I, which lets the whole map and
+    path shift together, far off the true path's frame in which the RMSE is taken."""
+    M = np.diag((pr.R_sim[0, 0] * pr.DT, 1e-12, pr.R_sim[1, 1] * pr.DT))
+    Q = pr.Q_sim.copy()
+    f = EKFSLAM(
+        np.zeros(3), record=False
+    )  # a known start (PythonRobotics' P0 = I only shifts the map)
+    out = np.zeros((len(world.poses), 3))
+    dts = np.array([pr.DT])
+    for n, ((v, w), z) in enumerate(zip(world.inputs, world.sightings, strict=True)):
+        t = (n + 1) * pr.DT
+        f.predict_many(np.array([[v * pr.DT, 0.0, w * pr.DT]]), dts, np.array([t]), M=M)
+        for r, b, i in z:
+            f.update(int(i), np.array([r, b]), Q, t)
+        out[n + 1] = f.pose
         f.pose_covariance  # noqa: B018 (read every step, as the user's loop does)
     return out
 
@@ -88,6 +116,16 @@ def bench_loop(runs: int = RUNS, steps: int = STEPS) -> dict:
             estimate = run(world)
             per_step[name].append((time.perf_counter() - t0) / (steps - 1) * 1e6)
             rmse[name].append(_rmse(estimate, world))
+    for seed in range(PR_RUNS):  # PythonRobotics' world: 500 steps a run
+        world = pr.simulate(seed)
+        for name, run in ((PR, pr.run_pythonrobotics), (PR_OURS, run_user_loop_pr)):
+            t0 = time.perf_counter()
+            estimate = run(world)
+            per_step.setdefault(name, []).append(
+                (time.perf_counter() - t0) / len(world.inputs) * 1e6
+            )
+            d = estimate[:, :2] - world.poses[:, :2]
+            rmse.setdefault(name, []).append(float(np.sqrt(np.mean(np.sum(d * d, axis=1)))))
     us = {name: statistics.median(v) for name, v in per_step.items()}
     return {
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
@@ -97,6 +135,7 @@ def bench_loop(runs: int = RUNS, steps: int = STEPS) -> dict:
         "us_per_step": us,
         "us_per_step_range": {name: (min(v), max(v)) for name, v in per_step.items()},
         "ukfm_over": {name: us[UKFM] / us[name] for name in filters},
+        "pythonrobotics_over_ours": us[PR] / us[PR_OURS],
         "position_rmse_m": {name: statistics.median(v) for name, v in rmse.items()},
         "command": f"python -m benchmarks loop --runs {runs} --steps {steps}",
     }
@@ -113,8 +152,13 @@ def loop_table(r: dict) -> str:
     ]
     for name, us in r["us_per_step"].items():
         lo, hi = r["us_per_step_range"][name]
+        ratio = f"{r['ukfm_over'][name]:.2f}x" if name in r["ukfm_over"] else "–"
         lines.append(
-            f"| {name} | {us:.1f} | {lo:.1f}-{hi:.1f} | {r['ukfm_over'][name]:.2f}x | "
+            f"| {name} | {us:.1f} | {lo:.1f}-{hi:.1f} | {ratio} | "
             f"{r['position_rmse_m'][name]:.3f} |"
         )
+    lines.append(
+        f"\nOn PythonRobotics' world ({PR_RUNS} runs x 500 steps), its EKF SLAM over the user's "
+        f"loop: {r['pythonrobotics_over_ours']:.2f}x"
+    )
     return "\n".join(lines)
