@@ -59,9 +59,8 @@ def run_user_loop(world: World, config: FilterConfig) -> np.ndarray:
         v, w = omegas[n - 1]
         t = n * DT
         f.predict_many(np.array([[v * DT, 0.0, w * DT]]), dts, np.array([t]), M=M)
-        for x, y, i in ys[n]:
-            if i < 0:
-                continue
+        y_n = ys[n]
+        for x, y, i in y_n[y_n[:, 2] >= 0].tolist():  # the landmarks seen at this step
             r = math.hypot(x, y)
             Q = np.array([[sigma2, 0.0], [0.0, sigma2 / (r * r)]])
             f.update(int(i), np.array([r, math.atan2(y, x)]), Q, t)
