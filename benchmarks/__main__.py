@@ -11,6 +11,10 @@ from ekfslam.cli.main import exit_with, main
 #: command -> (its module, its one line in ``--help``), in the order ``--help`` lists them.
 COMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("benchmarks.cli.bench", "time replays and per-step costs against map size"),
+    "loop": (
+        "benchmarks.cli.loop",
+        "time a user's own loop of the step API against ukfm's EKF on ukfm's 2D SLAM world",
+    ),
     "tune": ("benchmarks.cli.tune", "time the live tuning panel's change-to-figure latency"),
     "grading": ("benchmarks.cli.grading", "time lab grade on a class of sandboxed submissions"),
 }

@@ -60,6 +60,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "ekfslam.cli.frames",
         "detect the AprilTags in a run's camera frames -> detections.csv",
     ),
+    "warm": (
+        "ekfslam.cli.warm",
+        "compile the filter's steps into numba's cache once, so that no first use waits",
+    ),
     "lab": (
         "ekfslam.cli.lab",
         "the lab for a course: release the students' copy; grade submissions into a CSV",

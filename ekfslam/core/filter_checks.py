@@ -29,8 +29,8 @@ _GOOD_NOISE: dict[tuple[str, int], bytes] = {}
 _FAST_SIZE = 64
 _ARRAY, _FLOAT = np.ndarray, np.dtype(np.float64)
 _REALS = (float, np.float64)  # a Python float, or numpy's (a value read from an array)
+_INTS = (int, np.int64)  # a whole-number id: Python's, or one read from an int64 array
 _M_KEY = ("EKFSLAM.predict_many: M", 3)
-_Q_KEY = ("EKFSLAM.update: Q", 2)
 _R_KEY = ("EKFSLAM.predict: R", 3)
 
 
@@ -60,6 +60,8 @@ def check_predict(u: Any, R: Any, t: Any) -> None:
 def check_predict_many(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> None:
     """`EKFSLAM.predict_many(us, dts, ts, M, R)`: K increments, K durations >= 0, K times, and
     exactly one of M (per second) and R (per step), a 3x3 covariance."""
+    if _one_plain_step(us, dts, ts, M, R):
+        return
     if (
         R is None
         and type(M) is _ARRAY
@@ -98,12 +100,44 @@ def check_predict_many(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> None:
         raise ConfigError(f"{name}: dts must be durations >= 0 s, got {smallest!r}")
 
 
+def _one_plain_step(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> bool:
+    """The fast path of `check_predict_many` for a user's loop, one step a call: us (1, 3),
+    dts (1,), ts (1,) float64 arrays and the M found good before, read as six Python floats
+    (a NaN fails every comparison, so it takes the full check, which names it)."""
+    if (
+        R is not None
+        or type(us) is not _ARRAY
+        or type(dts) is not _ARRAY
+        or type(ts) is not _ARRAY
+        or type(M) is not _ARRAY
+        or us.shape != (1, 3)
+        or dts.shape != (1,)
+        or ts.shape != (1,)
+        or us.dtype is not _FLOAT
+        or dts.dtype is not _FLOAT
+        or ts.dtype is not _FLOAT
+        or M.dtype is not _FLOAT
+        or M.shape != (3, 3)
+        or _GOOD_NOISE.get(_M_KEY) != M.tobytes()
+    ):
+        return False
+    ((a, b, c),), (d,), (t,) = us.tolist(), dts.tolist(), ts.tolist()
+    p = MAX_POSITION
+    return (
+        -p <= a <= p
+        and -p <= b <= p
+        and -p <= c <= p
+        and 0.0 <= d <= MAX_TIME
+        and -MAX_TIME <= t <= MAX_TIME
+    )
+
+
 def check_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> None:
     """`EKFSLAM.update(landmark_id, z, Q, t)`: a whole-number id, z = (r, φ) finite (|r| within
     the plausible 1e7 m), Q a 2x2 positive-definite covariance, t a plausible time or None. (A
     negative range is the sensor's business, refused by the readers; the filter's algebra takes
     it.)"""
-    if type(landmark_id) is int and _a_loops_call(z, Q, t, _Q_KEY):
+    if _a_plain_update(landmark_id, z, Q, t):
         return
     if not checks.is_whole(landmark_id) or not -(2**63) <= int(landmark_id) < 2**63:
         raise WrongTypeError(
@@ -115,6 +149,44 @@ def check_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> None:
     _noise(Q, "EKFSLAM.update: Q", 2, definite=True)
     if t is not None:
         checks.real(t, "EKFSLAM.update: t", lo=-MAX_TIME, hi=MAX_TIME, unit="s")
+
+
+def _a_plain_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> bool:
+    """The fast path of `check_update`, for what a loop of the user's calls passes: a Python or
+    numpy integer id, z a float64 array of 2 (or a list or tuple of 2 floats) within the bound,
+    Q a float64 2x2 array that is surely a positive-definite covariance, t None or a plausible
+    float. Read as Python floats, well under a microsecond; False sends the call to the full
+    check, which decides (and says what is wrong), so nothing it refuses passes here.
+
+    Q passes when it is exactly symmetric with a > 0, e > 0 and det = ae - b² > 1e-12 (a + e)²:
+    then the smaller eigenvalue, det / λ_max >= det / (a + e), exceeds 1e-12 of the larger,
+    which is `checks.covariance`'s "definite" (a, e below 1e100, so nothing overflows)."""
+    if type(landmark_id) not in _INTS or not -(2**63) <= landmark_id < 2**63:
+        return False
+    if t is not None and (type(t) not in _REALS or not -MAX_TIME <= t <= MAX_TIME):
+        return False
+    kind = type(z)
+    if kind is _ARRAY:
+        if z.dtype is not _FLOAT or z.shape != (2,):
+            return False
+        r, b = z.tolist()
+    elif (kind is list or kind is tuple) and len(z) == 2:
+        r, b = z
+        if type(r) not in _REALS or type(b) not in _REALS:
+            return False
+    else:
+        return False
+    if not (-MAX_POSITION <= r <= MAX_POSITION and -MAX_POSITION <= b <= MAX_POSITION):
+        return False
+    if type(Q) is not _ARRAY or Q.dtype is not _FLOAT or Q.shape != (2, 2):
+        return False
+    (a, q01), (q10, e) = Q.tolist()
+    return (
+        q01 == q10
+        and 0.0 < a < 1e100
+        and 0.0 < e < 1e100
+        and a * e - q01 * q01 > 1e-12 * (a + e) * (a + e)
+    )
 
 
 def check_observe(zs: Any, Q: Any, t: Any, name: str) -> None:

@@ -28,7 +28,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.filter import steps
 from ekfslam.core.filter.history import OBS_NIS, OBS_ROW, Outcome
-from ekfslam.core.filter.symmetric import mirror
 
 Array = NDArray[np.float64]
 
@@ -69,9 +68,8 @@ def _storage(mu: Array, Sigma: Array, size: int, invariant: bool) -> steps.Stora
 
 
 def _arrays(storage: steps.Storage, d: int) -> tuple[Array, Array]:
-    """μ and Σ out of the storage, Σ whole (the steps keep its upper triangle)."""
+    """μ and Σ out of the storage (copies)."""
     steps.settle(storage, d)
-    mirror(storage.Sigma, d)
     return storage.mu[:d].copy(), storage.Sigma[:d, :d].copy()
 
 

@@ -3,9 +3,11 @@ Python floats accept exactly what the full checks accept."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ekfslam.core import filter_checks
@@ -124,3 +126,26 @@ def test_a_loops_increments_take_the_fast_path(u, t, monkeypatch) -> None:
         filter_checks.checks, "array", lambda *a, **k: pytest.fail("the full check ran")
     )
     check_predict(u, R, t)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    q=st.lists(
+        st.one_of(
+            st.floats(-1e3, 1e3),
+            st.floats(1e-300, 1e-200),
+            st.sampled_from([0.0, 1e-12, math.nan, math.inf, -math.inf, 1e150]),
+        ),
+        min_size=4,
+        max_size=4,
+    ),
+    z=st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=2, max_size=2),
+)
+def test_the_fast_path_of_update_passes_only_what_the_full_check_passes(q, z) -> None:
+    """`check_update`'s fast path (Python floats, well under a microsecond) never lets through
+    what the full check (`checks.covariance`, numpy's eigenvalues) refuses (an int32 id takes
+    the full path)."""
+    Q, zs = np.array(q, dtype=float).reshape(2, 2), np.array(z, dtype=float)
+    if filter_checks._a_plain_update(3, zs, Q, 1.0):
+        filter_checks._GOOD_NOISE.clear()  # the full check itself, not its cache
+        filter_checks.check_update(np.int32(3), list(map(float, zs)), Q.tolist(), 1.0)

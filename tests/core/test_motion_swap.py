@@ -19,7 +19,6 @@ import warnings
 
 import numpy as np
 import pytest
-from finite_differences import central
 
 from ekfslam.core.filter.compile import ModelNotCompiled, SlowStepWarning, _digest
 from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
@@ -28,6 +27,7 @@ from ekfslam.core.filter.steps import advance
 from ekfslam.core.models import ODOMETRY, RANGE_BEARING, MotionModel
 from ekfslam.errors import ConfigError
 from ekfslam.geometry import wrap_angle
+from ekfslam.teaching.finite_differences import central
 from ekfslam.teaching.reference import LiteralEKFSLAM
 
 TRIG = ("math", "numpy")

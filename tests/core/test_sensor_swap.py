@@ -13,12 +13,12 @@ import math
 
 import numpy as np
 import pytest
-from finite_differences import central
 
 from ekfslam.core.association import AssociationConfig
 from ekfslam.core.filter.associating import AssociatingFilter
 from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.models import RANGE_BEARING, SensorModel, innovation, motion
+from ekfslam.teaching.finite_differences import central
 from ekfslam.teaching.reference import LiteralEKFSLAM
 
 OFFSET = (0.12, -0.05)  # m: forward, left

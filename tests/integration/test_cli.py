@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import json
 import os
 import subprocess
@@ -14,6 +15,8 @@ import pytest
 from ekfslam_cli import run_ekfslam
 
 from ekfslam import read_run
+from ekfslam.core.filter.backend import COMPILER, ROOTS, models_of
+from ekfslam.core.models import ODOMETRY, RANGE_BEARING
 
 REPO = Path(__file__).resolve().parents[2]
 RUNS = REPO / "data" / "runs"
@@ -375,3 +378,13 @@ def test_a_warning_on_the_command_line_is_one_line(monkeypatch, capsys):
     monkeypatch.setattr(run_command, "cmd_run", warns)
     assert cli.main(["run", str(REPO / "data/runs/octagon-2laps")]) == 0
     assert capsys.readouterr().err == "warning: S was singular for 3 updates; they were skipped\n"
+
+
+def test_warm_fills_the_cache_and_marks_it(tmp_path: Path):
+    """``python -m ekfslam warm`` leaves the marker by which backend "auto" loads the compiled
+    steps instead of compiling them (`ekfslam.core.filter.compile.warm_stamp`)."""
+    out = run_ekfslam("warm")
+    assert out.returncode == 0, out.stderr
+    assert "the filter's compiled steps are in the cache" in out.stdout
+    compiler = importlib.import_module(COMPILER)  # numba: this test only
+    assert compiler.warm_stamp(ROOTS, models_of(ODOMETRY, RANGE_BEARING)).exists()

@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 import pytest
-from finite_differences import central
 
 from ekfslam.core.invariant import INVARIANT_NEW_LANDMARK_POSE, noise_map, retract
 from ekfslam.core.models import (
@@ -17,6 +16,7 @@ from ekfslam.core.models import (
     observation,
     observation_jacobians,
 )
+from ekfslam.teaching.finite_differences import central
 from ekfslam.teaching.invariant import invariant_numeric
 
 EPS = 1e-6

@@ -14,12 +14,14 @@ from __future__ import annotations
 
 import functools
 import importlib
+import subprocess
+import sys
 import types
 from collections.abc import Callable
 
 from ekfslam.core.filter import iterated, jcbb_search, predictions, steps
 from ekfslam.core.filter.rebinding import interpreted, rebind
-from ekfslam.core.models import MotionModel, SensorModel
+from ekfslam.core.models import ODOMETRY, RANGE_BEARING, MotionModel, SensorModel
 
 #: The functions a filter runs, by the names it calls them.
 ROOTS: dict[str, Callable] = {
@@ -44,12 +46,73 @@ BACKENDS = ("python", "numba")
 COMPILER = "ekfslam.core.filter.compile"
 
 
+#: With backend "auto", a filter's models run this many events (predictions and sightings) in a
+#: process on the Python steps before the compiled ones are loaded: loading takes about a second
+#: (numba and the cached machine code), which the compiled steps win back in as many events at
+#: the 100-200 µs a Python correction costs against a few µs compiled.
+COMPILE_AFTER_EVENTS = 5_000
+
+#: The command that compiles the seed's models in a process of its own (`auto_steps`):
+#: ``python -m ekfslam warm`` (`ekfslam.cli.warm`).
+WARMER = ("-m", "ekfslam", "warm", "--quiet")
+
+_events: dict[tuple[MotionModel, SensorModel], int] = {}  # per models: events run in Python
+_look_again: dict[tuple[MotionModel, SensorModel], int] = {}  # ... when the cache is looked at
+_loaded: set[tuple[MotionModel, SensorModel]] = set()  # compiled steps loaded in this process
+_warming: set[tuple[MotionModel, SensorModel]] = set()  # compiled in another process, now
+
+
+def models_of(motion: MotionModel, sensor: SensorModel) -> dict[str, object]:
+    """The names the steps call their models by, bound to these models."""
+    return {"motion": motion, "sensor": sensor}
+
+
+def auto_steps(
+    motion: MotionModel, sensor: SensorModel, events: int
+) -> types.SimpleNamespace | None:
+    """What backend "auto" runs, asked by a filter that ran `events` more events on the Python
+    steps: the compiled steps once these models have run `COMPILE_AFTER_EVENTS` events in the
+    process and the cache holds their machine code (`compile.warm_stamp`), else None (the
+    Python steps, as they are).
+
+    When the cache is cold, the seed's models are compiled in a process of their own
+    (``python -m ekfslam warm``, about a minute, once per machine) while the Python steps run,
+    with a one-line message; other models stay on the Python steps (name backend "numba" to
+    compile them in this process)."""
+    key = (motion, sensor)
+    if key in _loaded:
+        return steps_for(motion, sensor, "numba")
+    total = _events[key] = _events.get(key, 0) + events
+    if total < max(COMPILE_AFTER_EVENTS, _look_again.get(key, 0)):
+        return None
+    _look_again[key] = total + COMPILE_AFTER_EVENTS
+    compiler = importlib.import_module(COMPILER)
+    if compiler.warm_stamp(ROOTS, models_of(motion, sensor)).exists():
+        _loaded.add(key)
+        return steps_for(motion, sensor, "numba")
+    if key == (ODOMETRY, RANGE_BEARING) and key not in _warming:
+        _warming.add(key)
+        subprocess.Popen(  # this interpreter, a module of ours
+            [sys.executable, *WARMER],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
+        )
+        print(
+            "ekfslam: compiling the filter's steps in the background (once per machine, about "
+            "a minute); the Python steps run until then",
+            file=sys.stderr,
+        )
+    return None
+
+
 @functools.cache
 def steps_for(motion: MotionModel, sensor: SensorModel, backend: str) -> types.SimpleNamespace:
     """The filter's step functions (`ROOTS`) for these models on this backend, made once."""
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
-    models = {"motion": motion, "sensor": sensor}
+    models = models_of(motion, sensor)
     if backend == "python":
         return rebind(ROOTS, models, interpreted)
     return importlib.import_module(COMPILER).compiled(ROOTS, models)

@@ -11,8 +11,11 @@ reader steps through in a debugger. `compiled` hands back the same functions com
 2. The names ``motion`` and ``sensor`` in the steps are bound to the chosen models'
    functions (`ekfslam.core.models.MotionModel`, `SensorModel`), compiled the same way, and so
    is every other function of ekfslam that a compiled function calls, down to the models.
-3. One primitive has a compiled form of its own: `ekfslam.core.filter.symmetric.
-   subtract_products`, a loop over Σ's upper triangle instead of numpy's d x d temporary.
+3. Three primitives have a compiled form of their own: `ekfslam.core.filter.symmetric.
+   subtract_products`, one loop over Σ instead of numpy's d x d temporary, and
+   `ekfslam.core.filter.steps.cholesky` and `positive`, loops where the Python steps call
+   numpy (LAPACK for a 2x2 costs more than its arithmetic, compiled; loops cost more than
+   LAPACK, interpreted).
 4. numba caches the machine code beside the source files (``cache=True``), under a name that
    carries a digest of every source involved and of the models' parameters: a changed model or
    step is compiled afresh, and only the first run on a machine pays the compilation. Each
@@ -47,6 +50,7 @@ import numpy as np
 from numba import njit
 from numba.extending import overload
 
+from ekfslam.core.filter import steps as filter_steps
 from ekfslam.core.filter import symmetric
 from ekfslam.core.filter.rebinding import called, closure, named, rebind
 from ekfslam.errors import ConfigError
@@ -67,7 +71,9 @@ def small_matmul(A, B):
 
 
 #: functions compiled by a form of their own, not from their source
-PRIMITIVES = frozenset({small_matmul, symmetric.subtract_products})
+PRIMITIVES = frozenset(
+    {small_matmul, symmetric.subtract_products, filter_steps.cholesky, filter_steps.positive}
+)
 
 
 @overload(small_matmul, jit_options=OPTIONS)
@@ -123,20 +129,55 @@ def _dot(A, B):
 
 @overload(symmetric.subtract_products, jit_options=OPTIONS, inline="always")
 def _subtract_products(Sigma, d, A, B):
-    def one_pass(Sigma, d, A, B):  # Σ[i, k] -= Σ_a A[a, i] B[a, k] for k >= i
+    def one_pass(Sigma, d, A, B):  # Σ[i, k] -= Σ_a A[a, i] B[a, k], every k: rows contiguous
         n = A.shape[0]
         for i in range(d):
-            row = Sigma[i, i:d]  # sliced, so that the loop starts at 0: LLVM vectorises it
+            row = Sigma[i, :d]
             for a in range(0, n - 1, 2):  # two products a pass: half the reads and writes of Σ
-                x, y, b, c = A[a, i], A[a + 1, i], B[a, i:d], B[a + 1, i:d]
-                for k in range(d - i):
+                x, y, b, c = A[a, i], A[a + 1, i], B[a, :d], B[a + 1, :d]
+                for k in range(d):
                     row[k] -= x * b[k] + y * c[k]
             if n % 2:
-                x, b = A[n - 1, i], B[n - 1, i:d]
-                for k in range(d - i):
+                x, b = A[n - 1, i], B[n - 1, :d]
+                for k in range(d):
                     row[k] -= x * b[k]
 
     return one_pass
+
+
+@overload(filter_steps.cholesky, jit_options=OPTIONS)
+def _cholesky(S):
+    def loops(S):  # C[i, j] from S's lower triangle, row by row
+        k = S.shape[0]
+        C = np.zeros((k, k))
+        for i in range(k):
+            for j in range(i + 1):
+                dot = 0.0
+                for t in range(j):
+                    dot += C[i, t] * C[j, t]
+                total = S[i, j] - dot
+                C[i, j] = np.sqrt(total) if i == j else total / C[j, j]
+        return C
+
+    return loops
+
+
+@overload(filter_steps.positive, jit_options=OPTIONS)
+def _positive(C):
+    def loops(C):  # every entry finite, every pivot > 0, det = (Π pivots)² in (0, inf)
+        k = C.shape[0]
+        product = 1.0
+        for i in range(k):
+            for j in range(k):
+                if not np.isfinite(C[i, j]):
+                    return False
+            if not C[i, i] > 0.0:
+                return False
+            product *= C[i, i]
+        det = product * product
+        return 0.0 < det < np.inf
+
+    return loops
 
 
 class _MatMulToCall(ast.NodeTransformer):
@@ -229,12 +270,23 @@ def compiled(roots: dict[str, Callable], models: dict[str, object]) -> types.Sim
     return steps
 
 
+def warm_stamp(roots: dict[str, Callable], models: dict[str, object]) -> Path:
+    """The marker ``ekfslam_warm_<digest>.stamp`` that says the cache holds the machine code of
+    these roots for these models, as a loop of the filter's steps calls them (``python -m
+    ekfslam warm`` writes it once it has called each): a filter whose backend is "auto" loads
+    the compiled steps then, in a second, instead of compiling them for a minute
+    (`ekfslam.core.filter.backend.auto_steps`)."""
+    tag = _digest(closure(roots.values(), models, primitives=PRIMITIVES), models)
+    return _cache_dir() / f"ekfslam_warm_{tag}.stamp"
+
+
 #: How many digests (sets of sources and models, `_digest`) the cache keeps, the last used; one
 #: used within `RECENT_S` seconds is kept whatever its rank (another process may be loading it).
 KEEP_DIGESTS = 8
 RECENT_S = 3600.0
 #: A cached file's digest: numba's ``steps.sight_<digest>-496.py311.1.nbc`` (and ``.nbi``), the
-#: generated ``ekfslam_generated_advance_<digest>.py``, the marker ``ekfslam_used_<digest>.stamp``.
+#: generated ``ekfslam_generated_advance_<digest>.py``, the markers ``ekfslam_used_<digest>.stamp``
+#: and ``ekfslam_warm_<digest>.stamp``.
 _DIGEST_IN_NAME = re.compile(r"_([0-9a-f]{16})[-.]")
 
 

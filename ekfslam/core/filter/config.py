@@ -39,7 +39,8 @@ CHI2_2DOF_99 = chi2_2dof_quantile(0.99)
 MAX_PASSES = 10
 
 #: `FilterConfig.backend`'s choices: "python" runs the steps as written, "numba" compiled,
-#: "auto" lets the replay choose by the run's size (`backend_for`).
+#: "auto" decides per use (a replay by the run's size, `backend_for`; a filter built directly by
+#: the events its models have run, `ekfslam.core.filter.backend.auto_steps`).
 BACKENDS = ("auto", "python", "numba")
 
 #: With "auto", a run of more events than this (predictions and sightings) runs compiled:
@@ -93,11 +94,14 @@ class FilterConfig:
         `SensorModel`; nothing else changes.
     backend : "python" runs the filter's steps (`ekfslam.core.filter.steps`) as written;
         "numba" runs them compiled from that source (`ekfslam.core.filter.compile`: the first
-        run on a machine compiles, about a minute, and caches); "auto" (the default) is
-        "python" for a filter built directly, and `ekfslam.pipeline.replay` chooses "numba"
-        for a run of more than `COMPILE_ABOVE_EVENTS` events, or for a batch of replays that
-        together have more (its ``replays``: a Monte Carlo, a noise fit). Both give the same
-        numbers to rounding.
+        run on a machine compiles, about a minute, and caches); "auto" (the default) decides
+        per use: a filter built directly (a user's own loop) starts on the Python steps and
+        takes the compiled ones once its models have run
+        `ekfslam.core.filter.backend.COMPILE_AFTER_EVENTS` events in the process (a cold
+        cache is compiled in another process meanwhile), and `ekfslam.pipeline.replay`
+        chooses "numba" for a run of more than `COMPILE_ABOVE_EVENTS` events, or for a batch
+        of replays that together have more (its ``replays``: a Monte Carlo, a noise fit).
+        Both give the same numbers to rounding.
     """
 
     init: Literal["inverse", "seed"] = "inverse"

@@ -14,7 +14,7 @@ same steps with the lift matrices F_x (eq. 8) and F_x,j (eq. 14); `ekfslam.teach
 is that literal form, kept as the test oracle.
 
 Cost per step with n landmarks: prediction O(n) (only the pose rows and columns change), update
-O(n²) (one symmetric low-rank correction of the upper triangle), landmark initialisation O(n).
+O(n²) (one symmetric low-rank correction of Σ, in one pass), landmark initialisation O(n).
 `python -m benchmarks bench` measures it.
 
 With `FilterConfig(linearization="invariant")` (Barrau & Bonnabel 2015) the storage holds the
@@ -53,12 +53,18 @@ Array = NDArray[np.float64]
 _NO_ROWS = np.zeros((0, len(ROW)))  # where a prediction records nothing
 _NO_TAPE = (_NO_ROWS, np.zeros(0, dtype=np.int8), np.zeros((0, len(OBS_ROW))))  # a `Tape`
 _OUTCOME = tuple(Outcome)  # _OUTCOME[code] is Outcome(code), at a tenth of the cost
+_ACCEPTED = int(Outcome.ACCEPTED)
 
 
 def _rows(values: ArrayLike, width: int | None = None) -> Array:
     """Values as a C-ordered float array, (K,) or (K, width): the steps' one signature."""
     a = np.ascontiguousarray(values, dtype=float)
     return a if width is None else a.reshape(-1, width)
+
+
+def _contiguous(values: ArrayLike) -> Array:
+    """Values as a C-ordered float array, as they are when they are one already (`_rows`)."""
+    return np.ascontiguousarray(values, dtype=float)
 
 
 #: each outcome's `Outcome.label`, looked up once per sighting
@@ -128,6 +134,15 @@ class EKFSLAM(FilterState):
         self._scratch = np.full(len(OBS_ROW), math.nan)  # an observation row nobody keeps
         self._event = np.zeros(len(ROW))  # an event row nobody keeps
         self._fej = self._storage.linearization == Linearization.FEJ  # H at first estimates
+        self._cache_config()
+
+    def _cache_config(self) -> None:
+        """What `update`'s commonest path reads of the config, read once: whether a sighting
+        of a mapped landmark takes it (one linearisation), and the gate."""
+        self._plain = self.config.iterations == 1
+        self._gate = math.inf if self.config.gate is None else float(self.config.gate)
+        self._gate_after = self.config.gate_after
+        self._no_rows = (self._event, self._scratch, -1)
 
     def clone(self) -> EKFSLAM:
         """`FilterState.clone`, with the filter's own lists (sightings, rejections)."""
@@ -135,6 +150,7 @@ class EKFSLAM(FilterState):
         c._sightings = list(self._sightings)
         c._rejected = [list(r) for r in self._rejected]
         c._scratch, c._event = self._scratch.copy(), self._event.copy()
+        c._cache_config()
         return c
 
     # ------------------------------------------------------------- prediction
@@ -193,7 +209,7 @@ class EKFSLAM(FilterState):
         N = M if per_second else R
         if validate:
             check_predict_many(us, dts, ts, M, R)
-            us, dts, ts, N = _rows(us, 3), _rows(dts), _rows(ts), _rows(N)
+            us, dts, ts, N = _rows(us, 3), _contiguous(dts), _contiguous(ts), _contiguous(N)
         self._propagate((us, dts, ts, N, per_second))
 
     def _propagate(self, batch: tuple) -> None:
@@ -205,6 +221,10 @@ class EKFSLAM(FilterState):
             rows = rec.rows[r0 : r0 + k]
         self._steps.predict(self._arrays, self._dim, batch, rows)
         self._counts["predictions"] += k
+        if self._events + k >= self._look_at:
+            self._ran(k)
+        else:
+            self._events += k
         if k:
             self._t = float(batch[2][-1])
 
@@ -295,9 +315,24 @@ class EKFSLAM(FilterState):
             check_update(landmark_id, z, Q, t)
         if t is not None:
             self._t = float(t)
-        z, Q = _rows(z), _rows(Q)
-        rows = self._rows_for_observation()
+        self._events += 1
+        if self._events >= self._look_at:
+            self._ran(0)
+        z, Q = _contiguous(z), _contiguous(Q)
+        row, obs, event = self._rows_for_observation()
         j = self.slot.get(landmark_id)
+        if j is not None and self._plain:  # the commonest case, in as few Python steps as it takes
+            gate = self._gate if self._sightings[j] >= self._gate_after else math.inf
+            sighting = (self._t, int(landmark_id), z, Q, gate, event)  # a `Sighting`
+            code = self._steps.sight(self._arrays, self._dim, 3 + 2 * j, sighting, row, obs)
+            if code == _ACCEPTED:
+                self._sightings[j] += 1
+                if self._rejected[j]:
+                    self._rejected[j].clear()
+                self._counts["accepted"] += 1
+                return Outcome.ACCEPTED
+            return self._decide(landmark_id, j, z, Q, Rows(row, obs, event), _OUTCOME[code])
+        rows = Rows(row, obs, event)
         if j is None:
             if z[0] * z[0] <= MIN_RANGE_SQUARED:
                 return self._finish(landmark_id, z, Outcome.REFUSED, -1, rows)
@@ -308,15 +343,16 @@ class EKFSLAM(FilterState):
         gated = self.config.gate is not None and self._sightings[j] >= self.config.gate_after
         return self._correct(landmark_id, j, z, Q, rows, gate=self.config.gate if gated else None)
 
-    def _rows_for_observation(self) -> Rows:
-        """Where the observation being made is recorded: the history's event row (`ROW`), its
-        observation row (`OBS_ROW`) and the event's index; scratch rows when nothing is kept."""
+    def _rows_for_observation(self) -> tuple[Array, Array, int]:
+        """Where the observation being made is recorded, as a `Rows` (a plain tuple: the
+        commonest path reads it by position): the history's event row (`ROW`), its observation
+        row (`OBS_ROW`) and the event's index; scratch rows when nothing is kept."""
         rec = self._recorder
         if rec is None:
-            return Rows(self._event, self._scratch, -1)
+            return self._no_rows
         n = rec.reserve(OBSERVE, 1)
         m = rec.reserve_observation()  # may grow rec.obs: index the array it leaves
-        return Rows(rec.rows[n], rec.obs[m], n)
+        return rec.rows[n], rec.obs[m], n
 
     def _point(self, l: int) -> Array:
         """Where H is evaluated for the landmark at rows l, l+1 (`steps.linearisation_point`)."""
@@ -341,6 +377,21 @@ class EKFSLAM(FilterState):
         else:
             sighting = (self._t, int(landmark_id), z, Q, gate, rows.event)  # a `Sighting`
             outcome = _OUTCOME[self._steps.sight(s, self._dim, l, sighting, rows.row, rows.obs)]
+        return self._decide(landmark_id, j, z, Q, rows, outcome, accepted_as)
+
+    def _decide(
+        self,
+        landmark_id: int,
+        j: int,
+        z: Array,
+        Q: Array,
+        rows: Rows,
+        outcome: Outcome,
+        accepted_as: Outcome = Outcome.ACCEPTED,
+    ) -> Outcome:
+        """The bookkeeping of a correction's outcome: re-placing the landmark after rejections,
+        the accepted sightings, the count."""
+        l = 3 + 2 * j
         if outcome == Outcome.REJECTED and self._should_reinitialise(j, z):
             return self._reinitialise(landmark_id, j, z, Q, rows)
         if outcome == Outcome.ACCEPTED:
@@ -469,7 +520,7 @@ class EKFSLAM(FilterState):
         s, m = self._storage, slice(3, 3 + 2 * n)
         self._dim = 3 + 2 * n
         s.mu[m] = s.first[m] = means.ravel()
-        s.Sigma[:3, m] = 0.0
+        s.Sigma[:3, m] = s.Sigma[m, :3] = 0.0
         s.Sigma[m, m] = np.asarray(covariance, dtype=float)
         for j in range(n):
             self._ids.append(j)

@@ -2,8 +2,9 @@
 
 `FilterState` holds μ and Σ (`ekfslam.core.filter.steps.Storage`) in arrays that grow
 geometrically, so adding a landmark never copies the matrix (except on the rare doubling of the
-capacity); the storage beyond the state is kept at zero, and the steps keep only Σ's lower
-triangle current (`ekfslam.core.filter.symmetric`). It owns the slots (landmark id -> slot j,
+capacity); the storage beyond the state is kept at zero, and the steps keep both of Σ's
+triangles current (`ekfslam.core.filter.symmetric`): any read of it, a kept view included, is
+the current value. It owns the slots (landmark id -> slot j,
 state rows 3 + 2j and 4 + 2j), the counts and the recorder, the step functions it runs
 (`ekfslam.core.filter.backend`), and everything a reader asks of the filter: μ, Σ, the pose, a
 landmark, the map, the history.
@@ -19,6 +20,7 @@ heading noise, which `steps.settle` adds before Σ is read.
 from __future__ import annotations
 
 import copy
+import math
 import types
 from dataclasses import fields
 from typing import Self
@@ -26,17 +28,20 @@ from typing import Self
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ekfslam.core.filter.backend import steps_for
+from ekfslam.core.filter.backend import auto_steps, steps_for
 from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.history import History, Recorder
 from ekfslam.core.filter.steps import Linearization, Storage
-from ekfslam.core.filter.symmetric import diagonal_block, mirror
+from ekfslam.core.filter.symmetric import diagonal_block
 from ekfslam.core.filter_checks import check_start
 from ekfslam.core.invariant import from_cartesian, landmark_to_cartesian, to_cartesian
 from ekfslam.core.models import ODOMETRY, RANGE_BEARING
 from ekfslam.geometry import wrap_angle
 
 Array = NDArray[np.float64]
+
+#: How often (events) a filter on backend "auto" asks whether the compiled steps pay (`_ran`).
+LOOK_EVERY = 1000
 
 
 def _storage(capacity: int, linearization: int) -> Storage:
@@ -85,10 +90,17 @@ class FilterState:
         self.slot: dict[int, int] = {}
         self._counts = dict.fromkeys((f.name for f in fields(FilterCounts)), 0)
         self._recorder = Recorder() if record else None
-        backend = "python" if self.config.backend == "auto" else self.config.backend
         self.motion = self.config.motion or ODOMETRY
         self.sensor = self.config.sensor or RANGE_BEARING
-        self._steps = steps_for(self.motion, self.sensor, backend)
+        self._events = 0  # run on the Python steps since "auto" last looked (`auto_steps`)
+        self._look_at = math.inf  # ... when it looks again
+        if self.config.backend == "auto":
+            self._steps = auto_steps(self.motion, self.sensor, 0)
+            if self._steps is None:
+                self._steps = steps_for(self.motion, self.sensor, "python")
+                self._look_at = LOOK_EVERY
+        else:
+            self._steps = steps_for(self.motion, self.sensor, self.config.backend)
 
     def clone(self) -> Self:
         """An independent copy of the state, without a history: one hypothesis of
@@ -116,13 +128,12 @@ class FilterState:
     def Sigma(self) -> Array:
         """The state covariance (3 + 2n, 3 + 2n), a view into the pre-allocated storage.
 
-        The steps keep only its upper triangle current (`ekfslam.core.filter.symmetric`); reading
-        it fills in the lower one, O(n²). Read it again after a step rather than keeping the
-        view. With `linearization="invariant"` it is the Cartesian covariance of (x, y, θ, m),
+        Both triangles are current after every step (`ekfslam.core.filter.symmetric`), so a
+        kept view reads the current Σ (until the storage grows: read it again after a landmark
+        is added). With `linearization="invariant"` it is the Cartesian covariance of (x, y, θ, m),
         a new array, T P Tᵀ from `invariant_covariance` (`ekfslam.core.invariant.to_cartesian`).
         """
         self.settle()
-        mirror(self._storage.Sigma, self._dim)
         P = self._storage.Sigma[: self._dim, : self._dim]
         return to_cartesian(P, self.mu) if self._invariant else P
 
@@ -132,7 +143,6 @@ class FilterState:
         if not self._invariant:
             raise AttributeError("only a filter with linearization='invariant' has one")
         self.settle()
-        mirror(self._storage.Sigma, self._dim)
         return self._storage.Sigma[: self._dim, : self._dim].copy()
 
     @property
@@ -191,6 +201,17 @@ class FilterState:
         `ekfslam.core.filter.steps.settle`); a correction adds it in its own pass instead."""
         if self._storage.owed[0]:
             self._steps.settle(self._arrays, self._dim)
+
+    def _ran(self, events: int) -> None:
+        """Count events run on the Python steps of backend "auto"; every `LOOK_EVERY`, ask
+        whether the compiled steps pay now (`ekfslam.core.filter.backend.auto_steps`) and take
+        them if so: the numbers stay the same to rounding, the rest of the run is faster."""
+        self._events += events
+        if self._events >= self._look_at:
+            steps = auto_steps(self.motion, self.sensor, self._events)
+            self._events = 0
+            if steps is not None:
+                self._steps, self._look_at = steps, math.inf
 
     def _grow(self) -> None:
         d, old = self._dim, self._storage

@@ -16,9 +16,8 @@ Storage (`Storage`): μ and Σ live in pre-allocated arrays larger than the stat
 their first d = 3 + 2n entries. The records below (`Storage`, `Batch`, `Update`, `Observed`)
 name the fields of the tuples the steps take; the filter passes plain tuples, which numba
 dispatches on in a microsecond where a named tuple costs three, and each step unpacks them at its
-top. Σ is kept as its upper triangle (`ekfslam.core.filter.
-symmetric`): `rows_of` reads whole rows from it, and the correction's O(n²) update touches half
-the matrix.
+top. Σ is kept whole and exactly symmetric (`ekfslam.core.filter.symmetric`): every step that
+writes a block writes its transpose too, so any read of Σ is current.
 
 Three linearisations (`Linearization`): the standard EKF; FEJ (Huang, Mourikis & Roumeliotis
 2010: the Jacobians at the first estimates); and the right-invariant EKF (Barrau & Bonnabel
@@ -56,7 +55,13 @@ from ekfslam.core.filter.history import (
     ROW_T,
     Outcome,
 )
-from ekfslam.core.filter.symmetric import diagonal_block, rows_of, set_rows, subtract_products
+from ekfslam.core.filter.symmetric import (
+    diagonal_block,
+    rows_of,
+    set_block,
+    set_rows,
+    subtract_products,
+)
 from ekfslam.core.invariant import (
     INVARIANT_NEW_LANDMARK_POSE,
     landmark_to_cartesian,
@@ -86,7 +91,7 @@ class Storage(NamedTuple):
     """The filter's arrays, which the steps change in place (`ekfslam.core.filter.state`).
 
     mu : (capacity,) the mean of eq. (1) in its first d entries, zero beyond.
-    Sigma : (capacity, capacity) its covariance, eq. (2); only the upper triangle is current.
+    Sigma : (capacity, capacity) its covariance, eq. (2), both triangles current (symmetric).
     first : (capacity,) FEJ's first estimates: the pose predicted for this step p̂(k|k-1) at
         0:3, landmark j's first estimate at 3+2j : 5+2j.
     owed : (2,) the invariant filter's heading variance ρ not yet added to the map block, and
@@ -224,13 +229,14 @@ def predict(storage: Storage, d: int, batch: Batch, rows: Array) -> None:
         if rows.shape[0]:
             record_pose(rows[k], t[k], block[POSE:COV], block[COV:PRODUCT].reshape(3, 3), lin)
     mu[r], first[r] = block[POSE:COV], block[BEFORE:OWED]
-    Sigma[r, r] = block[COV:PRODUCT].reshape(3, 3)
+    set_block(Sigma, 0, block[COV:PRODUCT].reshape(3, 3))
     if lin == Linearization.INVARIANT:  # the noise's map columns: its heading column times -J m̂
         Sigma[r, m] += np.outer(block[OWED:BLOCK], -rotation_column(mu[:d])[m])
         owed_now[0] += block[OWED + 2]  # the map block's ρ v vᵀ, O(n²): owed (`settle`)
         owed_now[1] = d
     else:  # eq. (9) on the pose-map block, G the product of the batch's G's
         Sigma[r, m] = block[PRODUCT:BEFORE].reshape(3, 3) @ Sigma[r, m]
+    Sigma[m, r] = Sigma[r, m].T  # and its mirror, Σ[m, r] = Σ[r, m]ᵀ
 
 
 def advance(block: Array, u: Array, N: Array, dt: float, per_second: bool, lin: int) -> None:
@@ -301,9 +307,9 @@ def settle(storage: Storage, d: int) -> None:
     or the map grows, and a correction does it in its own pass."""
     _, Sigma, _, owed, _ = storage
     rho = owed[0]
-    if rho != 0.0:
-        v = owed_direction(storage, d)
-        subtract_products(Sigma, d, (-rho * v).reshape(1, d), v.reshape(1, d))
+    if rho != 0.0:  # ρ v vᵀ = u uᵀ, u = √ρ v: symmetric to the bit (`subtract_products`)
+        u = np.sqrt(rho) * owed_direction(storage, d)
+        subtract_products(Sigma, d, (-u).reshape(1, d), u.reshape(1, d))
         owed[0] = 0.0
 
 
@@ -358,9 +364,9 @@ def correct(storage: Storage, d: int, l: int, update: Update, obs: Array) -> int
     else:
         mu[:d] += step  # eq. (16)
         mu[2] = wrap_angle(mu[2])
-    if rho != 0.0:  # Σ + ρ v vᵀ - Wᵀ W in one pass
-        v = v.reshape(1, d)
-        subtract_products(Sigma, d, np.vstack((W, -rho * v)), np.vstack((W, v)))
+    if rho != 0.0:  # Σ + ρ v vᵀ - Wᵀ W in one pass, ρ v vᵀ = u uᵀ with u = √ρ v
+        u = (np.sqrt(rho) * v).reshape(1, d)
+        subtract_products(Sigma, d, np.vstack((W, -u)), np.vstack((W, u)))
         owed[0] = 0.0
     else:
         subtract_products(Sigma, d, W, W)  # eq. (16): Σ - K S Kᵀ = (I - K H) Σ
@@ -454,22 +460,23 @@ def apart(pose: Array, landmark: Array) -> bool:
 
 
 def cholesky(S: Array) -> Array:
-    """The lower-triangular C with C Cᵀ = S (k x k, from S's lower triangle); NaN where S is not
-    positive definite."""
-    k = S.shape[0]
-    C = np.zeros((k, k))
-    for i in range(k):
-        for j in range(i + 1):
-            total = S[i, j] - C[i, :j] @ C[j, :j]
-            C[i, j] = np.sqrt(total) if i == j else total / C[j, j]
-    return C
+    """The lower-triangular C with C Cᵀ = S (k x k); NaN where S is not positive definite.
+
+    numpy's (LAPACK's) here; compiled, a loop over S's lower triangle (`ekfslam.core.filter.
+    compile`), since for a 2x2 the call into LAPACK costs more than its arithmetic."""
+    try:
+        return np.linalg.cholesky(S)
+    except np.linalg.LinAlgError:
+        return np.full(S.shape, np.nan)
 
 
 def positive(C: Array) -> bool:
     """Did `cholesky` succeed, with a determinant a float holds: every pivot finite and positive,
-    and det S = Π C_ii² neither 0 nor inf (noise so small, or so large, that S means nothing)?"""
-    det = np.prod(np.diag(C)) ** 2
-    return bool(np.all(np.diag(C) > 0.0) and np.all(np.isfinite(C)) and 0.0 < det < np.inf)
+    and det S = Π C_ii² neither 0 nor inf (noise so small, or so large, that S means nothing)?
+    Compiled, a loop over C (`ekfslam.core.filter.compile`)."""
+    pivots = np.diag(C)
+    det = np.prod(pivots) ** 2
+    return bool(np.isfinite(C).all() and (pivots > 0.0).all() and 0.0 < det < np.inf)
 
 
 def solve_lower(C: Array, b: Array) -> Array:
