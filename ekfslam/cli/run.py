@@ -94,7 +94,9 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         "with its data (its diagnosis is not ok), R scaled by 2-16, the most likely; "
         "documented: exactly the documented noise (with the --sigma-* overrides, which auto "
         "also takes as they are); fit: fit R and Q to this run's innovations first, by maximum "
-        "likelihood with no ground truth (as `fit-noise` does), and replay with them",
+        "likelihood with no ground truth (as `fit-noise` does), starting from auto's result, and "
+        "replay with them unless they replay less likely or with a worse diagnosis than auto's "
+        "(then auto's is kept, and the output says so)",
     )
     run.add_argument(
         "--recover",
@@ -149,8 +151,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     fitted = rescue = None
     if getattr(args, "noise", "auto") == "fit":
         # lazy: scipy.optimize (about 0.3 s) only when asked to fit
-        fitted = importlib.import_module("ekfslam.analysis.noise_fit").fit_noise(run, noise, config)
-        noise = fitted.noise
+        # the fit starts from the rescued default and is kept only when it replays no worse
+        fitted = importlib.import_module("ekfslam.analysis.noise_fit").fit_from_default(
+            run, noise, config
+        )
+        noise, config = fitted.noise, fitted.result.config
     animate = getattr(args, "animate", None)
     recover = {"recovery": RecoveryConfig()} if getattr(args, "recover", False) else {}
     # only an animation needs copies of the whole state (`Keyframes`); a plain replay keeps none
@@ -177,6 +182,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         )
         result, found = assoc.score(run, result, args.match)
         labels = None if animate is None else animate_args.true_labels(result, found.mapping)
+    elif fitted is not None:  # the kept replay (the fit's, or the rescued default's)
+        result, labels = fitted.result, None
+        if frames or recover:
+            result = pipeline.replay(run, noise, config, **frames, **recover)
     elif _rescues(args):  # the documented noise, or R scaled when it does not fit the log
         rescue = rescued_replay(run, noise, config, **frames, **recover)
         result, labels = rescue.result, None
@@ -220,7 +229,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(json.dumps(out, indent=2, allow_nan=False))
     else:
         if fitted is not None:
-            print("\n".join(["noise fitted to the run's innovations:", *fitted.lines()]))
+            print("\n".join(["noise fitted to the run's innovations:", *fitted.fit.lines()]))
+            print(fitted.line())
         print(_table(summary, out, report))
         if rescue is not None and rescue.line() is not None:
             print(rescue.line())
