@@ -26,6 +26,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "studies.cli.budget",
         "the realistic robot's error budget: each error source alone and all but it",
     ),
+    "association-auto": (
+        "studies.cli.association_auto",
+        "with hidden ids: every MRCLAM robot by nn, jcbb, mht, two passes and auto; thresholds",
+    ),
     "vision-eval": (
         "studies.cli.vision_eval",
         "score range and bearing from rendered frames against the truth",
