@@ -150,8 +150,10 @@ def test_with_hidden_ids_landmarks_founded_late_are_suspect() -> None:
     outcomes = [I] * 5 + [A] * 200 + [I] * 3 + [A] * 200  # 3 founded after half the run
     d = dg.diagnose(_history(outcomes), association=_log(408, 0))
     assert (d.verdict, d.late_foundings, d.ambiguous_share) == ("suspect", 3, 0.0)
-    two = [I] * 5 + [A] * 200 + [I] * 2 + [A] * 200
-    assert dg.diagnose(_history(two), association=_log(407, 0)).verdict == "ok"
+    two = [I] * 5 + [A] * 200 + [I] * 2 + [A] * 200  # issue 39's threshold: 2 is suspect
+    assert dg.diagnose(_history(two), association=_log(407, 0)).verdict == "suspect"
+    one = [I] * 5 + [A] * 200 + [I] * 1 + [A] * 200
+    assert dg.diagnose(_history(one), association=_log(406, 0)).verdict == "ok"
     assert d.advice == dg.ADVICE_ASSOCIATION
     known = dg.diagnose(_history(outcomes))  # with the ids known a tag may be first seen late
     assert (known.verdict, known.late_foundings) == ("ok", None)
@@ -167,6 +169,8 @@ def test_with_hidden_ids_many_ambiguous_sightings_are_suspect() -> None:
         "duplicate_pairs": 0,
         "reasons": ["1% of sightings dropped as ambiguous (landmarks merged?)"],
     }
+    few = dg.diagnose(_history([I] + [A] * 200), association=_log(201, 1))  # 0.5%: ok
+    assert few.verdict == "ok"
 
 
 def _placed(outcomes, ids, positions, cov) -> History:
