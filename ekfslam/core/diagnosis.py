@@ -93,6 +93,8 @@ MISPLACED_MIN = 10
 #: MRCLAM (jcbb, mht, nn on every robot of 1, 2, 4, 7), 2 late foundings raised 5 alarms on the
 #: 30 maps within 1.5x known's (mht founding two duplicates late), 3 raise 2, 4 misses one more
 #: of the 31 maps 3x known's or worse (``python -m studies.noise_default.study diagnosis``).
+#: Issue 26's: `AssociationThresholds`' defaults; what `diagnose` uses now, with the share
+#: beyond the χ² bound counted too, is `ASSOCIATION_THRESHOLDS` (issue 39).
 SUSPECT_LATE_FOUNDINGS = 3
 SUSPECT_AMBIGUOUS = 0.01
 #: m. With hidden ids, two landmarks are duplicates when their estimates differ by less than
@@ -136,7 +138,8 @@ ADVICE_TOO_SMALL = "R or Q is too small for this log; try --noise fit"
 ADVICE_TOO_LARGE = "R or Q is larger than this log needs; try --noise fit"
 ADVICE_MISPLACED = "try re-initialising landmarks (--reinit-after 3) or --noise fit"
 ADVICE_SINGULAR = "the noise is so small or so large that S is singular; try --noise fit"
-ADVICE_ASSOCIATION = "the association may be wrong; try --association mht, or --passes 2"
+#: (issue 39: on MRCLAM a second pass left 14 of 14 bad JCBB maps bad; mht mended 11)
+ADVICE_ASSOCIATION = "the association may be wrong; try --association mht (auto escalates to it)"
 
 
 def capped_nis_moments(gate: float = OUTLIER_NIS) -> tuple[float, float]:
