@@ -30,6 +30,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "studies.cli.team_mrclam",
         "each MRCLAM dataset's robots alone and in one joint map: map and trajectory errors",
     ),
+    "association-auto": (
+        "studies.cli.association_auto",
+        "with hidden ids: every MRCLAM robot by nn, jcbb, mht, two passes and auto; thresholds",
+    ),
     "vision-eval": (
         "studies.cli.vision_eval",
         "score range and bearing from rendered frames against the truth",

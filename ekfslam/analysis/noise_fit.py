@@ -56,8 +56,13 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize
 
-from ekfslam.analysis.rescue import sighting_log_likelihoods
-from ekfslam.core.diagnosis import Diagnosis
+from ekfslam.analysis.rescue import (
+    Rescue,
+    log_likelihood,
+    replay_rescued,
+    sighting_log_likelihoods,
+)
+from ekfslam.core.diagnosis import VERDICTS, Diagnosis
 from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.filter.history import History, Outcome
 from ekfslam.core.noise import NoiseConfig, default_config, default_noise
@@ -259,6 +264,77 @@ def fit_noise(
         seconds=time.perf_counter() - began,
         result=result,
     )
+
+
+@dataclass(frozen=True, eq=False)
+class FitChoice:
+    """The fit against the rescued default it started from (`fit_from_default`).
+
+    fit : the `NoiseFit`, started from ``default.result``'s noise. default : the rescued default
+    (`ekfslam.analysis.rescue.Rescue`). kept : "fit" or "default". reason : why, in words.
+    fit_log_likelihood, default_log_likelihood : ln L per sighting of each one's replay.
+    """
+
+    fit: NoiseFit
+    default: Rescue
+    kept: str
+    reason: str
+    fit_log_likelihood: float
+    default_log_likelihood: float
+
+    @property
+    def result(self) -> ReplayResult:
+        """The replay kept."""
+        return self.fit.result if self.kept == "fit" else self.default.result
+
+    @property
+    def noise(self) -> NoiseConfig:
+        return self.result.noise
+
+    def line(self) -> str:
+        """One line: which noise was kept and why."""
+        if self.kept == "fit":
+            return f"noise: the fitted noise kept ({self.reason})"
+        return f"noise: the default kept, not the fit ({self.reason})"
+
+    def as_dict(self) -> dict:
+        return {
+            **self.fit.as_dict(),
+            "kept": self.kept,
+            "reason": self.reason,
+            "fit_replay_log_likelihood": self.fit_log_likelihood,
+            "default_replay_log_likelihood": self.default_log_likelihood,
+            "default_verdict": self.default.result.diagnosis.verdict,
+            "default_rescue": self.default.as_dict(),
+        }
+
+
+def fit_from_default(
+    run: RunLog,
+    start: NoiseConfig | None = None,
+    config: FilterConfig | None = None,
+    *,
+    max_evaluations: int = 200,
+) -> FitChoice:
+    """The rescued default (`replay_rescued` of `start`, `config`), the fit started from its
+    noise and config (`fit_noise`), and the one kept: the fit only when its replay is at least as
+    likely per sighting and its diagnosis no worse (see the module)."""
+    start = start or default_noise(run)
+    config = config or default_config(run)
+    default = replay_rescued(run, start, config)
+    fit = fit_noise(
+        run, default.result.noise, default.result.config, max_evaluations=max_evaluations
+    )
+    fit_ll, default_ll = log_likelihood(fit.result), log_likelihood(default.result)
+    fit_v, default_v = fit.diagnosis.verdict, default.result.diagnosis.verdict
+    figures = f"ln L per sighting {fit_ll:.3f} against the default's {default_ll:.3f}"
+    if VERDICTS.index(fit_v) > VERDICTS.index(default_v):
+        kept, reason = "default", f"the fit's replay is {fit_v}, the default's {default_v}"
+    elif fit_ll < default_ll:
+        kept, reason = "default", f"the fit replays less likely: {figures}"
+    else:
+        kept, reason = "fit", f"{figures}, diagnosis {fit_v}"
+    return FitChoice(fit, default, kept, reason, fit_ll, default_ll)
 
 
 def innovation_correlation(history: History, gap: float = CORRELATION_GAP) -> tuple[float, float]:

@@ -1,7 +1,9 @@
 """``python -m ekfslam fit-noise RUN [--robot N] [--json]``: R and Q from the log itself.
 
 Maximum likelihood of the innovations, no ground truth (`ekfslam.analysis.noise_fit`); prints the
-fitted σ with their uncertainty and the NIS check of a replay with them. ``run RUN --noise fit``
+fitted σ with their uncertainty and the NIS check of a replay with them, and which noise to
+keep: the fit, or the rescued default it started from when the fit replays worse
+(`ekfslam.analysis.noise_fit.fit_from_default`). ``run RUN --noise fit``
 fits the same way and replays with the result.
 """
 
@@ -11,9 +13,10 @@ import argparse
 import json
 from pathlib import Path
 
-from ekfslam.analysis.noise_fit import NoiseFit, fit_noise
+from ekfslam.analysis.noise_fit import fit_from_default
 from ekfslam.cli import args as ca
 from ekfslam.cli.common import add_iterations_argument, load_run, noise_from_args
+from ekfslam.core.noise import NoiseConfig
 
 
 def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) -> None:
@@ -31,19 +34,20 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
 def cmd_fit_noise(args: argparse.Namespace) -> int:
     run, _report = load_run(args)
     start, config = noise_from_args(args, run)
-    fit = fit_noise(run, start, config)
+    # the fit starts from the rescued default and is kept only when it replays no worse
+    choice = fit_from_default(run, start, config)
     if args.json:
-        print(json.dumps({"name": run.meta.name, **fit.as_dict()}, indent=2, allow_nan=False))
+        print(json.dumps({"name": run.meta.name, **choice.as_dict()}, indent=2, allow_nan=False))
     else:
         print(f"noise fitted to {run.meta.name}'s innovations:")
-        print("\n".join(fit.lines()))
-        print(f"replay with it: {replay_hint(fit)}")
+        print("\n".join(choice.fit.lines()))
+        print(choice.line())
+        print(f"replay with it: {replay_hint(choice.noise)}")
     return 0
 
 
-def replay_hint(fit: NoiseFit) -> str:
-    """The ``run`` options that replay with the fitted noise (or ``--noise fit``, which refits)."""
-    n = fit.noise
+def replay_hint(n: NoiseConfig) -> str:
+    """The ``run`` options that replay with the kept noise (or ``--noise fit``, which refits)."""
     return (
         f"--sigma-x {n.sigma_x:.4g} --sigma-y {n.sigma_y:.4g} --sigma-theta {n.sigma_theta:.4g} "
         f"--sigma-range {n.sigma_range:.4g} --sigma-bearing {n.sigma_bearing:.4g} "

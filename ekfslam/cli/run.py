@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 from ekfslam import pipeline
 from ekfslam.analysis import association as assoc
+from ekfslam.analysis.association_auto import replay_auto
 from ekfslam.analysis.evaluation import SEED_TABLE1, RunSummary, seed_experiment, summarize
 from ekfslam.analysis.rescue import replay_rescued as rescued_replay
 from ekfslam.cli import animate as animate_args
@@ -58,10 +59,12 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
     )
     run.add_argument(
         "--association",
-        choices=METHODS,
+        choices=(*METHODS, "auto"),
         default="known",
         help="which landmark each sighting is: the detections' ids (known, the default), or, "
-        "with the ids hidden from the filter, nearest neighbour (nn), joint compatibility "
+        "with the ids hidden from the filter, auto (the choice with hidden ids, what --hide-ids "
+        "gives: jcbb, and mht only where jcbb's map is not to be trusted by its diagnosis; the "
+        "output says which and why), nearest neighbour (nn), joint compatibility "
         "branch and bound (jcbb), or a bank of JCBB hypotheses that delays the decisions (mht); "
         "eq. (17) then matches landmarks through the estimated-to-true "
         "mapping. A MRCLAM run then replays with its noise tuned for consistency (the "
@@ -75,6 +78,12 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         help="with --association nn|jcbb|mht, how eq. (17) pairs estimated with true landmarks: "
         "through the association's mapping (the default), or by position (nearest neighbour "
         "after a robust fit, as for sightings without true ids)",
+    )
+    run.add_argument(
+        "--hide-ids",
+        action="store_true",
+        help="hide the detections' ids from the filter: --association auto unless another "
+        "method is named",
     )
     add_hypotheses_argument(run)
     run.add_argument(
@@ -96,7 +105,9 @@ def add_command(subparsers: argparse._SubParsersAction, name: str, help: str) ->
         "with its data (its diagnosis is not ok), R scaled by 2-16, the most likely; "
         "documented: exactly the documented noise (with the --sigma-* overrides, which auto "
         "also takes as they are); fit: fit R and Q to this run's innovations first, by maximum "
-        "likelihood with no ground truth (as `fit-noise` does), and replay with them",
+        "likelihood with no ground truth (as `fit-noise` does), starting from auto's result, and "
+        "replay with them unless they replay less likely or with a worse diagnosis than auto's "
+        "(then auto's is kept, and the output says so)",
     )
     run.add_argument(
         "--recover",
@@ -122,6 +133,10 @@ def _map_noise(run: RunLog, choice: str) -> NoiseConfig | None:
 
 
 def _match_needs_hidden_ids(args: argparse.Namespace) -> str | None:
+    if getattr(args, "hide_ids", False) and args.association == "known":
+        args.association = "auto"  # --hide-ids: auto unless a method is named
+    if args.association == "auto" and args.passes != 1:
+        return "argument --passes: auto chooses its replays; name a method (jcbb, nn or mht)"
     if args.match != "mapping" and args.association == "known":
         return "argument --match: needs --association nn, jcbb or mht (known ids match by id)"
     if args.hypotheses is not None and args.association != "mht":
@@ -150,11 +165,14 @@ def cmd_run(args: argparse.Namespace) -> int:
     hidden = getattr(args, "association", "known") != "known"
     # with the ids hidden, a noise whose Σ the association's χ² tests can trust
     noise, config = noise_from_args(args, run, assoc.association_noise(run) if hidden else None)
-    fitted = rescue = None
+    fitted = rescue = chosen = None
     if getattr(args, "noise", "auto") == "fit":
         # lazy: scipy.optimize (about 0.3 s) only when asked to fit
-        fitted = importlib.import_module("ekfslam.analysis.noise_fit").fit_noise(run, noise, config)
-        noise = fitted.noise
+        # the fit starts from the rescued default and is kept only when it replays no worse
+        fitted = importlib.import_module("ekfslam.analysis.noise_fit").fit_from_default(
+            run, noise, config
+        )
+        noise, config = fitted.noise, fitted.result.config
     animate = getattr(args, "animate", None)
     recover = {"recovery": RecoveryConfig()} if getattr(args, "recover", False) else {}
     # only an animation needs copies of the whole state (`Keyframes`); a plain replay keeps none
@@ -162,7 +180,21 @@ def cmd_run(args: argparse.Namespace) -> int:
         {"keyframes": args.frames or animate_args.DEFAULT_FRAMES} if animate is not None else {}
     )
     # looked up here: tests may replace it (and, with known ids, call it as before)
-    if hidden:
+    if hidden and args.association == "auto":  # jcbb, escalated where it is not to be trusted
+        chosen = replay_auto(
+            run,
+            noise,
+            config,
+            map_noise=_map_noise(run, getattr(args, "map_noise", "auto")),
+            time_shared=time_shared_of(args),
+            **frames,
+        )
+        association = assoc.association_config(
+            run, chosen.strategy.method, chosen.strategy.hypotheses, time_shared_of(args)
+        )
+        result, found = assoc.score(run, chosen.result, args.match)
+        labels = None if animate is None else animate_args.true_labels(result, found.mapping)
+    elif hidden:
         association = assoc.association_config(
             run,
             args.association,
@@ -181,6 +213,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         )
         result, found = assoc.score(run, result, args.match)
         labels = None if animate is None else animate_args.true_labels(result, found.mapping)
+    elif fitted is not None:  # the kept replay (the fit's, or the rescued default's)
+        result, labels = fitted.result, None
+        if frames or recover:
+            result = pipeline.replay(run, noise, config, **frames, **recover)
     elif _rescues(args):  # the documented noise, or R scaled when it does not fit the log
         rescue = rescued_replay(run, noise, config, **frames, **recover)
         result, labels = rescue.result, None
@@ -191,6 +227,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     out = summary.as_dict()
     if hidden:
         out["association"] = assoc.as_dict(result, found, args.match, association)
+    if chosen is not None:
+        out["association"]["auto"] = chosen.as_dict()
     if result.passes:  # --passes N > 1: which pass the map is, and what each one changed
         out["passes"] = {
             "chosen": result.chosen_pass,
@@ -224,10 +262,13 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(json.dumps(out, indent=2, allow_nan=False))
     else:
         if fitted is not None:
-            print("\n".join(["noise fitted to the run's innovations:", *fitted.lines()]))
+            print("\n".join(["noise fitted to the run's innovations:", *fitted.fit.lines()]))
+            print(fitted.line())
         print(_table(summary, out, report))
         if rescue is not None and rescue.line() is not None:
             print(rescue.line())
+        if chosen is not None:
+            print(chosen.line())
     warning = None if result.diagnosis is None else result.diagnosis.warning()
     if warning is not None:  # a replay that does not agree with its data says so, always
         print(f"warning: {warning}", file=sys.stderr)

@@ -62,7 +62,12 @@ def chosen_robots(folder: Path, values: list) -> tuple[int, ...]:
 
 def cmd_team(args: argparse.Namespace) -> int:
     """The team replay of ``run DATASET --robots ...``."""
-    for option, default in (("association", "known"), ("noise", "auto"), ("animate", None)):
+    for option, default in (
+        ("hide_ids", False),
+        ("association", "known"),
+        ("noise", "auto"),
+        ("animate", None),
+    ):
         if getattr(args, option, default) != default:
             name = option.replace("_", "-")
             raise InputError(

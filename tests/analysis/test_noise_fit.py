@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from ekfslam.analysis.rescue import sighting_log_likelihoods
 from ekfslam.core.filter.history import History, Outcome
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.logs.runlog import read_run
+from ekfslam.pipeline import replay
 
 RUNS = Path(__file__).resolve().parents[2] / "data" / "runs"
 A, R, I = int(Outcome.ACCEPTED), int(Outcome.REJECTED), int(Outcome.INITIALISED)
@@ -126,3 +128,38 @@ def test_a_fixed_per_step_r_has_no_density_to_fit() -> None:
     run = read_run(RUNS / "square-2laps")
     with pytest.raises(Exception, match="without R_per_step"):
         nf.fit_noise(run, NoiseConfig(R_per_step=((1e-4, 0, 0), (0, 1e-4, 0), (0, 0, 1e-4))))
+
+
+class _FakeFit:
+    """`fit_noise` replaced: the search skipped, its result a replay with `noise`."""
+
+    def __init__(self, noise: NoiseConfig) -> None:
+        self.noise, self.started = noise, []
+
+    def __call__(self, run, start, config, **kwargs):
+        self.started.append(start)
+        result = replay(run, self.noise, config)
+        return SimpleNamespace(result=result, diagnosis=result.diagnosis)
+
+
+def test_a_fit_that_replays_less_likely_than_the_default_it_started_from_is_not_kept(
+    monkeypatch,
+) -> None:
+    """Issue 39: the fit starts from the rescued default's noise and is kept only when its
+    replay is at least as likely; a σ four times too wide is ok by the diagnosis but less likely."""
+    run = read_run(RUNS / "square-2laps")
+    wide = NoiseConfig(sigma_range=0.08, sigma_bearing=0.08)
+    fake = _FakeFit(wide)
+    monkeypatch.setattr(nf, "fit_noise", fake)
+    choice = nf.fit_from_default(run)
+    assert fake.started == [NoiseConfig()]  # the square's documented noise, ok: not rescued
+    assert choice.fit.diagnosis.verdict == choice.default.result.diagnosis.verdict == "ok"
+    assert choice.fit_log_likelihood < choice.default_log_likelihood
+    assert (choice.kept, choice.noise) == ("default", NoiseConfig())
+    assert choice.line().startswith(
+        "noise: the default kept, not the fit (the fit replays less likely: ln L per sighting "
+    )
+    monkeypatch.setattr(nf, "fit_noise", _FakeFit(NoiseConfig()))
+    better = nf.fit_from_default(run, wide)  # started wide, the fit finds the camera's noise
+    assert better.kept == "fit" and better.noise == NoiseConfig()
+    assert better.line().startswith("noise: the fitted noise kept (ln L per sighting ")

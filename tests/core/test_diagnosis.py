@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from types import SimpleNamespace
 
@@ -149,8 +150,10 @@ def test_with_hidden_ids_landmarks_founded_late_are_suspect() -> None:
     outcomes = [I] * 5 + [A] * 200 + [I] * 3 + [A] * 200  # 3 founded after half the run
     d = dg.diagnose(_history(outcomes), association=_log(408, 0))
     assert (d.verdict, d.late_foundings, d.ambiguous_share) == ("suspect", 3, 0.0)
-    two = [I] * 5 + [A] * 200 + [I] * 2 + [A] * 200
-    assert dg.diagnose(_history(two), association=_log(407, 0)).verdict == "ok"
+    two = [I] * 5 + [A] * 200 + [I] * 2 + [A] * 200  # issue 39's threshold: 2 is suspect
+    assert dg.diagnose(_history(two), association=_log(407, 0)).verdict == "suspect"
+    one = [I] * 5 + [A] * 200 + [I] * 1 + [A] * 200
+    assert dg.diagnose(_history(one), association=_log(406, 0)).verdict == "ok"
     assert d.advice == dg.ADVICE_ASSOCIATION
     known = dg.diagnose(_history(outcomes))  # with the ids known a tag may be first seen late
     assert (known.verdict, known.late_foundings) == ("ok", None)
@@ -160,7 +163,53 @@ def test_with_hidden_ids_many_ambiguous_sightings_are_suspect() -> None:
     d = dg.diagnose(_history([I] + [A] * 200), association=_log(201, 3))
     assert d.ambiguous_share == pytest.approx(3 / 201)
     assert d.verdict == "suspect"
-    assert d.as_dict()["association"] == {"late_foundings": 0, "ambiguous_share": 3 / 201}
+    assert d.as_dict()["association"] == {
+        "late_foundings": 0,
+        "ambiguous_share": 3 / 201,
+        "duplicate_pairs": 0,
+        "reasons": ["1% of sightings dropped as ambiguous (landmarks merged?)"],
+    }
+    few = dg.diagnose(_history([I] + [A] * 200), association=_log(201, 1))  # 0.5%: ok
+    assert few.verdict == "ok"
+
+
+def _placed(outcomes, ids, positions, cov) -> History:
+    """`_history` whose landmarks end at `positions` (one row per id) with covariance `cov`."""
+    h = _history(outcomes, ids=ids)
+    at = np.asarray(positions, dtype=float)[np.asarray(ids)]
+    return dataclasses.replace(
+        h, obs_landmark=at, obs_landmark_cov=np.broadcast_to(cov, (len(ids), 2, 2)).copy()
+    )
+
+
+def test_two_landmarks_the_sensor_cannot_tell_apart_are_a_duplicate_pair() -> None:
+    """Issue 39: three landmarks, two of them 0.15 m apart with σ 0.05 m each: within the 99%
+    ellipse of 0.05² + 0.05² + 0.1² on each axis; 1 m from the third, they are apart."""
+    outcomes = [I, I, I] + [A] * 300
+    ids = [0, 1, 2] + [0, 1, 2] * 100
+    cov = np.eye(2) * 0.05**2
+    h = _placed(outcomes, ids, [[0, 0], [0.15, 0], [1.15, 0]], cov)
+    assert dg.duplicate_pairs(h) == 1
+    assert dg.duplicate_pairs(_placed(outcomes, ids, [[0, 0], [0.6, 0], [1.6, 0]], cov)) == 0
+    strict = dg.AssociationThresholds(duplicate_pairs=1)
+    d = dg.diagnose(h, association=_log(303, 0), thresholds=strict)
+    assert (d.verdict, d.duplicate_pairs, d.landmarks) == ("suspect", 1, 3)
+    assert d.association_reasons == (
+        "1 pair(s) of landmarks the sensor cannot tell apart (duplicates)",
+    )
+    assert dg.diagnose(h, association=_log(303, 0)).duplicate_pairs == 1
+    assert dg.diagnose(h).duplicate_pairs is None  # with the ids known: not asked
+
+
+def test_with_hidden_ids_a_few_percent_beyond_the_bound_is_suspect_with_known_ids_not() -> None:
+    """Issue 39: Dataset 2 robot 2's JCBB map, 4.7x known's, rejected 2.4% of its sightings;
+    with the ids known that share is a consistent filter's (under 15%)."""
+    outcomes = [I] + [A] * 195 + [R] * 5  # 2.5% beyond
+    t = dg.AssociationThresholds(outlier_share=0.02)
+    hidden = dg.diagnose(_history(outcomes), association=_log(201, 0), thresholds=t)
+    assert hidden.verdict == "suspect"
+    assert hidden.association_reasons[0].startswith("2.5% of sightings beyond the χ² 99% bound")
+    assert dg.diagnose(_history(outcomes), thresholds=t).verdict == "ok"
 
 
 @settings(max_examples=200, deadline=None)

@@ -144,3 +144,24 @@ def test_run_passes_the_time_error_and_the_founding_rule_to_the_replay(monkeypat
     block = json.loads(out.stdout)["association"]  # the JSON says what it replayed with
     assert block["new_rule"] == "threshold"  # mht's own
     assert block["time_error"] == {"sigma": 0.0, "form": "shared"}
+
+
+def test_hide_ids_is_auto_and_says_which_association_it_used_and_why():
+    """Issue 39: ``--hide-ids`` (``--association auto``) replays with jcbb, escalating only where
+    its diagnosis is not ok; the octagon's is, so jcbb is kept, all of it right."""
+    text = cli("run", str(OCTAGON), "--hide-ids")
+    assert text.returncode == 0, text.stderr
+    assert "association: auto used jcbb (its diagnosis is ok)" in text.stdout.splitlines()
+    doc = json.loads(cli("run", str(OCTAGON), "--association", "auto", "--json").stdout)
+    assert doc["association"]["method"] == "jcbb"
+    assert doc["association"]["correct_fraction"] >= 0.99
+    assert doc["association"]["auto"]["used"] == "jcbb"
+    assert doc["association"]["auto"]["escalated"] is False
+    assert [t["verdict"] for t in doc["association"]["auto"]["tried"]] == ["ok"]
+
+
+def test_auto_with_passes_is_one_line():
+    out = cli("run", str(OCTAGON), "--association", "auto", "--passes", "2")
+    assert out.returncode == 2
+    assert "argument --passes: auto chooses its replays; name a method" in out.stderr
+    assert "Traceback" not in out.stderr

@@ -46,3 +46,22 @@ def test_fit_noise_on_a_missing_run_is_one_line() -> None:
     out = run_ekfslam("fit-noise", "no/such/run")
     assert out.returncode == 2 and out.stderr.count("\n") == 1
     assert "run folder not found" in out.stderr
+
+
+@pytest.mark.slow
+def test_run_noise_fit_keeps_the_rescued_default_where_the_fit_replays_worse() -> None:
+    """2026-12-07, issue 39: on the realistic square the fit started from the default replays
+    suspect at 0.157 m where the default is ok at 0.135 m; ``--noise fit`` replayed the fit. It
+    now keeps the default and says why, in the JSON and in one line of the table."""
+    out = run_ekfslam("run", str(RUNS / "square-2laps-realistic"), "--noise", "fit", "--json")
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    assert doc["noise_fit"]["kept"] == "default"
+    assert doc["noise_fit"]["reason"] == "the fit's replay is suspect, the default's ok"
+    assert doc["noise_fit"]["nis_check"]["verdict"] == "suspect"  # the fit's own replay
+    assert doc["diagnosis"]["verdict"] == "ok"
+    assert doc["alignment"]["mean_error"] == pytest.approx(0.135, abs=0.002)
+    text = run_ekfslam("fit-noise", str(RUNS / "square-2laps-realistic"))
+    assert text.returncode == 0, text.stderr
+    line = "noise: the default kept, not the fit (the fit's replay is suspect, the default's ok)"
+    assert line in text.stdout.splitlines()
