@@ -67,7 +67,6 @@ extensions = [
 
 exclude_patterns = [
     "_build",
-    "notebooks/solutions",  # the lab's answers: never published in the book
     "notebooks/INSTRUCTOR.md",  # included by instructor.md
     "**/.ipynb_checkpoints",
 ]

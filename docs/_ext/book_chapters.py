@@ -1,8 +1,8 @@
 """The notebooks as the book's chapters: the worked chapter, not the students' hand-out.
 
-A notebook with exercises has two versions: the solved one (``notebooks/solutions/``, the
-source) and the students' (``notebooks/``, its stubs). Its page in the book is made from the
-solved one, executed, so a reader sees the chapter finished. On every notebook page
+A notebook with exercises has two versions: the solved one (``solutions/``, the source, beside
+``notebooks/``) and the students' (``notebooks/``, its stubs). Its page in the book is made from
+the solved one, executed, so a reader sees the chapter finished. On every notebook page
 (`chapter`):
 
 - the first cell, the Colab/Binder install cell, is left out: the page's launch buttons (Binder,
@@ -131,6 +131,7 @@ def chapter(nb: dict, path: str = "<notebook>") -> dict:
             cells.append(
                 {
                     "cell_type": "code",
+                    "id": "book-panel-still",
                     "execution_count": None,
                     "metadata": {"tags": ["remove-input"]},
                     "outputs": [],
@@ -140,7 +141,9 @@ def chapter(nb: dict, path: str = "<notebook>") -> dict:
     if any(
         _lines(c)[:1] == ["%matplotlib widget\n"] for c in cells if c.get("cell_type") == "code"
     ):
-        cells.insert(1, {"cell_type": "markdown", "metadata": {}, "source": LIVE})
+        cells.insert(
+            1, {"cell_type": "markdown", "id": "book-live", "metadata": {}, "source": LIVE}
+        )
     nb["cells"] = cells
     return nb
 
@@ -149,7 +152,7 @@ def solved_source(notebooks: Path, docname: str) -> Path | None:
     """The solved version of the notebook page `docname` (``notebooks/NN-title``), if it has one."""
     if not docname.startswith("notebooks/"):
         return None
-    solved = notebooks / "solutions" / f"{docname.removeprefix('notebooks/')}.ipynb"
+    solved = notebooks.parent / "solutions" / f"{docname.removeprefix('notebooks/')}.ipynb"
     return solved if solved.is_file() else None
 
 

@@ -26,7 +26,7 @@ def _text(nb: dict, kind: str | None = None) -> str:
     )
 
 
-@pytest.mark.parametrize("path", sorted((NOTEBOOKS / "solutions").glob("*.ipynb")), ids=str)
+@pytest.mark.parametrize("path", sorted((ROOT / "solutions").glob("*.ipynb")), ids=str)
 def test_a_lab_notebooks_page_is_its_worked_chapter(path: Path) -> None:
     docname = f"notebooks/{path.stem}"
     assert book_chapters.solved_source(NOTEBOOKS, docname) == path
