@@ -161,5 +161,28 @@ def test_a_students_install_pulls_in_no_grading_tool() -> None:
     students = " ".join(project["dependencies"]).lower()
     students += (ROOT / "binder" / "environment.yml").read_text(encoding="utf-8").lower()
     assert [g for g in graders if g in students] == []
-    assert (ROOT / "requirements.txt").read_text(encoding="utf-8").split("\n")[-2:] == ["-e .", ""]
+    lines = (ROOT / "requirements.txt").read_text(encoding="utf-8").splitlines()
+    assert [line for line in lines if not line.startswith("#")] == ["."]  # the package alone
     assert "ekfslam[dask]" in project["optional-dependencies"]["instructor"]
+
+
+def test_the_students_notebook_command_opens_a_folder_without_solutions() -> None:
+    """Regression: ``jupyter lab notebooks/`` showed ``notebooks/solutions/`` in the students'
+    file browser. The solved notebooks are ``solutions/``, beside it."""
+    docs = [ROOT / "README.md", ROOT / "notebooks" / "INSTRUCTOR.md", ROOT / "docs" / "index.md"]
+    docs.append(ROOT / "docs" / "notebooks.md")
+    folders = {
+        folder
+        for path in docs
+        for folder in re.findall(r"jupyter lab (\S+?)/?[`\s]", path.read_text(encoding="utf-8"))
+    }
+    assert folders == {"notebooks"}, folders
+    student = ROOT / "notebooks"
+    assert not (student / "solutions").exists()
+    solved = [
+        p.relative_to(ROOT)
+        for p in student.rglob("*.ipynb")
+        if "BEGIN SOLUTION" in p.read_text(encoding="utf-8")
+    ]
+    assert solved == []
+    assert len(list((ROOT / "solutions").glob("*.ipynb"))) >= 6
