@@ -1,6 +1,7 @@
 """The seed's runs travel inside the package: every wheel holds ``data/runs`` as ``ekfslam/runs``
 (`ekfslam.places.seed_run` reads them there), so a notebook finds its data wherever ekfslam is
-installed. ``data/runs`` stays the one copy in the repository; everything else is in
+installed. ``data/runs`` stays the one copy in the repository. And Jupyter's server config that
+keeps a checkout's notebooks stored without outputs (`JUPYTER_CONFIG`); everything else is in
 pyproject.toml."""
 
 from pathlib import Path
@@ -23,4 +24,8 @@ class BuildWithRuns(build_py):
                 self.copy_file(str(path), str(target / run.name / path.name))
 
 
-setup(cmdclass={"build_py": BuildWithRuns})
+# Jupyter's config for every server of the environment the package is installed in: a checkout's
+# notebooks are saved without outputs (ekfslam.teaching.clean_save)
+JUPYTER_CONFIG = ("etc/jupyter/jupyter_server_config.d", ["jupyter-config/ekfslam.json"])
+
+setup(cmdclass={"build_py": BuildWithRuns}, data_files=[JUPYTER_CONFIG])

@@ -11,6 +11,12 @@ What it is made of, each kept in one place:
   ``docs/api/generated/`` (not committed); ``tests/integration/test_docs.py`` checks that every
   public name has an entry.
 
+- each notebook's page is its worked chapter (``docs/_ext/book_chapters.py``): the solved
+  notebook where there is one, without the install cell, the exercises as callouts;
+- every page renders offline: MathJax is installed from npm at build time and served from the
+  site (``docs/_ext/book_assets.py``); ``tests/integration/test_book_offline.py`` opens every
+  page with the network cut.
+
 The notebooks that read MRCLAM data find it as the tests do (``$EKFSLAM_SHARED_DATA``, else
 ``../shared/data`` beside the checkout, else the cache of ``python -m ekfslam fetch mrclam N``).
 Where it is absent the build says so and renders those notebooks unexecuted, with a warning on
@@ -35,6 +41,9 @@ sys.path.insert(0, str(DOCS / "_ext"))
 os.environ["PYTHONPATH"] = os.pathsep.join(
     p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p
 )
+# the kernels run the notebooks as the book's pages: an open prediction is answered by the
+# experiment, none is recorded beside the notebook (ekfslam.teaching.exercises.in_the_book)
+os.environ["EKFSLAM_BOOK"] = "1"
 
 from book_notebooks import unexecuted  # noqa: E402  (docs/_ext, on the path above)
 
@@ -52,11 +61,12 @@ extensions = [
     "house_docstrings",  # docs/_ext: our `name : text` docstring lines as reST lists
     "book_notebooks",  # docs/_ext: links between notebooks; notebooks without their data
     "api_facade",  # docs/_ext: the table of the names `import ekfslam` gives
+    "book_chapters",  # docs/_ext: a notebook's page is its worked chapter, not the hand-out
+    "book_assets",  # docs/_ext: MathJax from npm, served from the site (offline pages)
 ]
 
 exclude_patterns = [
     "_build",
-    "notebooks/solutions",  # the lab's answers: never published in the book
     "notebooks/INSTRUCTOR.md",  # included by instructor.md
     "**/.ipynb_checkpoints",
 ]
@@ -70,6 +80,13 @@ nb_execution_timeout = 600  # a notebook takes 5-20 s; allow a busy 2-core machi
 nb_execution_raise_on_error = True  # a notebook that fails fails the build
 nb_execution_show_tb = True
 nb_merge_streams = True
+# a table a notebook displays (IPython's Markdown) is rendered as MyST, which has tables and
+# math; the default, CommonMark, showed 15 tables as pipe text
+nb_render_markdown_format = "myst"
+# no widget manager from a CDN: the live panel of 08 runs in JupyterLab or Voila (its page
+# says so); its widgets' views rank below any static picture of them
+nb_ipywidgets_js: dict[str, dict[str, str]] = {}
+nb_mime_priority_overrides = [("html", "application/vnd.jupyter.widget-view+json", 115)]
 ekfslam_notebooks = str(NOTEBOOKS)
 #: {docname: the MRCLAM datasets it reads that are not on this machine}: left unexecuted
 ekfslam_unexecuted = unexecuted(NOTEBOOKS)
@@ -93,8 +110,22 @@ numpydoc_xref_param_type = False
 
 # --- the page ---------------------------------------------------------------------------------
 html_theme = "sphinx_book_theme"
-html_static_path: list[str] = []
+html_static_path: list[str] = ["_static"]  # book_assets adds MathJax's folder
+html_css_files = ["book.css"]
+#: MathJax 3 from the site itself (docs/_ext/book_assets.py installs it from npm at build time)
+mathjax_path = "mathjax/tex-chtml.js"
+#: the chapters before the API entries when a reader searches for a concept
+html_search_scorer = str(DOCS / "_ext" / "search_scorer.js")
 html_theme_options = {
+    # the launch buttons open the students' notebook (its install cell is left off the page)
+    "repository_url": "https://github.com/ekfslam/ekfslam",  # pyproject.toml [project.urls]
+    "repository_branch": "main",
+    "path_to_docs": "docs",
+    "launch_buttons": {
+        "binderhub_url": "https://mybinder.org",
+        "colab_url": "https://colab.research.google.com",
+        "notebook_interface": "jupyterlab",
+    },
     "show_toc_level": 2,
     "use_download_button": True,
     "home_page_in_toc": True,

@@ -91,9 +91,19 @@ def write_animation(
     except EkfSlamError:  # not a simulated run: no laps to name
         laps = ()
     frames = animation.ReplayFrames(
-        run, result, arena_half_size=arena_half_size(run), lap_ends=laps, landmark_labels=labels
+        run,
+        result,
+        arena_half_size=arena_half_size(run),
+        lap_ends=laps,
+        landmark_labels=labels,
+        dpi=FILE_DPI,
     )
     return str(animation.save_animation(frames, path, fps or DEFAULT_FPS)), len(frames)
+
+
+#: a file's animation is drawn at 80 dpi (1120 px wide): a GIF of every frame at the notebook's
+#: projector width would be four times the size and time
+FILE_DPI = 80
 
 
 def true_labels(result: ReplayResult, mapping: dict[int, int]) -> list[str]:

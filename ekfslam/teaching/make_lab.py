@@ -1,7 +1,8 @@
 """Write the student notebooks from the solution notebooks: ``python -m ekfslam.teaching.make_lab``.
 
 The committed source of a notebook with exercises is its solved version,
-``notebooks/solutions/NN-title.ipynb``, in nbgrader's source format (its cell metadata, kept so
+``solutions/NN-title.ipynb`` (beside ``notebooks/``, so that a student's ``jupyter lab notebooks/``
+does not show it), in nbgrader's source format (its cell metadata, kept so
 that nbgrader's tools still read the notebooks; nbgrader itself is not needed). Its exercise
 cells are solution cells, whose ``# BEGIN SOLUTION`` ... ``# END SOLUTION`` region becomes
 `STUB` in the students' copy; a value typed into a cell (checked by `check_answer`) or a
@@ -28,7 +29,7 @@ from pathlib import Path
 from ekfslam.errors import InputError
 
 NOTEBOOKS = Path(__file__).resolve().parents[2] / "notebooks"
-SOLUTIONS = NOTEBOOKS / "solutions"
+SOLUTIONS = NOTEBOOKS.parent / "solutions"
 #: What a solution region becomes in the students' copy: a function that is still the stub
 #: returns None (the check says "not done yet"); a typed-in value keeps the None before it.
 STUB = "# YOUR CODE HERE"

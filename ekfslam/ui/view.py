@@ -21,7 +21,7 @@ from ekfslam.pipeline import ReplayResult
 from ekfslam.ui.blit import Blitter, can_blit
 from ekfslam.ui.glyphs import CachedGlyphText
 from ekfslam.viz.plotting import ellipse_parameters
-from ekfslam.viz.style import FONT
+from ekfslam.viz.style import ESTIMATE, FONT, START, TRUTH, UNCERTAINTY
 from ekfslam.viz.tables import PANEL, Row, table1_lines
 
 TITLE_PT = 9.5  # the Table 1 text above the axes (points)
@@ -63,21 +63,19 @@ class TuningView:
         # so under everything a move draws, the ellipses included (zorder 0.9 < a patch's 1):
         # a full draw stacks them the same way.
         (self.true_path,) = ax.plot([], [], "--", color="0.55", lw=1, label="true path", zorder=0.9)
-        (self.path,) = ax.plot([], [], "-", color="tab:red", lw=1.2, label="estimated path")
-        (self.true_tags,) = ax.plot(
-            [], [], "o", color="tab:green", ms=8, label="true tags", zorder=0.9
-        )
+        (self.path,) = ax.plot([], [], "-", color=ESTIMATE, lw=1.2, label="estimated path")
+        (self.true_tags,) = ax.plot([], [], "s", color=TRUTH, ms=8, label="true tags", zorder=0.9)
         self.tags = ax.scatter(
             np.empty(0),
             np.empty(0),
             s=90,
             facecolors="none",
-            edgecolors="tab:red",
+            edgecolors=ESTIMATE,
             linewidths=1.5,
             label="estimated tags",
         )
-        (self.start,) = ax.plot([], [], "o", color="tab:blue", ms=7, label="true start")
-        ax.plot([], [], "-", color="tab:blue", label="95% ellipses")
+        (self.start,) = ax.plot([], [], "*", color=START, ms=11, label="true start")
+        ax.plot([], [], "-", color=UNCERTAINTY, label="95% ellipses")
         self.ellipses: list[Ellipse] = []
         ax.set_aspect("equal", adjustable="box")
         ax.locator_params(nbins=5)  # every tick label is typeset again on every redraw
@@ -85,9 +83,9 @@ class TuningView:
         ax.grid(True, alpha=0.3)
         ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, **UNDER_AXES)
         n = self.nis_ax
-        (self.accepted,) = n.plot([], [], ".", color="tab:blue", ms=3, label="accepted")
-        (self.rejected,) = n.plot([], [], "x", color="tab:red", ms=4, label="rejected by gate")
-        self.gate_line = n.axhline(math.log10(CHI2_2DOF_99), color="tab:red", lw=1, label="gate")
+        (self.accepted,) = n.plot([], [], ".", color=UNCERTAINTY, ms=3, label="accepted")
+        (self.rejected,) = n.plot([], [], "x", color=ESTIMATE, ms=4, label="rejected by gate")
+        self.gate_line = n.axhline(math.log10(CHI2_2DOF_99), color=ESTIMATE, lw=1, label="gate")
         n.axhline(math.log10(2.0), color="k", ls="--", lw=1, label="χ²(2) mean = 2")
         n.set(
             xlabel="time since the start (s)",
@@ -165,7 +163,7 @@ class TuningView:
         est = est if a is None or not len(est) else a.apply(est)
         self.tags.set_offsets(est)
         while len(self.ellipses) < len(ids):  # a pool: a run with more landmarks adds patches
-            patch = Ellipse((0, 0), 0, 0, fill=False, color="tab:blue", lw=1.2)
+            patch = Ellipse((0, 0), 0, 0, fill=False, color=UNCERTAINTY, lw=1.2)
             self.ellipses.append(self.map_ax.add_patch(patch))
         turn = 0.0 if a is None else math.degrees(a.theta0)  # eq. (17) turns the ellipses too
         for k, patch in enumerate(self.ellipses):

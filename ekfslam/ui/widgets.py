@@ -88,12 +88,27 @@ class TuningPanel:
                 max=spec.grid(getattr(s.noise, spec.field))[1],
                 step=spec.step,
                 description=f"{spec.label} ({spec.unit})",
-                readout_format=".3g",
+                readout=False,  # the box beside it: a value typed there is kept, not snapped
                 style=wide,
-                layout=w.Layout(width="430px"),
+                layout=w.Layout(width="400px"),
             )
             for spec in SLIDERS
         }
+        # A slider's own readout, typed into, is snapped by the browser to the slider's grid
+        # before the kernel sees it (0.005 became 0.00475); a text box sends what was typed,
+        # and the slider's grid is re-anchored on it (`_show_values`), so nothing snaps.
+        self.boxes = {
+            spec.field: w.BoundedFloatText(
+                value=getattr(s.noise, spec.field),
+                min=10**spec.lo,
+                max=10**spec.hi,
+                step=None,
+                layout=w.Layout(width="90px"),
+            )
+            for spec in SLIDERS
+        }
+        for field, box in self.boxes.items():
+            box.add_class(f"ekfslam-value-{field}")
         gates = dict(GATES)
         if (s.config.gate or 0.0) not in gates.values():
             gates[f"{s.config.gate:.3g}"] = s.config.gate
@@ -117,6 +132,8 @@ class TuningPanel:
             tooltip="maximum likelihood of the innovations: no ground truth (10-60 s on MRCLAM)",
         )
         self.status, self.errors = w.HTML(), w.Output()
+        for name, box in self.boxes.items():
+            box.observe(partial(self._typed, name), names="value")
         for name, widget in (
             *self.sliders.items(),
             ("run", self.run),
@@ -133,8 +150,12 @@ class TuningPanel:
         else:  # any other backend (tests): the controls still work, without a picture
             canvas = w.HTML("<i>(the figure needs <code>%matplotlib widget</code>)</i>")
         pickers = w.VBox([self.run, self.init, self.gate, self.reset, self.fit])
-        controls = w.HBox([w.VBox(list(self.sliders.values())), pickers])
-        self.widget = w.VBox([controls, canvas, self.status, self.errors])
+        rows = [w.HBox([self.sliders[n], self.boxes[n]]) for n in self.sliders]
+        controls = w.VBox([w.HBox([w.VBox(rows), pickers]), self.status])
+        # the controls beside the figure where the page is wide enough (Voila at 1920 x 1080:
+        # the whole figure on the screen with the sliders), above it where it is not
+        wrap = w.Layout(display="flex", flex_flow="row wrap", align_items="flex-start")
+        self.widget = w.VBox([w.Box([controls, canvas], layout=wrap), self.errors])
         if tuner.state is not None:
             self._show_status(tuner.state)
 
@@ -170,12 +191,26 @@ class TuningPanel:
             f'<pre style="{TABLE_STYLE}">{self._table}</pre></div>'
         )
 
+    def _typed(self, name: str, change: dict) -> None:
+        """A value typed into a slider's box: the slider re-anchored on it, and the replay."""
+        if self._quiet:
+            return
+        self._show_values({name: change["new"]})
+        self.tuner.set(**{name: change["new"]})
+
     def _changed(self, name: str, change: dict) -> None:
         if self._quiet:
             return
         if name in self.sliders:  # the browser may echo a value back with its last bit changed
             if math.isclose(change["new"], getattr(self.tuner.settings.noise, name), rel_tol=1e-9):
                 return
+            if math.isclose(change["new"], self.boxes[name].value, rel_tol=1e-9):
+                return  # the echo of a value typed in the box, before the tuner took it
+            self._quiet = True  # the slider moved: its box follows
+            try:
+                self.boxes[name].value = change["new"]
+            finally:
+                self._quiet = False
         self.tuner.set(**{name: change["new"]})
         if name == "run":  # a run with other documented noise brings its own R and Q
             self._follow_noise()
@@ -221,6 +256,7 @@ class TuningPanel:
                         slider.min, slider.max = min(lo, slider.min), max(hi, slider.max)
                         slider.value = value
                         slider.min, slider.max = lo, hi
+                    self.boxes[name].value = value
                 elif name in ("run", "init", "gate"):
                     getattr(self, name).value = 0.0 if name == "gate" and value is None else value
         finally:

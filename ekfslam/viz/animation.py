@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import shutil
 import subprocess
 from collections.abc import Sequence
@@ -38,7 +39,7 @@ from ekfslam.errors import EkfSlamError
 from ekfslam.files import atomic_write
 from ekfslam.logs.runlog import RunLog
 from ekfslam.viz.plotting import draw_arena, draw_true_landmarks, ellipse_parameters
-from ekfslam.viz.style import FONT
+from ekfslam.viz.style import ESTIMATE, FONT, PROJECTOR_DPI, UNCERTAINTY
 
 if TYPE_CHECKING:
     from ekfslam.pipeline import ReplayResult
@@ -72,7 +73,7 @@ class ReplayFrames:
         confidence: float = 0.95,
         landmark_labels: Sequence[str] | None = None,
         figsize: tuple[float, float] = (14.0, 8.5),
-        dpi: int = 80,
+        dpi: int = PROJECTOR_DPI,
     ) -> None:
         kf = result.keyframes
         if kf is None or len(kf) == 0:
@@ -110,21 +111,21 @@ class ReplayFrames:
             draw_arena(ax, half_size)
         if run.meta.tag_map:
             draw_true_landmarks(ax, run.meta.tag_map)
-        (self.trajectory,) = ax.plot([], [], "-", color="tab:red", lw=1.5, label="estimated path")
-        (self.heading,) = ax.plot([], [], "-", color="darkred", lw=3)
-        (self.robot,) = ax.plot([], [], "o", color="darkred", ms=7, label="robot")
+        (self.trajectory,) = ax.plot([], [], "-", color=ESTIMATE, lw=1.5, label="estimated path")
+        (self.heading,) = ax.plot([], [], "-", color=ESTIMATE, lw=3)
+        (self.robot,) = ax.plot([], [], "o", color=ESTIMATE, ms=7, label="robot")
         self.robot_ellipse = ax.add_patch(
-            Ellipse((0.0, 0.0), 0.0, 0.0, fill=False, color="darkred", lw=1.5)
+            Ellipse((0.0, 0.0), 0.0, 0.0, fill=False, color=ESTIMATE, lw=1.5)
         )
         (self.landmarks,) = ax.plot(
-            [], [], "o", mfc="none", mec="tab:blue", ms=9, mew=1.5, label="estimated landmarks"
+            [], [], "o", mfc="none", mec=ESTIMATE, ms=9, mew=1.5, label="estimated landmarks"
         )
         self.landmark_ellipses: list[Ellipse] = []
         for _ in kf.landmark_ids:
-            e = ax.add_patch(Ellipse((0.0, 0.0), 0.0, 0.0, fill=False, color="tab:blue", lw=1.5))
+            e = ax.add_patch(Ellipse((0.0, 0.0), 0.0, 0.0, fill=False, color=UNCERTAINTY, lw=1.5))
             e.set_visible(False)
             self.landmark_ellipses.append(e)
-        ax.plot([], [], "-", color="tab:blue", label=f"{self.confidence:.0%} ellipses")
+        ax.plot([], [], "-", color=UNCERTAINTY, label=f"{self.confidence:.0%} ellipses")
         # the window: the whole run's path and map, so that nothing moves but the estimate
         points = [h.pose[:, :2]] if len(h.t) else []
         points += [kf.mu[-1, 3 : kf.dim[-1]].reshape(-1, 2)]
@@ -172,9 +173,9 @@ class ReplayFrames:
             [_mean_landmark_sigma(kf.Sigma[f], kf.dim[f]) for f in range(len(kf))]
         )
         robot = np.sqrt(h.pose_cov[:, 0, 0] + h.pose_cov[:, 1, 1]) if len(h.t) else np.zeros(0)
-        (self.robot_sigma_line,) = ax.plot([], [], "-", color="darkred", label="robot √(Σxx + Σyy)")
+        (self.robot_sigma_line,) = ax.plot([], [], "-", color=ESTIMATE, label="robot √(Σxx + Σyy)")
         (self.map_sigma_line,) = ax.plot(
-            [], [], "o-", color="tab:blue", ms=3, label="landmarks, mean √trace Σ_ll"
+            [], [], "o-", color=UNCERTAINTY, ms=3, label="landmarks, mean √trace Σ_ll"
         )
         self._robot_sigma = 100.0 * robot
         t0 = self.t0 = float(kf.t[0])  # times since the start: MRCLAM's clock is Unix time
@@ -252,6 +253,36 @@ class ReplayFrames:
             repeat=True,
             cache_frame_data=False,
         )
+
+    def html(self, fps: float = 10.0, default_mode: str = "loop") -> str:
+        """The animation as a page fragment with its player (`offline_jshtml`): for a notebook's
+        ``HTML(...)``, and the book's page, which shows it with the network cut."""
+        return offline_jshtml(self.animation(fps), default_mode=default_mode)
+
+
+#: matplotlib's player draws its buttons with font-awesome icons from a CDN: offline they are
+#: blank. The same buttons as plain characters, which every font has.
+_PLAYER_ICONS = {
+    "fa fa-minus": "\u2212",
+    "fa fa-fast-backward": "\u21e4",
+    "fa fa-step-backward": "\u2039",
+    "fa fa-play fa-flip-horizontal": "\u25c0",
+    "fa fa-pause": "\u275a\u275a",
+    "fa fa-play": "\u25b6",
+    "fa fa-step-forward": "\u203a",
+    "fa fa-fast-forward": "\u21e5",
+    "fa fa-plus": "+",
+}
+_STYLESHEET = re.compile(r"<link[^>]*font-awesome[^>]*>\s*", re.I)
+
+
+def offline_jshtml(animation: mpl_animation.Animation, **kwargs) -> str:
+    """`animation.to_jshtml(**kwargs)` that loads nothing from the network: the player's
+    font-awesome stylesheet left out, its icons written as characters."""
+    text = _STYLESHEET.sub("", animation.to_jshtml(**kwargs))
+    for icon, glyph in _PLAYER_ICONS.items():
+        text = text.replace(f'<i class="{icon}"></i>', f'<span aria-hidden="true">{glyph}</span>')
+    return text
 
 
 def replay_animation(

@@ -15,7 +15,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, ScalarFormatter
 
-from ekfslam.viz.style import FONT
+from ekfslam.viz.style import ESTIMATE, FONT, TRUTH, UNCERTAINTY
 
 if TYPE_CHECKING:
     from ekfslam.analysis.consistency import Consistency
@@ -23,7 +23,10 @@ if TYPE_CHECKING:
 
 
 #: One colour per linearisation, in every consistency figure.
-COLORS = {"standard": "tab:red", "fej": "tab:blue", "invariant": "tab:green"}
+#: Okabe & Ito's (`ekfslam.viz.style`): apart under simulated deuteranopia and protanopia, where
+#: the old red and blue curves ran together; each has its own line style too.
+COLORS = {"standard": ESTIMATE, "fej": UNCERTAINTY, "invariant": TRUTH}
+STYLES = {"standard": "-", "fej": "--", "invariant": "-."}
 
 
 def plot_consistency(
@@ -59,6 +62,7 @@ def plot_consistency(
                 getattr(r, name)[ok],
                 lw=1.0,
                 color=COLORS.get(r.linearization),
+                ls=STYLES.get(r.linearization, "-"),
                 label=f"{r.linearization}: {r.fraction_in_band(name):.0%} of steps in band",
             )
         ax.set_ylabel(f"average {label}")
@@ -111,6 +115,7 @@ def plot_mrclam_nees(study: MrclamConsistency, figsize=None, floor: float = 0.01
                 np.maximum(r.nees, floor),
                 lw=0.6,
                 color=COLORS.get(lin),
+                ls=STYLES.get(lin, "-"),
                 label=lin,
             )
             stats.append(f"{lin} mean {r.mean:.1f}, {r.fraction_in_interval:.0%} in interval")

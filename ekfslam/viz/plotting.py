@@ -20,7 +20,7 @@ from ekfslam.core.arena import Arena
 from ekfslam.core.filter.config import chi2_2dof_quantile
 from ekfslam.geometry import rotation, wrap_angle
 from ekfslam.logs.runlog import RunLog
-from ekfslam.viz.style import FONT
+from ekfslam.viz.style import ESTIMATE, FONT, MEASUREMENT, START, TRUTH, UNCERTAINTY
 
 if TYPE_CHECKING:
     from ekfslam.analysis.alignment import Alignment
@@ -70,7 +70,7 @@ def draw_arena(ax: Axes, half_size: float) -> None:
 def draw_trajectory(ax: Axes, poses: NDArray, arrows: int = 60, **kwargs) -> None:
     """The path as a line with about `arrows` heading arrows along it."""
     poses = np.asarray(poses, dtype=float)
-    ax.plot(poses[:, 0], poses[:, 1], "-", color=kwargs.get("color", "tab:red"), lw=1, alpha=0.6)
+    ax.plot(poses[:, 0], poses[:, 1], "-", color=kwargs.get("color", ESTIMATE), lw=1, alpha=0.6)
     step = max(1, len(poses) // arrows)
     p = poses[::step]
     ax.quiver(
@@ -78,7 +78,7 @@ def draw_trajectory(ax: Axes, poses: NDArray, arrows: int = 60, **kwargs) -> Non
         p[:, 1],
         np.cos(p[:, 2]),
         np.sin(p[:, 2]),
-        color=kwargs.get("color", "tab:red"),
+        color=kwargs.get("color", ESTIMATE),
         angles="xy",
         scale_units="xy",
         scale=kwargs.get("arrow_scale", 12.0),
@@ -88,10 +88,10 @@ def draw_trajectory(ax: Axes, poses: NDArray, arrows: int = 60, **kwargs) -> Non
 
 
 def draw_true_landmarks(ax: Axes, tag_map: Mapping[int, ArrayLike]) -> None:
-    """The true landmarks as green dots, each labelled with its id, away from the map's centre."""
+    """The true landmarks as green squares, each labelled with its id away from the centre."""
     ids = sorted(tag_map)
     truth = np.array([tag_map[i] for i in ids], dtype=float)
-    ax.plot(truth[:, 0], truth[:, 1], "o", color="tab:green", ms=8, label="true landmarks (id)")
+    ax.plot(truth[:, 0], truth[:, 1], "s", color=TRUTH, ms=8, label="true landmarks (id)")
     centre = truth.mean(axis=0)
     for i, p in zip(ids, truth, strict=True):
         away = p - centre
@@ -104,7 +104,7 @@ def draw_true_landmarks(ax: Axes, tag_map: Mapping[int, ArrayLike]) -> None:
             textcoords="offset points",
             ha="center",
             va="center",
-            color="darkgreen",
+            color=TRUTH,
             fontweight="bold",
             fontsize=FONT,
         )
@@ -122,10 +122,12 @@ def plot_map(
 ) -> None:
     """The seed's Figure 2 on one axes.
 
-    Red arrows: the estimated trajectory; red hollow circles: estimated landmarks with blue
-    `confidence` ellipses; green dots: true landmarks with their ids; blue dot: the true start
-    (when known). Without `alignment` the estimate is drawn as the filter holds it, before
-    alignment (as the seed drew it; the red labels are the estimated landmarks' ids). With it,
+    Vermillion arrows: the estimated trajectory; vermillion hollow circles: estimated landmarks
+    with blue `confidence` ellipses; green squares: true landmarks with their ids; black star:
+    the true start (when known). The colours are `ekfslam.viz.style`'s, safe for colour-blind
+    readers. Without `alignment` the estimate is drawn as the filter holds it, before
+    alignment (as the seed drew it; the vermillion labels are the estimated landmarks' ids).
+    With it,
     the trajectory, landmarks and ellipses are carried by eq. (17)'s transform onto the world
     (world = R(θ0) estimate + (x0, y0), covariances R Σ Rᵀ).
     """
@@ -157,27 +159,27 @@ def plot_map(
             est[:, 1],
             "o",
             mfc="none",
-            mec="tab:red",
+            mec=ESTIMATE,
             ms=10,
             mew=1.5,
             label="estimated landmarks",
         )
         for i, mean in zip(ids, est, strict=True):
             cov = rotate @ np.asarray(result.landmark_covariances[i]) @ rotate.T
-            ax.add_patch(covariance_ellipse(mean, cov, confidence, color="tab:blue", lw=1.2))
+            ax.add_patch(covariance_ellipse(mean, cov, confidence, color=UNCERTAINTY, lw=1.2))
             if alignment is None:  # aligned, they sit on the true ids' dots
                 ax.annotate(
                     str(i),
                     tuple(mean),
                     xytext=(6, 6),
                     textcoords="offset points",
-                    color="tab:red",
+                    color=ESTIMATE,
                     fontsize=FONT,
                 )
-        ax.plot([], [], "-", color="tab:blue", label=f"{confidence:.0%} covariance ellipses")
+        ax.plot([], [], "-", color=UNCERTAINTY, label=f"{confidence:.0%} covariance ellipses")
     if true_start is not None:
         s = np.asarray(true_start, dtype=float)
-        ax.plot(s[0], s[1], "o", color="tab:blue", ms=9, label="true start")
+        ax.plot(s[0], s[1], "*", color=START, ms=13, label="true start")
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
@@ -256,13 +258,13 @@ def _mean_distance(estimated: Mapping[int, ArrayLike], truth: Mapping[int, Array
 def draw_tags(ax: Axes, arena: Arena, *, label: str | None = "tags (AprilTags)") -> None:
     """The arena's tags as green squares with their ids and an arrow along each face's normal."""
     pos, normals = arena.tag_positions(), arena.tag_normals()
-    ax.plot(pos[:, 0], pos[:, 1], "s", color="tab:green", ms=9, label=label)
+    ax.plot(pos[:, 0], pos[:, 1], "s", color=TRUTH, ms=9, label=label)
     ax.quiver(
         pos[:, 0],
         pos[:, 1],
         normals[:, 0],
         normals[:, 1],
-        color="tab:green",
+        color=TRUTH,
         angles="xy",
         scale_units="xy",
         scale=8.0,
@@ -277,7 +279,7 @@ def draw_tags(ax: Axes, arena: Arena, *, label: str | None = "tags (AprilTags)")
             textcoords="offset points",
             ha="center",
             va="center",
-            color="darkgreen",
+            color=TRUTH,
             fontweight="bold",
         )
 
@@ -295,7 +297,7 @@ def draw_pose_ellipses(
     """Position ellipses of poses (K, 3) with covariances (K, 3, 3), one every `every` poses."""
     poses = np.asarray(poses, dtype=float)
     covs = np.asarray(covariances, dtype=float)
-    kwargs.setdefault("color", "tab:blue")
+    kwargs.setdefault("color", UNCERTAINTY)
     for k in range(0, len(poses), max(1, every)):
         ax.add_patch(covariance_ellipse(poses[k, :2], covs[k, :2, :2], confidence, **kwargs))
     if label is not None:
@@ -364,13 +366,13 @@ def update_figure(
     lj = 3 + 2 * j
 
     def state(ax: Axes, mu, S, style: str, tag: str, alpha: float = 1.0) -> None:
-        ax.add_patch(covariance_ellipse(mu[:2], S[:2, :2], color="tab:red", ls=style, alpha=alpha))
+        ax.add_patch(covariance_ellipse(mu[:2], S[:2, :2], color=ESTIMATE, ls=style, alpha=alpha))
         ax.quiver(
             mu[0],
             mu[1],
             math.cos(mu[2]),
             math.sin(mu[2]),
-            color="tab:red",
+            color=ESTIMATE,
             alpha=alpha,
             angles="xy",
             scale_units="xy",
@@ -379,7 +381,7 @@ def update_figure(
         )
         for k in range(len(landmark_ids)):
             l = 3 + 2 * k
-            color = "tab:blue" if k == j else "0.5"
+            color = UNCERTAINTY if k == j else "0.5"
             ax.add_patch(
                 covariance_ellipse(
                     mu[l : l + 2], S[l : l + 2, l : l + 2], color=color, ls=style, alpha=alpha
@@ -394,13 +396,13 @@ def update_figure(
                     textcoords="offset points",
                     fontsize=FONT,
                 )
-        ax.plot([], [], ls=style, color="tab:red", label=f"robot, {tag} (95%)")
-        ax.plot([], [], ls=style, color="tab:blue", label=f"landmark {landmark_ids[j]}, {tag}")
+        ax.plot([], [], ls=style, color=ESTIMATE, label=f"robot, {tag} (95%)")
+        ax.plot([], [], ls=style, color=UNCERTAINTY, label=f"landmark {landmark_ids[j]}, {tag}")
 
     for ax in (a, b, d):
         if truth is not None:
             pts = np.array([truth[i] for i in landmark_ids])
-            ax.plot(pts[:, 0], pts[:, 1], "o", color="tab:green", ms=5, label="true landmarks")
+            ax.plot(pts[:, 0], pts[:, 1], "s", color=TRUTH, ms=5, label="true landmarks")
         ax.set_aspect("equal")
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
@@ -415,16 +417,16 @@ def update_figure(
         [mu0[0], seen[0]],
         [mu0[1], seen[1]],
         "-",
-        color="tab:orange",
+        color=MEASUREMENT,
         lw=2,
         label=f"measured z: r = {r:.3f} m, φ = {phi:.3f} rad",
     )
-    b.plot(*seen, "x", color="tab:orange", ms=12, mew=3)
+    b.plot(*seen, "x", color=MEASUREMENT, ms=12, mew=3)
     b.plot(
         [mu0[0], mu0[lj]],
         [mu0[1], mu0[lj + 1]],
         "--",
-        color="tab:blue",
+        color=UNCERTAINTY,
         label=f"predicted ẑ (eq. 13): r = {steps.z_hat[0]:.3f} m, φ = {steps.z_hat[1]:.3f} rad",
     )
     b.set_title(
@@ -432,7 +434,7 @@ def update_figure(
     )
     correction = steps.K @ steps.nu
     names = state_labels(landmark_ids)
-    colors = ["tab:red"] * 3 + ["tab:blue" if k // 2 == j else "0.6" for k in range(len(names) - 3)]
+    colors = [ESTIMATE] * 3 + [UNCERTAINTY if k // 2 == j else "0.6" for k in range(len(names) - 3)]
     c.bar(range(len(names)), correction * 1000.0, color=colors, label="K ν (mm, mrad for θ)")
     c.set_xticks(range(len(names)), names, rotation=90)
     c.axhline(0.0, color="k", lw=0.8)

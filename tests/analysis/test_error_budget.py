@@ -83,7 +83,7 @@ def test_the_prediction_check_names_each_source_on_the_wrong_side(capsys):
 @pytest.mark.slow
 def test_notebook_07s_answer_is_right_on_the_budget_it_shows(capsys):
     """The solution's prediction, run against the budget notebook 07 computes (seeds 1-4)."""
-    cells = json.loads((NOTEBOOKS / "solutions" / "07-alignment.ipynb").read_text())["cells"]
+    cells = json.loads((NOTEBOOKS.parent / "solutions" / "07-alignment.ipynb").read_text())["cells"]
     answer = "".join(next(c["source"] for c in cells if c["id"] == "07-r5"))
     namespace: dict = {}
     exec(answer, namespace)

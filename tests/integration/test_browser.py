@@ -196,14 +196,21 @@ def _move_q_slider(page, prefix: str) -> None:
     panel.evaluate("e => e.scrollIntoView({block: 'end'})")  # clear of JupyterLab's toolbar
     panel.screenshot(path=str(ARTIFACTS / f"{prefix}-before.png"))
     slider = page.locator(".widget-slider", has_text="Q: σr")
-    readout0 = slider.locator(".widget-readout").inner_text()
-    assert float(readout0) == 0.03  # the documented default, not snapped to the slider's grid
+    box = page.locator(".ekfslam-value-sigma_range input")
+    readout0 = box.input_value()
+    # the documented default, not snapped to the slider's grid (an echo may change its last bit)
+    assert float(readout0) == pytest.approx(0.03, rel=1e-9)
     handle = slider.locator(".noUi-handle")
     handle.focus()
     for _ in range(KEY_PRESSES):
         handle.press("ArrowLeft")
-    readout = slider.locator(".widget-readout").inner_text()
-    assert float(readout) == pytest.approx(float(readout0) * 10 ** (-0.1 * KEY_PRESSES), rel=0.02)
+    pressed = float(readout0) * 10 ** (-0.1 * KEY_PRESSES)
+    _wait_until(
+        lambda: float(box.input_value()) == pytest.approx(pressed, rel=0.02),
+        EXECUTE_S,
+        f"the box to follow the slider to {pressed:.4g}",
+        page,
+    )
 
     def settled():  # the text changed, and text and figure stayed put for a second
         first = _panel_state(page)
@@ -327,6 +334,50 @@ def _run_all_cells(page, base: str, token: str) -> None:
         return ran and page.locator(idle).count()
 
     _wait_until(all_ran, EXECUTE_S, "every cell to run", page)
+
+
+def test_voila_at_1920x1080_shows_the_whole_figure_and_keeps_a_typed_value(browser, tmp_path):
+    """Regression: on a 1920 x 1080 projector the panel stacked its controls above the figure,
+    whose bottom fell off the screen; and 0.005 typed for σr became 0.00475 (the slider's
+    grid). Now the controls sit beside the figure: with the panel scrolled to, the whole
+    figure is on the screen; and a typed value comes back from the kernel as typed."""
+    env, port, token = _jupyter_home(tmp_path), free_port(), secrets.token_hex(16)
+    notebook = _copy_notebook(tmp_path)
+    cmd = [sys.executable, "-m", "voila", str(notebook), "--no-browser"]
+    cmd += ["--Voila.ip=127.0.0.1", f"--port={port}", f"--token={token}"]
+
+    def ready():
+        with socket.create_connection(("127.0.0.1", port), timeout=2):
+            return True
+
+    with _server(cmd, env, notebook.parent, ready, tmp_path / "voila.log"):
+        page = browser.new_page(viewport={"width": 1920, "height": 1080})
+        try:
+            page.goto(f"http://127.0.0.1:{port}/?token={token}", timeout=EXECUTE_S * 1000)
+            page.wait_for_selector(".ekfslam-table1", state="attached", timeout=EXECUTE_S * 1000)
+            _wait_until(lambda: _canvas_drawn(page), EXECUTE_S, "the figure to be drawn", page)
+            box = page.locator(".ekfslam-value-sigma_range input")
+            box.scroll_into_view_if_needed()
+            panel = page.locator(".widget-vbox", has=page.locator(".ekfslam-table1")).first
+            panel.evaluate("e => e.scrollIntoView({block: 'start'})")
+            figure = page.locator("canvas").first.bounding_box()
+            sliders = page.locator(".widget-slider", has_text="Q: σr").bounding_box()
+            ARTIFACTS.mkdir(parents=True, exist_ok=True)
+            page.screenshot(path=str(ARTIFACTS / "voila-1920x1080.png"))
+            assert figure["width"] >= 850, figure
+            assert figure["y"] >= 0 and figure["y"] + figure["height"] <= 1080, figure
+            assert sliders["y"] >= 0 and sliders["y"] + sliders["height"] <= 1080, sliders
+            assert sliders["x"] + sliders["width"] <= figure["x"], (sliders, figure)  # beside
+            box.fill("0.005")
+            box.press("Enter")
+            time.sleep(3.0)  # a snapped value would come back from the kernel by then
+            # kept: the slider's echo may change the last bit (0.004999999999999999), never
+            # the value (the bug: 0.00475, a tenth of a decade's grid away)
+            assert float(box.input_value()) == pytest.approx(0.005, rel=1e-9)
+            assert not page.locator(".jp-OutputArea-output", has_text="Traceback").count()
+        finally:
+            page.close(run_before_unload=True)  # Voila shuts the page's kernel down
+    _wait_until(lambda: not _kernel_processes(tmp_path / "runtime"), 30, "kernels to end")
 
 
 def test_voila_serves_the_panel_and_the_slider_redraws(browser, tmp_path):

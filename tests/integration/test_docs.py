@@ -110,6 +110,25 @@ def test_every_name_import_ekfslam_gives_has_its_entry_where_it_is_defined(built
         assert name in built, f"{name} (in `import ekfslam`) has no API entry"
 
 
+def test_every_name_import_ekfslam_gives_is_linkable_by_its_facade_name(built):
+    """Regression: ``ekfslam.replay`` was not in the inventory, so a link to it resolved
+    nowhere and a search found ``ekfslam.pipeline.replay`` only."""
+    for name in ekfslam.__all__:
+        role, page = built[f"ekfslam.{name}"]
+        assert page == "api/index.html", (name, page)
+        assert role in {"py:class", "py:function", "py:data", "py:exception"}, (name, role)
+    assert built["ekfslam.replay"][0] == "py:function"
+    assert built["ekfslam.RunLog"][0] == "py:class"
+    assert api_facade.is_facade("ekfslam.replay") and not api_facade.is_facade(
+        "ekfslam.pipeline.replay"
+    )
+    text = (SITE / "api" / "index.html").read_text(encoding="utf-8")
+    assert ".. autosummary::" not in text and ":nosignatures:" not in text
+    assert 'href="../api/generated/ekfslam.pipeline.html#ekfslam.pipeline.replay"' in text or (
+        'href="generated/ekfslam.pipeline.html#ekfslam.pipeline.replay"' in text
+    )
+
+
 def test_a_class_entry_carries_its_fields(built):
     assert built["ekfslam.pipeline.ReplayResult"][0] == "py:class"
     assert built["ekfslam.pipeline.ReplayResult.landmarks"][0] == "py:attribute"

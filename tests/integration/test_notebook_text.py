@@ -9,7 +9,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb")) + sorted(
-    (ROOT / "notebooks" / "solutions").glob("*.ipynb")
+    (ROOT / "solutions").glob("*.ipynb")
 )
 
 
@@ -46,13 +46,11 @@ def test_notebook_11_puts_the_robot_where_its_code_does() -> None:
 
 
 def test_notebook_07_does_not_call_its_translations_the_seeds_size() -> None:
-    assert "of the seed's size" not in prose(
-        ROOT / "notebooks" / "solutions" / "07-alignment.ipynb"
-    )
+    assert "of the seed's size" not in prose(ROOT / "solutions" / "07-alignment.ipynb")
 
 
 def test_notebook_03_says_what_sigma_0_of_eq_2_means() -> None:
-    text = prose(ROOT / "notebooks" / "solutions" / "03-motion-and-prediction.ipynb")
+    text = prose(ROOT / "solutions" / "03-motion-and-prediction.ipynb")
     assert "eq. (2)" in text and "gauge" in text and "rigid transform" in text
     assert "eq. (17)" in text and "eq. (12)" in text  # recovered by 17; landmarks enter by 12
 

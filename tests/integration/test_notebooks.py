@@ -1,6 +1,6 @@
 """The classroom notebooks: stored clean, executed without error, importing only public API.
 
-Every ``notebooks/*.ipynb`` and ``notebooks/solutions/*.ipynb`` is picked up automatically: the
+Every ``notebooks/*.ipynb`` and ``solutions/*.ipynb`` is picked up automatically: the
 student version of a lab notebook and its solved source are both executed, and their exercise
 checks must say "not done yet" (every stub) and "right" (every solution). Each is executed in
 memory (nothing is written back) in a fresh kernel whose working directory is the notebook's own
@@ -24,13 +24,14 @@ nbformat = pytest.importorskip("nbformat")
 nbclient = pytest.importorskip("nbclient")
 
 NOTEBOOK_DIR = Path(__file__).resolve().parents[2] / "notebooks"
-SOLUTION_DIR = NOTEBOOK_DIR / "solutions"
+SOLUTION_DIR = NOTEBOOK_DIR.parent / "solutions"
 NOTEBOOKS = sorted(NOTEBOOK_DIR.glob("*.ipynb")) + sorted(SOLUTION_DIR.glob("*.ipynb"))
 KERNEL_TIMEOUT_S = 300
 
 
 def _name(path: Path) -> str:
-    return path.relative_to(NOTEBOOK_DIR).as_posix()  # solutions/NN-... apart from NN-...
+    # NN-... and solutions/NN-...: the ids the shared-data selection names (test_shared_data)
+    return path.name if path.parent == NOTEBOOK_DIR else f"{path.parent.name}/{path.name}"
 
 
 def _code_cells(nb) -> list:

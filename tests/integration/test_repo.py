@@ -87,7 +87,11 @@ def test_the_readmes_example_maps_a_log_from_arrays_in_at_most_15_lines(monkeypa
     printed = _run(example, monkeypatch).splitlines()
     # the octagon's eight tags where the filter put them (before eq. 17's alignment)
     assert [line.split(":")[0] for line in printed] == [f"tag {i}" for i in range(8)]
-    assert printed[0] == "tag 0: x +0.867 m, y +0.176 m"
+    # ... and says so (regression: it printed +0.867 where the figures put tag 0 at 0.75)
+    assert printed[0] == "tag 0: x +0.867 m, y +0.176 m (before alignment)"
+    assert all(line.endswith("(before alignment)") for line in printed)
+    after = README.split("## Your own robot's log")[1].split("\n## ")[0].split(example)[1]
+    assert "before the\nalignment of eq. (17)" in after and "ekfslam.align(" in after
 
 
 def test_the_guides_arrays_example_scores_its_map(monkeypatch):
@@ -121,7 +125,7 @@ def test_every_equation_reference_in_the_docs_names_real_code():
 def test_environment_yml_installs_the_same_set_as_pip():
     env = (REPO / "environment.yml").read_text()
     assert "python=3.11" in env and "-e .[test]" in env
-    assert "-e ." in (REPO / "requirements.txt").read_text()
+    assert "." in (REPO / "requirements.txt").read_text().splitlines()  # a copy: clean_save
     assert "-e .[test]" in (REPO / "requirements-test.txt").read_text()
 
 

@@ -53,15 +53,16 @@ def test_an_outcome_outside_the_choices_is_our_bug() -> None:
 
 
 NOTEBOOKS = Path(__file__).resolve().parents[2] / "notebooks"
+ROOT = NOTEBOOKS.parent
 
 
 @pytest.mark.parametrize(
     "name",
     [
         "01-index.ipynb",
-        "solutions/02-robot-and-arena.ipynb",
-        "solutions/06-full-slam.ipynb",
-        "solutions/07-alignment.ipynb",
+        "../solutions/02-robot-and-arena.ipynb",
+        "../solutions/06-full-slam.ipynb",
+        "../solutions/07-alignment.ipynb",
         "08-live-tuning.ipynb",
         "10-real-robots.ipynb",
     ],

@@ -370,3 +370,21 @@ def test_the_static_fallback_is_the_current_figure_as_a_png_and_the_table1_text(
     before = page
     panel.apply(sigma_range=0.005)  # the fallback shows the figure as it is now
     assert panel.static_html() != before
+
+
+def test_a_value_typed_into_a_sliders_box_is_kept_exactly(square):
+    """Regression: typing 0.005 into the σr readout gave 0.00475, the browser's slider snapping
+    it to its grid (a tenth of a decade from 0.03). The box beside each slider sends what was
+    typed; the slider's grid is re-anchored on it and the replay runs with it."""
+    panel = tuning_panel({"square": lambda: square}, figure=Figure())
+    box, slider = panel.boxes["sigma_range"], panel.sliders["sigma_range"]
+    assert slider.readout is False and box.value == slider.value == 0.03
+    box.value = 0.005  # what the browser sends for "0.005" typed into the box
+    assert slider.value == 0.005 and panel.tuner.settings.noise.sigma_range == 0.005
+    assert panel.tuner.state.settings.noise.sigma_range == 0.005  # it re-ran with it
+    k = (np.log10(0.005) - slider.min) / slider.step
+    assert k == pytest.approx(round(k), abs=1e-9)  # on the slider's grid: no snap either way
+    slider.value = 10 ** (np.log10(0.005) + slider.step)  # a key press on the slider
+    assert box.value == slider.value and panel.tuner.settings.noise.sigma_range == box.value
+    panel.apply(sigma_range=0.02)
+    assert box.value == slider.value == 0.02

@@ -162,3 +162,15 @@ def test_a_failing_ffmpeg_is_one_error_and_leaves_nothing(square, tmp_path, monk
     with pytest.raises(EkfSlamError, match=r"a\.mp4: ffmpeg failed, nothing written"):
         save_animation(ReplayFrames(square, result, dpi=30), out / "a.mp4", fps=3)
     assert not list(out.iterdir())
+
+
+def test_the_notebooks_animation_is_projector_sized_and_loads_nothing(square, framed) -> None:
+    """Regression: 06's animation was drawn at 80 dpi (1120 px wide), and its player's buttons
+    were font-awesome icons from a CDN, blank offline."""
+    wide = ReplayFrames(square, framed)
+    assert wide.figure.get_figwidth() * wide.figure.dpi >= 1920
+    page = ReplayFrames(square, framed, dpi=20).html(fps=4)
+    assert "<img" in page or "data:image" in page
+    assert "font-awesome" not in page and "https://" not in page and "http://" not in page
+    assert 'class="fa' not in page
+    assert page.count('aria-hidden="true">\u25b6</span>') == 1  # the play button, as a glyph

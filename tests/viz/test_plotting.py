@@ -18,6 +18,7 @@ from ekfslam.viz.plotting import (
     state_labels,
     update_figure,
 )
+from ekfslam.viz.style import TRUTH
 
 
 def _axes():
@@ -143,7 +144,7 @@ def test_figure2_says_before_alignment_and_draws_the_aligned_map_beside_it() -> 
     )
     # the true tags carry their ids on both panels
     for ax in (before, after):
-        green = {t.get_text() for t in ax.texts if t.get_color() == "darkgreen"}
+        green = {t.get_text() for t in ax.texts if t.get_color() == TRUTH}
         assert green == {str(i) for i in range(8)}
     (legend,) = fig.legends
     assert min(t.get_fontsize() for t in legend.get_texts()) >= 11
