@@ -60,5 +60,13 @@ def test_every_command_a_text_names_exists(name: str) -> None:
 
 def test_the_study_and_benchmark_commands_left_the_package() -> None:
     assert not (set(STUDIES) | set(BENCHMARKS)) & set(EKFSLAM)
-    assert set(STUDIES) == {"score-mrclam", "tune-mrclam", "consistency", "budget", "vision-eval"}
+    assert set(STUDIES) == {
+        "score-mrclam",
+        "tune-mrclam",
+        "consistency",
+        "budget",
+        "vision-eval",
+        "association-auto",
+        "team-mrclam",
+    }
     assert set(BENCHMARKS) == {"bench", "loop", "tune", "grading"}
