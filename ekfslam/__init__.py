@@ -7,6 +7,7 @@ The package is a house with floors (ARCHITECTURE.md); each subpackage is one:
 - `ekfslam.teaching`   sympy derivations, the literal F_x reference, the notebooks' helpers
 - `ekfslam.logs`, `ekfslam.sim`, `ekfslam.vision`  data sources: logs, the simulator, cameras
 - `ekfslam.pipeline`   a log source joined to the filter (`replay`)
+- `ekfslam.team`       a team of robots' logs joined to one filter (`replay_team`)
 - `ekfslam.analysis`   alignment (eq. 17), scores, consistency: what the notebooks compute
 - `ekfslam.viz`, `ekfslam.ui`, `ekfslam.cli`  figures, the live tuner, the command line
 
@@ -45,6 +46,7 @@ if TYPE_CHECKING:
     from ekfslam.logs.runlog import RunLog, read_run, write_run
     from ekfslam.pipeline import ReplayResult, replay
     from ekfslam.sim.simulation import SimulationConfig, simulate
+    from ekfslam.team import TeamResult, replay_team
 
 __version__ = "0.1.0"
 
@@ -67,6 +69,7 @@ _EXPORTS: dict[str, str] = {
     "SEED_ARENA": "ekfslam.core.arena",
     "SimulationConfig": "ekfslam.sim.simulation",
     "Tag": "ekfslam.core.arena",
+    "TeamResult": "ekfslam.team",
     "align": "ekfslam.analysis.alignment",
     "align_least_squares": "ekfslam.analysis.alignment",
     "align_mean_distance": "ekfslam.analysis.alignment",
@@ -74,6 +77,7 @@ _EXPORTS: dict[str, str] = {
     "default_noise": "ekfslam.core.noise",
     "read_run": "ekfslam.logs.runlog",
     "replay": "ekfslam.pipeline",
+    "replay_team": "ekfslam.team",
     "run_from_arrays": "ekfslam.logs.arrays",
     "simulate": "ekfslam.sim.simulation",
     "summarize": "ekfslam.analysis.evaluation",
@@ -91,6 +95,7 @@ _SUBMODULES = frozenset(
         "logs",
         "pipeline",
         "sim",
+        "team",
         "teaching",
         "ui",
         "viz",
@@ -116,6 +121,7 @@ __all__ = [
     "RunSummary",
     "SimulationConfig",
     "Tag",
+    "TeamResult",
     "align",
     "align_least_squares",
     "align_mean_distance",
@@ -123,6 +129,7 @@ __all__ = [
     "default_noise",
     "read_run",
     "replay",
+    "replay_team",
     "run_from_arrays",
     "simulate",
     "summarize",

@@ -12,6 +12,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
+import ekfslam
+import ekfslam.team
 from ekfslam.analysis.alignment import align
 from ekfslam.analysis.evaluation import ate_rmse, interpolate_poses
 from ekfslam.core.filter.config import FilterConfig
@@ -126,3 +128,10 @@ def test_five_mrclam_robots_map_better_together_than_alone(mrclam7):
     assert joint < min(maps)  # below the best robot alone (measured: 0.014 m against 0.027 m)
     assert np.mean(ate_joint) < np.mean(ate_alone)
     assert all(entry.how == "start" for entry in result.entries.values())
+
+
+def test_the_facade_gives_the_team_replay():
+    # what notebook 13 and docs/guide/team.md call: `ekfslam.replay_team`, without a deep import
+    assert ekfslam.replay_team is ekfslam.team.replay_team
+    assert ekfslam.TeamResult is ekfslam.team.TeamResult
+    assert {"replay_team", "TeamResult"} <= set(ekfslam.__all__)
