@@ -154,6 +154,39 @@ def survey() -> dict[str, Counter]:
     return found
 
 
+#: the pages a closing note shows offline, and where on each to look (a script run's
+#: ``--screenshots DIR``): a Markdown table, typeset equations, the API index
+SHOTS = {
+    "07-alignment": ("notebooks/07-alignment.html", "section#table-1-reproduced table"),
+    "05-correction": ("notebooks/05-correction.html", "section#the-equations h2"),
+    "api-index": ("api/index.html", "h1"),
+}
+TYPESET = """async () => {
+  if (window.MathJax && MathJax.startup && MathJax.startup.promise) {
+    await MathJax.startup.promise;
+  }
+}"""
+
+
+def screenshots(folder: Path) -> list[str]:
+    """`SHOTS` taken offline into `folder` (1280x900 px); returns the requests refused."""
+    from playwright.sync_api import sync_playwright  # lazy: a test dependency only
+
+    folder.mkdir(parents=True, exist_ok=True)
+    refused: list[str] = []
+    with sync_playwright() as p:
+        browser = _browser(p)
+        page = _offline_page(browser, refused)
+        page.set_viewport_size({"width": 1280, "height": 900})
+        for name, (relative, target) in SHOTS.items():
+            page.goto((SITE / relative).as_uri())
+            page.evaluate(TYPESET)
+            page.locator(target).first.evaluate("e => e.scrollIntoView({block: 'center'})")
+            page.screenshot(path=str(folder / f"{name}.png"))
+        browser.close()
+    return refused
+
+
 def search_results(query: str) -> list[str]:
     """The pages the book's own search lists for `query`, best first, searched offline."""
     from playwright.sync_api import sync_playwright  # lazy: a test dependency only
@@ -220,6 +253,10 @@ def test_a_concept_finds_a_chapter_first(book, query):
 
 
 if __name__ == "__main__":
+    if sys.argv[1:2] == ["--screenshots"]:
+        refused = screenshots(Path(sys.argv[2]))
+        print(f"{len(SHOTS)} pages in {sys.argv[2]}, {len(refused)} requests refused")
+        sys.exit(0)
     found = survey()
     totals = sum(found.values(), Counter())
     print(f"{len(found)} pages, offline:")
