@@ -46,6 +46,7 @@ if TYPE_CHECKING:
     from ekfslam.logs.runlog import RunLog, read_run, write_run
     from ekfslam.pipeline import ReplayResult, replay
     from ekfslam.sim.simulation import SimulationConfig, simulate
+    from ekfslam.strategies import HiddenIds, KnownIds, Start
     from ekfslam.team import TeamResult, replay_team
 
 __version__ = "0.1.0"
@@ -59,8 +60,10 @@ _EXPORTS: dict[str, str] = {
     "EkfSlamError": "ekfslam.errors",
     "FilterConfig": "ekfslam.core.filter.config",
     "FilterCounts": "ekfslam.core.filter.config",
+    "HiddenIds": "ekfslam.strategies",
     "History": "ekfslam.core.filter.history",
     "InputError": "ekfslam.errors",
+    "KnownIds": "ekfslam.strategies",
     "MecanumGeometry": "ekfslam.core.kinematics",
     "NoiseConfig": "ekfslam.core.noise",
     "ReplayResult": "ekfslam.pipeline",
@@ -68,6 +71,7 @@ _EXPORTS: dict[str, str] = {
     "RunSummary": "ekfslam.analysis.evaluation",
     "SEED_ARENA": "ekfslam.core.arena",
     "SimulationConfig": "ekfslam.sim.simulation",
+    "Start": "ekfslam.strategies",
     "Tag": "ekfslam.core.arena",
     "TeamResult": "ekfslam.team",
     "align": "ekfslam.analysis.alignment",
@@ -94,7 +98,9 @@ _SUBMODULES = frozenset(
         "geometry",
         "logs",
         "pipeline",
+        "schedule",
         "sim",
+        "strategies",
         "team",
         "teaching",
         "ui",
@@ -112,14 +118,17 @@ __all__ = [
     "EkfSlamError",
     "FilterConfig",
     "FilterCounts",
+    "HiddenIds",
     "History",
     "InputError",
+    "KnownIds",
     "MecanumGeometry",
     "NoiseConfig",
     "ReplayResult",
     "RunLog",
     "RunSummary",
     "SimulationConfig",
+    "Start",
     "Tag",
     "TeamResult",
     "align",

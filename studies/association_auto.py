@@ -44,6 +44,7 @@ from ekfslam.core.noise import default_config, default_noise
 from ekfslam.logs.mrclam.load import find_dataset
 from ekfslam.logs.runlog import RunLog, read_run
 from ekfslam.pipeline import ReplayResult, replay
+from ekfslam.strategies import HiddenIds
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results" / "association_auto.json"
@@ -83,9 +84,11 @@ def _hidden(run: RunLog, method: str, passes: int, hypotheses: int | None) -> Re
         run,
         assoc.association_noise(run),
         default_config(run),
-        association=assoc.association_config(run, method, hypotheses),
-        map_noise=assoc.association_map_noise(run),
-        passes=passes,
+        association=HiddenIds(
+            assoc.association_config(run, method, hypotheses),
+            passes=passes,
+            map_noise=assoc.association_map_noise(run),
+        ),
     )
 
 

@@ -30,6 +30,7 @@ from ekfslam.core.association import UNPAIRED
 from ekfslam.logs.mrclam.defaults import MRCLAM_CONFIG, MRCLAM_NOISE
 from ekfslam.logs.mrclam.load import ROBOTS
 from ekfslam.pipeline import decisions_from_known_state, replay
+from ekfslam.strategies import HiddenIds
 
 
 @dataclass(frozen=True)
@@ -119,9 +120,7 @@ def association_robots(
                 run,
                 noise,
                 filter_config,
-                association=config,
-                map_noise=map_noise,
-                passes=passes,
+                association=HiddenIds(config, passes=passes, map_noise=map_noise),
             )
             result, found = assoc.score(run, hidden)
             s = summarize(run, result)

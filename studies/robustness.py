@@ -141,7 +141,7 @@ def _outlier_run(name, seed, wrong, gross, gates, gate_after) -> list[tuple[floa
     rows = []
     for g in gates:
         config = FilterConfig(gate=g, gate_after=gate_after)
-        result = replay(run, noise, config, start_pose=run.groundtruth.pose[0])
+        result = replay(run, noise, config, start=run.groundtruth.pose[0])
         rows.append(
             (
                 align(result.landmarks, tags).mean_error,

@@ -538,42 +538,45 @@ API: dict[str, Callable[[Path], str | None]] = {
     "replay(config=dict)": lambda f: raises(
         lambda: _api().replay(seed_run(), config={"gate": 9.0}), "config", kind=TypeError
     ),
-    "replay(start_pose 2 numbers)": lambda f: raises(
-        lambda: _api().replay(seed_run(), start_pose=[0.0, 0.0]), "start_pose"
+    "replay(start 2 numbers)": lambda f: raises(
+        lambda: _api().replay(seed_run(), start=[0.0, 0.0]), "start.pose"
     ),
-    "replay(start_pose strings)": lambda f: raises(
-        lambda: _api().replay(seed_run(), start_pose=["0", "0", "0"]), "start_pose", kind=TypeError
+    "replay(start strings)": lambda f: raises(
+        lambda: _api().replay(seed_run(), start=["0", "0", "0"]), "start.pose", kind=TypeError
     ),
-    "replay(start_pose NaN)": lambda f: raises(
-        lambda: _api().replay(seed_run(), start_pose=[math.nan, 0.0, 0.0]), "start_pose"
+    "replay(start NaN)": lambda f: raises(
+        lambda: _api().replay(seed_run(), start=[math.nan, 0.0, 0.0]), "start.pose"
     ),
-    "replay(start_covariance 2x2)": lambda f: raises(
-        lambda: _api().replay(seed_run(), start_covariance=np.eye(2)), "start_covariance"
+    "replay(Start covariance 2x2)": lambda f: raises(
+        lambda: _api().replay(seed_run(), start=_api().Start(covariance=np.eye(2))),
+        "start.covariance",
     ),
-    "replay(start_covariance negative definite)": lambda f: raises(
-        lambda: _api().replay(seed_run(), start_covariance=-0.01 * np.eye(3)), "start_covariance"
+    "replay(Start covariance negative definite)": lambda f: raises(
+        lambda: _api().replay(seed_run(), start=_api().Start(covariance=-0.01 * np.eye(3))),
+        "start.covariance",
     ),
-    "replay(start_covariance not symmetric)": lambda f: raises(
+    "replay(Start covariance not symmetric)": lambda f: raises(
         lambda: _api().replay(
-            seed_run(), start_covariance=[[1e-4, 1e-3, 0], [0, 1e-4, 0], [0, 0, 1e-4]]
+            seed_run(),
+            start=_api().Start(covariance=[[1e-4, 1e-3, 0], [0, 1e-4, 0], [0, 0, 1e-4]]),
         ),
-        "start_covariance",
+        "start.covariance",
         "symmetric",
     ),
-    "replay(start_covariance NaN)": lambda f: raises(
-        lambda: _api().replay(seed_run(), start_covariance=np.full((3, 3), math.nan)),
-        "start_covariance",
+    "replay(Start covariance NaN)": lambda f: raises(
+        lambda: _api().replay(seed_run(), start=_api().Start(covariance=np.full((3, 3), math.nan))),
+        "start.covariance",
     ),
     "replay(association='jcbb')": lambda f: raises(
         lambda: _api().replay(seed_run(), association="jcbb"), "association", kind=TypeError
     ),
-    "replay(passes='2')": lambda f: raises(lambda: _api().replay(seed_run(), passes="2"), "passes"),
-    "replay(zero start_covariance) == replay()": lambda f: returns(
-        lambda: _api().replay(seed_run(), start_covariance=np.zeros((3, 3))).mu,
+    "HiddenIds(passes='2')": lambda f: raises(lambda: _api().HiddenIds(passes="2"), "passes"),
+    "replay(Start zero covariance) == replay()": lambda f: returns(
+        lambda: _api().replay(seed_run(), start=_api().Start(covariance=np.zeros((3, 3)))).mu,
         lambda: seed_result().mu,
     ),
-    "replay(start_pose tuple) == replay()": lambda f: returns(
-        lambda: _api().replay(seed_run(), start_pose=tuple(seed_run().meta.nominal_start)).mu,
+    "replay(start tuple) == replay()": lambda f: returns(
+        lambda: _api().replay(seed_run(), start=tuple(seed_run().meta.nominal_start)).mu,
         lambda: seed_result().mu,
     ),
     "replay(run with NaN wheel speeds)": lambda f: raises(

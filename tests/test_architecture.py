@@ -43,6 +43,8 @@ FLOOR_OF = {
     "vision": "vision",
     "pipeline": "pipeline",
     "team": "pipeline",  # a team's logs joined to the joint filter, as pipeline's replay
+    "schedule": "pipeline",  # a run as the filter takes it, and the loops that feed it
+    "strategies": "pipeline",  # how a replay decides each sighting: known or hidden ids
     "analysis": "analysis",
     "viz": "viz",
     "ui": "ui",

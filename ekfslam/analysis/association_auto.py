@@ -27,6 +27,7 @@ from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.noise import NoiseConfig, default_config
 from ekfslam.logs.runlog import RunLog
 from ekfslam.pipeline import ReplayResult
+from ekfslam.strategies import HiddenIds
 
 
 @dataclass(frozen=True)
@@ -140,33 +141,25 @@ def replay_auto(
     config : the filter's (default `default_config(run)`). map_noise : the mapping filter's
     ("source": `ekfslam.analysis.association.association_map_noise`; None: the deciding
     filter maps). time_shared : `ekfslam.analysis.association.association_config`'s. `kwargs`
-    go to every `replay` (keyframes, start_pose, ...).
+    go to every `replay` (keyframes, start).
     """
     noise = noise or assoc.association_noise(run)
     config = config or default_config(run)
     mapping = assoc.association_map_noise(run) if map_noise == "source" else map_noise
 
-    def play(strategy: Strategy, replays: int) -> ReplayResult:
+    def play(strategy: Strategy) -> ReplayResult:
         association = assoc.association_config(
             run, strategy.method, strategy.hypotheses, time_shared
         )
+        hidden = HiddenIds(association, passes=strategy.passes, map_noise=mapping)
         # looked up at the call: a test may replace `pipeline.replay`
-        return pipeline.replay(
-            run,
-            noise,
-            config,
-            association=association,
-            map_noise=mapping,
-            passes=strategy.passes,
-            replays=replays,
-            **kwargs,
-        )
+        return pipeline.replay(run, noise, config, association=hidden, **kwargs)
 
-    result = play(first, 1)
+    result = play(first)
     tried = [_tried(first, result)]
     if tried[0].verdict == "ok":
         return AutoAssociation(result, first, tuple(tried))
-    again = play(escalation, 1)
+    again = play(escalation)
     tried.append(_tried(escalation, again))
     if VERDICTS.index(tried[1].verdict) <= VERDICTS.index(tried[0].verdict):
         return AutoAssociation(again, escalation, tuple(tried))

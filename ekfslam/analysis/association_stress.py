@@ -24,7 +24,7 @@ from ekfslam.analysis import association as assoc
 from ekfslam.analysis.evaluation import summarize
 from ekfslam.analysis.parallel import run_tasks
 from ekfslam.core.association import UNPAIRED, AssociationConfig
-from ekfslam.pipeline import replay
+from ekfslam.pipeline import batch_config, replay
 from ekfslam.sim.scenarios import noise_for_simulation, scenario
 from ekfslam.sim.simulation import simulate
 
@@ -93,7 +93,7 @@ def stress_study(
     if runs < 1:
         raise ValueError(f"runs must be at least 1, got {runs}")
     seeds = list(range(first_seed, first_seed + runs))
-    replays = len(seeds) * len(METHODS)  # together they choose the backend (`replay`)
+    replays = len(seeds) * len(METHODS)  # together they choose the backend (`batch_config`)
     tasks = [(seed, k == 0, replays) for k, seed in enumerate(seeds)]
     done = run_tasks(_stress_run, tasks, jobs, dask)
     cases = {m: [d[0][m] for d in done] for m in METHODS}
@@ -114,11 +114,12 @@ def _stress_run(seed: int, first: bool, replays: int = 1):
     wrong: dict[str, Array] = {}
     for method in METHODS:
         if method == "known":
-            result = replay(run, noise, replays=replays)
+            result = replay(run, noise, batch_config(run, replays))
             found = None
         else:
             association = AssociationConfig(method=method)
-            result = replay(run, noise, association=association, replays=replays)
+            batch = batch_config(run, replays, association=association)
+            result = replay(run, noise, batch, association=association)
             result, found = assoc.score(run, result)
             if first:
                 wrong[method] = wrong_segments(run, result.association.estimated, found.mapping)

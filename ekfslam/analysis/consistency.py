@@ -52,7 +52,7 @@ from ekfslam.core.invariant import pose_error
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.geometry import wrap_angle
 from ekfslam.logs.runlog import RunLog
-from ekfslam.pipeline import ReplayResult, replay
+from ekfslam.pipeline import ReplayResult, batch_config, replay
 from ekfslam.sim.scenarios import noise_for_simulation, scenario
 from ekfslam.sim.simulation import simulate
 
@@ -356,7 +356,8 @@ def _one_run(
     per_config = []
     for config in configs:
         started = time.perf_counter()
-        result = replay(run, noise, config, start_pose=run.groundtruth.pose[0], replays=replays)
+        batch = batch_config(run, replays, config)  # one of `replays` like it
+        result = replay(run, noise, batch, start=run.groundtruth.pose[0])
         errors = run_errors(run, result)
         per_config.append((errors, result.counts, time.perf_counter() - started))
     return per_config, noise

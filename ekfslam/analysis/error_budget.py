@@ -30,7 +30,7 @@ from ekfslam.analysis.evaluation import summarize
 from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.errors import EkfSlamError
-from ekfslam.pipeline import replay
+from ekfslam.pipeline import batch_config, replay
 from ekfslam.sim.config import REALISTIC
 from ekfslam.sim.scenarios import realistic, realistic_noise
 from ekfslam.sim.simulation import SimulationConfig, simulate
@@ -87,11 +87,12 @@ def map_error(
     """Simulate `config`, replay it and return the average aligned map error of eq. (17) (m).
 
     noise : default the realistic robot's (`realistic_noise`), whichever sources are on, so
-    that rows of a budget differ only in the robot. replays : `replay`'s (a budget's count).
+    that rows of a budget differ only in the robot. replays : how many replays like this one
+    the budget makes (`batch_config`).
     """
     run = simulate(config)
     noise = realistic_noise() if noise is None else noise
-    summary = summarize(run, replay(run, noise, filter_config, replays=replays))
+    summary = summarize(run, replay(run, noise, batch_config(run, replays, filter_config)))
     if summary.alignment is None:
         raise EkfSlamError(f"{run.meta.name}: no alignment ({summary.alignment_note})")
     return float(summary.alignment.mean_error)

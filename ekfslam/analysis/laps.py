@@ -20,7 +20,7 @@ from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.filter.history import History, Outcome
 from ekfslam.errors import AlignmentError, EkfSlamError
 from ekfslam.logs.runlog import RunLog
-from ekfslam.pipeline import NoiseConfig, replay, replay_until_each
+from ekfslam.pipeline import NoiseConfig, batch_config, replay, replay_until_each
 from ekfslam.sim.simulation import SimulationConfig, simulate
 
 Array = NDArray[np.float64]
@@ -146,7 +146,7 @@ def size_sweep(
             for seed in seeds:
                 cfg = SimulationConfig(trajectory=trajectory, size=size, seed=seed, laps=laps)
                 run = simulate(cfg)
-                result = replay(run, noise, replays=replays)
+                result = replay(run, noise, batch_config(run, replays))
                 try:
                     error = align(result.landmarks, run.meta.tag_map).mean_error
                 except AlignmentError:

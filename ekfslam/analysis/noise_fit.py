@@ -68,7 +68,7 @@ from ekfslam.core.filter.history import History, Outcome
 from ekfslam.core.noise import NoiseConfig, default_config, default_noise
 from ekfslam.errors import ConfigError, EkfSlamError
 from ekfslam.logs.runlog import RunLog
-from ekfslam.pipeline import ReplayResult, replay
+from ekfslam.pipeline import ReplayResult, batch_config, replay
 
 Array = NDArray[np.float64]
 
@@ -225,7 +225,8 @@ def fit_noise(
     began = time.perf_counter()
     sideways = bool(np.any(np.asarray(run.control_twist())[:, 1] != 0))
     fields = (*FITTED[:1], "sigma_y", *FITTED[1:]) if sideways else FITTED
-    cost = _Cost(run, start, config, fields, max_evaluations)
+    config = batch_config(run, max_evaluations, config)  # the search's replays together
+    cost = _Cost(run, start, config, fields)
     x_start = np.log([max(getattr(start, f), BOUNDS[0]) for f in fields])
     # a start 100 times off leaves the simplex in a flat lost region or beside a local optimum
     # (R so wide that Q does not matter): first every σ scaled by one factor, the best taken
@@ -245,10 +246,10 @@ def fit_noise(
     best = found.x if found.fun <= cost(x0) else x0
     white = cost.noise(best)
     errors = _standard_errors(cost, best)
-    white_result = replay(run, white, config, replays=cost.replays)  # the search's backend
+    white_result = replay(run, white, config)
     rho = innovation_correlation(white_result.history, CORRELATION_GAP)
     noise = widened(white, rho)
-    result = replay(run, noise, config, replays=cost.replays)
+    result = replay(run, noise, config)
     tested = int(np.count_nonzero(np.isin(white_result.history.obs_outcome, _TESTED)))
     return NoiseFit(
         noise=noise,
@@ -392,10 +393,8 @@ class _Cost:
         start: NoiseConfig,
         config: FilterConfig,
         fields: tuple[str, ...],
-        replays: int,
     ) -> None:
         self.run, self.start, self.config, self.fields = run, start, config, fields
-        self.replays = replays  # the search's budget: its replays together choose the backend
         self.calls = 0
         self.per_sighting: dict[tuple, Array | None] = {}
 
@@ -408,7 +407,7 @@ class _Cost:
         if key not in self.per_sighting:
             self.calls += 1
             try:
-                result = replay(self.run, self.noise(x), self.config, replays=self.replays)
+                result = replay(self.run, self.noise(x), self.config)
             except EkfSlamError:  # the state overflowed: as bad as can be
                 self.per_sighting[key] = None
                 return None

@@ -167,7 +167,8 @@ def replay_rescued(
     `RESCUE_SCALES`, keeping the most likely; if that one still holds a misplaced landmark and
     `config` does not re-initialise landmarks, once more re-initialising them
     (`RESCUE_REINIT_AFTER`), kept if more likely (see the module). `kwargs` go to every `replay`
-    (keyframes, start_pose, recovery, ...); hidden ids are not rescued (pass them to `replay`)."""
+    (keyframes, start, association=KnownIds(recovery=...)); hidden ids are not rescued (pass
+    them to `replay`)."""
     # looked up at the call: a test may replace `pipeline.replay`
     first = pipeline.replay(run, noise, config, **kwargs)
     assert first.diagnosis is not None  # every replay has one
@@ -175,19 +176,17 @@ def replay_rescued(
     if first.diagnosis.ok or noise.R_per_step is not None:
         return Rescue(first, 1.0, first.diagnosis, tuple(tried))
     best, best_scale, best_ll = first, 1.0, tried[0][1]
-    replays = len(RESCUE_SCALES) + 1  # the rescue's replays together choose the backend
+    # the rescue's replays together choose the backend
+    batch = pipeline.batch_config(run, len(RESCUE_SCALES) + 1, config)
     for factor in RESCUE_SCALES:
-        result = pipeline.replay(
-            run, scaled_motion(noise, factor), config, replays=replays, **kwargs
-        )
+        result = pipeline.replay(run, scaled_motion(noise, factor), batch, **kwargs)
         tried.append((f"x{factor:g}", log_likelihood(result), result.diagnosis.verdict))
         if tried[-1][1] > best_ll:
             best, best_scale, best_ll = result, factor, tried[-1][1]
     reinit = False
-    base = config or FilterConfig()
-    if best.diagnosis.misplaced and base.reinit_after is None:
-        again = dataclasses.replace(base, reinit_after=RESCUE_REINIT_AFTER)
-        result = pipeline.replay(run, best.noise, again, replays=replays, **kwargs)
+    if best.diagnosis.misplaced and batch.reinit_after is None:
+        again = dataclasses.replace(batch, reinit_after=RESCUE_REINIT_AFTER)
+        result = pipeline.replay(run, best.noise, again, **kwargs)
         tried.append(
             (f"x{best_scale:g} + re-init", log_likelihood(result), result.diagnosis.verdict)
         )

@@ -32,6 +32,7 @@ from ekfslam.files import save_figure
 from ekfslam.logs.mrclam.defaults import MRCLAM_MAP_NOISE
 from ekfslam.logs.mrclam.load import MrclamLoadReport
 from ekfslam.logs.runlog import RunLog
+from ekfslam.strategies import HiddenIds, KnownIds
 from ekfslam.viz.tables import association_line, table1_lines
 
 if TYPE_CHECKING:
@@ -174,7 +175,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         )
         noise, config = fitted.noise, fitted.result.config
     animate = getattr(args, "animate", None)
-    recover = {"recovery": RecoveryConfig()} if getattr(args, "recover", False) else {}
+    recovering = getattr(args, "recover", False)
+    recover = {"association": KnownIds(recovery=RecoveryConfig())} if recovering else {}
     # only an animation needs copies of the whole state (`Keyframes`); a plain replay keeps none
     frames = (
         {"keyframes": args.frames or animate_args.DEFAULT_FRAMES} if animate is not None else {}
@@ -206,9 +208,11 @@ def cmd_run(args: argparse.Namespace) -> int:
             run,
             noise,
             config,
-            association=association,
-            map_noise=_map_noise(run, getattr(args, "map_noise", "auto")),
-            passes=getattr(args, "passes", 1),
+            association=HiddenIds(
+                association,
+                passes=getattr(args, "passes", 1),
+                map_noise=_map_noise(run, getattr(args, "map_noise", "auto")),
+            ),
             **frames,
         )
         result, found = assoc.score(run, result, args.match)

@@ -31,6 +31,7 @@ from ekfslam.logs.mrclam.defaults import MRCLAM_CONFIG, MRCLAM_NOISE
 from ekfslam.logs.mrclam.load import find_dataset
 from ekfslam.logs.runlog import RunLog, read_run
 from ekfslam.pipeline import ReplayResult, replay
+from ekfslam.strategies import HiddenIds, KnownIds
 from studies.mrclam_crossval import BASE, GridTable, grid_points, report_text
 from studies.mrclam_tuning import TUNING_GRID
 from studies.noise_default.rate import with_odometry_rate
@@ -86,7 +87,7 @@ SETTINGS: dict[str, Callable[[RunLog], ReplayResult]] = {
     "default (rescued)": lambda run: replay_rescued(run, MRCLAM_NOISE, MRCLAM_CONFIG).result,
     "rate term (not kept)": _rate,
     "documented + recovery": lambda run: replay(
-        run, MRCLAM_NOISE, MRCLAM_CONFIG, recovery=RecoveryConfig()
+        run, MRCLAM_NOISE, MRCLAM_CONFIG, association=KnownIds(recovery=RecoveryConfig())
     ),
 }
 
@@ -117,7 +118,7 @@ def measure_defaults() -> list[dict]:
         for setting, result in (
             ("documented", replay(run)),
             ("default (rescued)", replay_rescued(run, noise, default_config(run)).result),
-            ("documented + recovery", replay(run, recovery=RecoveryConfig())),
+            ("documented + recovery", replay(run, association=KnownIds(RecoveryConfig()))),
         ):
             rows.append(
                 _row(run, result, dataset=name, robot=0, variant="seed run", setting=setting)
@@ -139,8 +140,7 @@ def measure_hidden() -> list[dict]:
                     run,
                     assoc.association_noise(run),
                     MRCLAM_CONFIG,
-                    association=config,
-                    map_noise=assoc.association_map_noise(run),
+                    association=HiddenIds(config, map_noise=assoc.association_map_noise(run)),
                 )
                 scored, _ = assoc.score(run, hidden)
                 row = _row(run, hidden, dataset=dataset, robot=robot, method=method)

@@ -99,7 +99,7 @@ def test_loop_scenario_is_a_long_loop_around_15_landmarks():
 def test_run_errors_agree_with_a_direct_computation():
     sim, arena = scenario("square", seed=3, laps=1)
     run = simulate(sim, arena)
-    result = replay(run, noise_for_simulation(sim), start_pose=run.groundtruth.pose[0])
+    result = replay(run, noise_for_simulation(sim), start=run.groundtruth.pose[0])
     errors = run_errors(run, result)
     h, gt = result.history, run.groundtruth
     assert np.isnan(errors.nees_pose[0])  # the start is known exactly: no covariance yet
@@ -129,9 +129,7 @@ def test_nis_exposes_an_overconfident_observation_noise():
     tight = replace(right, sigma_range=right.sigma_range / 3)
     nis = []
     for noise in (right, tight):
-        e = run_errors(
-            run, replay(run, noise, FilterConfig(gate=None), start_pose=arena.nominal_start)
-        )
+        e = run_errors(run, replay(run, noise, FilterConfig(gate=None), start=arena.nominal_start))
         nis.append(e.nis_sum.sum() / e.nis_count.sum())
     assert 1.7 < nis[0] < 2.4  # chi-square(2) has mean 2
     assert nis[1] > 3 * nis[0]

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ekfslam import pipeline
+from ekfslam import pipeline, schedule
 from ekfslam.core.association import UNPAIRED, AssociationConfig
 from ekfslam.core.filter import mht
 from ekfslam.core.filter.associating import AssociatingFilter
@@ -80,7 +80,7 @@ def test_the_replay_of_the_winners_decisions_is_the_winners_state(square):
     noise, config = default_noise(square), AssociationConfig("mht", hypotheses=4)
     steps = pipeline.schedule(square, noise)
     bank = HypothesisBank(EKFSLAM(square.meta.nominal_start, record=False), config)
-    pipeline._feed_hidden(bank, steps)
+    schedule.feed_hidden(bank, steps)
     _, winner, options = bank.finish()
     assert len(options) == len(set(square.detections.t.tolist()))  # one per time
     result = pipeline.replay(square, noise, association=config)

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from ekfslam.analysis.evaluation import summarize
-from ekfslam.core.association import AssociationConfig
 from ekfslam.core.filter.history import Outcome
 from ekfslam.core.models import observation
 from ekfslam.core.recovery import Recovery, RecoveryConfig
 from ekfslam.errors import ConfigError
 from ekfslam.logs.runlog import Controls, read_run
 from ekfslam.pipeline import replay
+from ekfslam.strategies import KnownIds
 
 RUNS = Path(__file__).resolve().parents[2] / "data" / "runs"
 
@@ -92,7 +92,7 @@ def test_bad_settings_are_refused() -> None:
 
 def test_a_replay_that_never_rejects_is_the_same_with_recovery_bit_for_bit() -> None:
     run = read_run(RUNS / "square-2laps")
-    plain, watched = replay(run), replay(run, recovery=RecoveryConfig())
+    plain, watched = replay(run), replay(run, association=KnownIds(RecoveryConfig()))
     np.testing.assert_array_equal(plain.mu, watched.mu)
     np.testing.assert_array_equal(plain.Sigma, watched.Sigma)
     assert watched.diagnosis.recoveries == ()
@@ -108,7 +108,7 @@ def test_a_robot_whose_odometry_dropped_out_relocalises_and_the_diagnosis_says_w
     still = np.where(((c.t >= 35.0) & (c.t < 37.0))[:, None], 0.0, c.values)
     dropped = dataclasses.replace(run, controls=Controls(t=c.t, kind=c.kind, values=still))
     lost = replay(dropped)
-    found = replay(dropped, recovery=RecoveryConfig())
+    found = replay(dropped, association=KnownIds(RecoveryConfig()))
     assert lost.diagnosis.verdict == "lost" and lost.diagnosis.recoveries == ()
     assert lost.diagnosis.lost_after == pytest.approx(36.0, abs=1.0)
     assert found.diagnosis.verdict == "ok"
@@ -119,7 +119,6 @@ def test_a_robot_whose_odometry_dropped_out_relocalises_and_the_diagnosis_says_w
     assert "recovered 1 time(s)" in found.diagnosis.line()
 
 
-def test_recovery_needs_the_ids_known() -> None:
-    run = read_run(RUNS / "square-2laps")
-    with pytest.raises(ConfigError, match="ids known"):
-        replay(run, association=AssociationConfig(method="jcbb"), recovery=RecoveryConfig())
+def test_recovery_is_a_recovery_config() -> None:
+    with pytest.raises(ConfigError, match="KnownIds: recovery must be"):
+        KnownIds(recovery={"after": 20})

@@ -1,6 +1,7 @@
 """``FilterConfig(backend="auto")`` compiles a workload, not a replay: twenty short replays are a
 long run, and the package's own batches (Monte Carlo, noise fit, error budget, sweeps) say how
-many replays they make, so that notebooks 07-09 do not replay each short run as Python."""
+many replays they make (`pipeline.batch_config`), so that notebooks 07-09 do not replay each
+short run as Python."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from ekfslam.core.filter import config as filter_config
 from ekfslam.core.filter.config import COMPILE_ABOVE_EVENTS, FilterConfig
 from ekfslam.core.noise import default_noise
 from ekfslam.errors import ConfigError
+from ekfslam.strategies import PYTHON_COST
 
 
 @pytest.fixture
@@ -34,28 +36,35 @@ def chosen(monkeypatch) -> list[tuple[int, str]]:
 def test_replays_together_decide_the_backend(square, chosen) -> None:
     events = pipeline.schedule(square, default_noise(square)).events
     many = COMPILE_ABOVE_EVENTS // events + 1
-    alone, batch = pipeline.replay(square), pipeline.replay(square, replays=many)
-    assert chosen == [(events, "python"), (events * many, "numba")]
+    config = pipeline.batch_config(square, many)
+    alone, batch = pipeline.replay(square), pipeline.replay(square, config=config)
+    assert chosen == [(events * many, "numba"), (events, "python")]  # the named one: as it is
+    assert config.backend == "numba" and pipeline.batch_config(square, 1).backend == "python"
     assert batch.counts == alone.counts  # the same filter, compiled
     assert abs(batch.mu - alone.mu).max() < 1e-9
 
 
+def test_a_batch_keeps_a_backend_named(square) -> None:
+    named = FilterConfig(backend="python")
+    assert pipeline.batch_config(square, 10**6, named) is named
+
+
 @pytest.mark.parametrize("bad", [0, -3, 1.5, True, "20", None])
-def test_replays_must_be_a_whole_number_of_at_least_one(square, bad) -> None:
-    with pytest.raises(ConfigError, match="replay: replays must be a whole number >= 1"):
-        pipeline.replay(square, replays=bad)
+def test_a_batch_is_a_whole_number_of_at_least_one_replay(square, bad) -> None:
+    with pytest.raises(ConfigError, match="batch_config: count must be a whole number >= 1"):
+        pipeline.batch_config(square, bad)
 
 
 def counted(monkeypatch, module) -> list[int]:
-    """Every `replays` the module's replays were given (1 when it gave none)."""
+    """Every count the module's batches were resolved for (`pipeline.batch_config`)."""
     seen: list[int] = []
-    real = pipeline.replay
+    real = pipeline.batch_config
 
-    def recording(*args, **kwargs):
-        seen.append(kwargs.get("replays", 1))
-        return real(*args, **kwargs)
+    def recording(run, count, *args, **kwargs):
+        seen.append(count)
+        return real(run, count, *args, **kwargs)
 
-    monkeypatch.setattr(module, "replay", recording)
+    monkeypatch.setattr(module, "batch_config", recording)
     return seen
 
 
@@ -74,7 +83,7 @@ def test_an_error_budget_counts_its_rows_and_seeds(monkeypatch) -> None:
 def test_a_noise_fit_counts_its_search(monkeypatch, square) -> None:
     seen = counted(monkeypatch, noise_fit)
     noise_fit.fit_noise(square, default_noise(square), FilterConfig(), max_evaluations=12)
-    assert len(seen) > 2 and set(seen) == {12}  # the search and the two replays after it
+    assert seen == [12]  # the search and the two replays after it, one batch
 
 
 def test_a_sweep_counts_its_points(monkeypatch) -> None:
@@ -98,7 +107,7 @@ def test_an_association_weighs_the_events_by_its_work(octagon_run, chosen, metho
     events = pipeline.schedule(octagon_run, default_noise(octagon_run)).events
     pipeline.replay(octagon_run, association=AssociationConfig(method=method))
     hypotheses = AssociationConfig().hypotheses if method == "mht" else 1
-    assert chosen == [(events * pipeline.PYTHON_COST[method] * hypotheses, backend)]
+    assert chosen == [(events * PYTHON_COST[method] * hypotheses, backend)]
 
 
 @pytest.fixture(scope="module")

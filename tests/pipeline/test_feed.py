@@ -1,4 +1,4 @@
-"""`_feed` hands the filter the run's arrays unchecked, in one call (`EKFSLAM.feed`: the run was
+"""`feed` hands the filter the run's arrays unchecked, in one call (`EKFSLAM.feed`: the run was
 checked once, when read or handed to `replay`); what the filter computes is what its steps give,
 one call each with every argument checked."""
 

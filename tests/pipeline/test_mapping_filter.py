@@ -1,4 +1,5 @@
-"""Decide with one filter, map with another: `replay(..., map_noise=...)` (issue 16)."""
+"""Decide with one filter, map with another: `replay(..., association=HiddenIds(...,
+map_noise=...))` (issue 16)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ekfslam import pipeline
+from ekfslam import pipeline, schedule
 from ekfslam.core.association import AssociationConfig
 from ekfslam.core.filter.associating import ASSOCIATED, AssociationCounts, AssociationLog
 from ekfslam.core.filter.ekf import EKFSLAM
@@ -17,6 +18,7 @@ from ekfslam.core.noise import default_config, default_noise
 from ekfslam.errors import ConfigError
 from ekfslam.logs.runlog import read_run
 from ekfslam.pipeline import replay
+from ekfslam.strategies import HiddenIds
 
 RUNS = Path(__file__).resolve().parents[2] / "data" / "runs"
 
@@ -36,7 +38,7 @@ def test_mapping_with_the_deciding_noise_is_the_plain_hidden_replay(method: str)
     run = read_run(RUNS / "square-2laps")
     config = AssociationConfig(method=method, time_sigma=0.2, hypotheses=2)
     plain = replay(run, association=config)
-    mapped = replay(run, association=config, map_noise=default_noise(run))
+    mapped = replay(run, association=HiddenIds(config, map_noise=default_noise(run)))
     _same_state(mapped, plain)
     assert (mapped.association.estimated == plain.association.estimated).all()
     assert mapped.association.decision == plain.association.decision
@@ -51,7 +53,7 @@ def test_mapping_with_a_wider_noise_changes_the_map_not_the_decisions():
     noise = default_noise(run)
     wide = dataclasses.replace(noise, sigma_x=4 * noise.sigma_x, sigma_y=4 * noise.sigma_x)
     plain = replay(run, noise, association=config)
-    mapped = replay(run, noise, association=config, map_noise=wide)
+    mapped = replay(run, noise, association=HiddenIds(config, map_noise=wide))
     assert (mapped.association.estimated == plain.association.estimated).all()
     assert mapped.noise == noise and mapped.map_noise == wide
     assert np.abs(mapped.Sigma[:3, :3] - plain.Sigma[:3, :3]).max() > 1e-6
@@ -67,17 +69,16 @@ def test_the_barcodes_ids_as_decisions_are_the_known_replay():
     ekf = EKFSLAM(run.meta.nominal_start, None, config)
     mapper = MappingFilter(ekf, log, time_sigma=0.0)
     with np.errstate(all="ignore"):
-        pipeline._feed_hidden(mapper, pipeline.schedule(run, noise))
+        schedule.feed_hidden(mapper, pipeline.schedule(run, noise))
     assert mapper.finish() is log
     known = replay(run, noise, config)
     mapped = pipeline._result(run, ekf, 0.0, noise, config)
     _same_state(mapped, known)
 
 
-def test_map_noise_needs_hidden_ids():
-    run = read_run(RUNS / "square-2laps")
-    with pytest.raises(ConfigError, match="map_noise needs hidden ids"):
-        replay(run, map_noise=default_noise(run))
+def test_map_noise_is_a_noise_config():
+    with pytest.raises(ConfigError, match="HiddenIds: map_noise must be"):
+        HiddenIds(map_noise={"sigma_x": 0.005})
 
 
 def test_decisions_of_another_schedule_are_refused():
@@ -96,6 +97,6 @@ def test_keyframes_are_the_mapping_filters():
     config = AssociationConfig(method="jcbb")
     noise = default_noise(run)
     wide = dataclasses.replace(noise, sigma_x=4 * noise.sigma_x, sigma_y=4 * noise.sigma_x)
-    mapped = replay(run, noise, association=config, map_noise=wide, keyframes=3)
+    mapped = replay(run, noise, association=HiddenIds(config, map_noise=wide), keyframes=3)
     last = mapped.keyframes.mu[-1][: len(mapped.mu)]
     np.testing.assert_array_equal(last, mapped.mu)

@@ -1,4 +1,5 @@
-"""Decide again with the first pass's map: `replay(..., passes=N)` (issue 16)."""
+"""Decide again with the first pass's map: `replay(..., association=HiddenIds(..., passes=N))`
+(issue 16)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from ekfslam.core.noise import NoiseConfig
 from ekfslam.errors import ConfigError
 from ekfslam.logs.runlog import Controls, Detections, RunLog, RunMeta, read_run
 from ekfslam.pipeline import replay
+from ekfslam.strategies import HiddenIds
 
 RUNS = Path(__file__).resolve().parents[2] / "data" / "runs"
 A, B = np.array([3.0, 0.0]), np.array([3.6, 0.1])  # B 0.6 m behind A, on nearly the same ray
@@ -48,7 +50,7 @@ def test_the_second_pass_corrects_the_first_passes_early_pairing():
     assert one.association.estimated.tolist() == [-1, 0, 0, -1, 0] + [1, 0] * 5
     assert np.linalg.norm(one.landmarks[1] - A) == pytest.approx(0.057, abs=0.002)
     assert np.linalg.norm(one.landmarks[0] - B) == pytest.approx(0.103, abs=0.002)
-    two = replay(run, NOISE, association=JCBB, passes=5)
+    two = replay(run, NOISE, association=HiddenIds(JCBB, passes=5))
     assert two.association.estimated.tolist() == [1, 1, 0] + [1, 0] * 6  # A is 1, B is 0
     assert [p.changed for p in two.passes] == [-1, 3, 0]  # then stopped: 3 passes of 5
     assert two.chosen_pass == 2
@@ -61,7 +63,7 @@ def test_the_second_pass_corrects_the_first_passes_early_pairing():
 
 def test_one_pass_is_the_plain_replay():
     run = read_run(RUNS / "square-2laps")
-    plain, one = replay(run, association=JCBB), replay(run, association=JCBB, passes=1)
+    plain, one = replay(run, association=JCBB), replay(run, association=HiddenIds(JCBB, passes=1))
     np.testing.assert_array_equal(plain.mu, one.mu)
     assert one.passes == () and one.chosen_pass == 1
 
@@ -81,11 +83,11 @@ def test_two_passes_on_the_seed_runs_keep_every_decision_right():
     eight extra updates fit a little worse, and pass 1 is kept."""
     for name, chosen in (("octagon-2laps", 2), ("square-2laps", 1)):
         run = read_run(RUNS / name)
-        two = replay(run, association=JCBB, passes=2)
+        two = replay(run, association=HiddenIds(JCBB, passes=2))
         assert [p.changed for p in two.passes] == [-1, 8] and two.chosen_pass == chosen
         assert len(true_tags(run, two)) == 8
     run = read_run(RUNS / "octagon-2laps")
-    known, two = replay(run), replay(run, association=JCBB, passes=2)
+    known, two = replay(run), replay(run, association=HiddenIds(JCBB, passes=2))
     assert two.association.counts.tentative == 0
     for e, t in true_tags(run, two).items():
         np.testing.assert_allclose(two.landmarks[e], known.landmarks[t], atol=1e-9)
@@ -94,13 +96,13 @@ def test_two_passes_on_the_seed_runs_keep_every_decision_right():
 @pytest.mark.parametrize("bad", [0, 11, 1.5, True, "2"])
 def test_a_bad_number_of_passes_is_refused_by_name(bad):
     with pytest.raises(ConfigError, match="passes must be a whole number from 1 to 10"):
-        replay(standing_run(), NOISE, association=JCBB, passes=bad)
+        HiddenIds(JCBB, passes=bad)
 
 
 def test_passes_need_hidden_ids_and_a_cartesian_filter():
     run = standing_run()
-    with pytest.raises(ConfigError, match="passes > 1 needs hidden ids"):
-        replay(run, NOISE, passes=2)
+    with pytest.raises(ConfigError, match='method "known" needs the ids; use KnownIds'):
+        HiddenIds(AssociationConfig(method="known"), passes=2)
     invariant = FilterConfig(linearization="invariant")
     with pytest.raises(ConfigError, match="not 'invariant'"):
-        replay(run, NOISE, invariant, association=JCBB, passes=2)
+        replay(run, NOISE, invariant, association=HiddenIds(JCBB, passes=2))

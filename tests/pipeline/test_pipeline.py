@@ -13,7 +13,8 @@ from ekfslam.core.filter.history import OBSERVE, PREDICT
 from ekfslam.core.kinematics import MecanumGeometry, twist_to_wheels
 from ekfslam.core.noise import NoiseConfig
 from ekfslam.logs.runlog import Controls, Detections, GroundTruth, RunLog, RunMeta
-from ekfslam.pipeline import _feed, replay, schedule
+from ekfslam.pipeline import replay, schedule
+from ekfslam.schedule import feed
 
 
 def make_run(ctrl_t, twist, det_t, det_id, det_z, kind="twist", robot=None):
@@ -189,7 +190,7 @@ def test_a_state_that_becomes_non_finite_is_an_error_saying_when(square_run) -> 
 def test_a_huge_start_pose_through_the_api_is_an_error_not_a_nan_table(square_run) -> None:
     for pose in [(1e308, 0.0, 0.0), (0.0, 0.0, math.nan), (0.0, 0.0, 90.0)]:
         with pytest.raises(ValueError, match="not a plausible"):
-            replay(square_run, start_pose=pose)
+            replay(square_run, start=pose)
 
 
 # --- one Q per detection through the feed loop (issue 26; the lead's rewrite keeps this) ------
@@ -208,7 +209,7 @@ def _random_run(seed: int, n_det: int = 60) -> RunLog:
 
 
 def test_feed_gives_each_detection_its_own_q_when_given_one_per_detection() -> None:
-    """`_feed` with Q of shape (N, 2, 2) updates detection i with Q[i]: the same state as a
+    """`feed` with Q of shape (N, 2, 2) updates detection i with Q[i]: the same state as a
     hand-written loop over `EKFSLAM.update` with those Q; N copies of one Q give the same state
     as that Q alone (to round-off: the arithmetic is the same, the addresses are not)."""
     run = _random_run(3)
@@ -219,7 +220,7 @@ def test_feed_gives_each_detection_its_own_q_when_given_one_per_detection() -> N
     n = len(det_id)
     each = np.array([np.diag([(0.01 + 0.02 * k) ** 2, (0.005 * (k + 1)) ** 2]) for k in range(n)])
     fed = EKFSLAM(run.meta.nominal_start)
-    _feed(fed, dataclasses.replace(steps, Q=each))
+    feed(fed, dataclasses.replace(steps, Q=each))
     by_hand = EKFSLAM(run.meta.nominal_start)
     done = 0
     for i, p in enumerate(upto):
@@ -234,8 +235,8 @@ def test_feed_gives_each_detection_its_own_q_when_given_one_per_detection() -> N
     np.testing.assert_allclose(fed.mu, by_hand.mu, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(fed.Sigma, by_hand.Sigma, rtol=1e-12, atol=1e-18)
     one, copies = EKFSLAM(run.meta.nominal_start), EKFSLAM(run.meta.nominal_start)
-    _feed(one, steps)
-    _feed(copies, dataclasses.replace(steps, Q=np.repeat(Q[None], n, 0)))
+    feed(one, steps)
+    feed(copies, dataclasses.replace(steps, Q=np.repeat(Q[None], n, 0)))
     np.testing.assert_allclose(one.mu, copies.mu, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(one.Sigma, copies.Sigma, rtol=1e-12, atol=1e-18)
     assert np.abs(fed.mu - one.mu).max() > 1e-6  # the Q given did change the estimate

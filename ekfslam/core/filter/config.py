@@ -99,8 +99,9 @@ class FilterConfig:
         takes the compiled ones once its models have run
         `ekfslam.core.filter.backend.COMPILE_AFTER_EVENTS` events in the process (a cold
         cache is compiled in another process meanwhile), and `ekfslam.pipeline.replay`
-        chooses "numba" for a run of more than `COMPILE_ABOVE_EVENTS` events, or for a batch
-        of replays that together have more (its ``replays``: a Monte Carlo, a noise fit).
+        chooses "numba" for a run of more than `COMPILE_ABOVE_EVENTS` events, and
+        `ekfslam.pipeline.batch_config` for a batch of replays that together have more (a
+        Monte Carlo, a noise fit).
         Both give the same numbers to rounding.
     """
 
