@@ -155,7 +155,8 @@ class _Robot:
 
     breaks: Array  # (P + 1,) s: its control times and its events' times
     u: Array  # (P, 3) the increments between breaks
-    M: Array  # (P, 3, 3) their control covariances
+    dt: Array  # (P,) s, their durations
+    N: Array  # (3, 3) the control noise per second of driving
     done: int = 0  # pieces predicted
     times: list = field(default_factory=list)
     poses: list = field(default_factory=list)
@@ -358,8 +359,7 @@ def _pieces(run, event_times: Array, noise: NoiseConfig) -> _Robot:
     dt = np.diff(breaks)
     row = np.searchsorted(c_t, breaks[:-1], side="right") - 1
     u = twist[row] * dt[:, None]
-    M = noise.motion_density()[None, :, :] * dt[:, None, None]
-    return _Robot(breaks=breaks, u=u, M=M)
+    return _Robot(breaks=breaks, u=u, dt=dt, N=noise.motion_density())
 
 
 def _predict_to(robot: _Robot, t: float, filt: TeamEKF | None, number: int) -> bool:
@@ -368,7 +368,7 @@ def _predict_to(robot: _Robot, t: float, filt: TeamEKF | None, number: int) -> b
         return False
     k = int(np.searchsorted(robot.breaks, t, side="left"))
     if k > robot.done:
-        filt.predict_many(number, robot.u[robot.done : k], robot.M[robot.done : k])
+        filt.predict_many(number, robot.u[robot.done : k], robot.dt[robot.done : k], robot.N)
         robot.done = k
     return True
 
