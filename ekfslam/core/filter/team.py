@@ -103,6 +103,9 @@ class TeamEKF:
         self.slot: dict[int, int] = {}  # landmark id -> its first row
         self._pending: dict[int, _Pending] = {}
         self._headings = np.zeros(0, dtype=np.int64)  # every robot's θ row
+        #: the NIS of the last sighting the gate tested (NaN: it was not tested), for the
+        #: diagnosis (`ekfslam.core.diagnosis`), as the single filter's history records it
+        self.last_nis = math.nan
 
     # ------------------------------------------------------------------------- the state
     @property
@@ -240,6 +243,7 @@ class TeamEKF:
         z, Q = np.asarray(z, dtype=float), np.asarray(Q, dtype=float)
         r = self.rows[robot]
         self._settle()
+        self.last_nis = math.nan
         if landmark_id not in self.slot:
             return self._place(r, z, Q, landmark_id)
         l = self.slot[landmark_id]
@@ -256,6 +260,7 @@ class TeamEKF:
         z, Q = np.asarray(z, dtype=float), np.asarray(Q, dtype=float)
         a, b = self.rows[observer], self.rows[target]
         self._settle()
+        self.last_nis = math.nan
         pa, pb = self._mu[a : a + 3], self._mu[b : b + 3]
         if not _apart(pa, pb):
             return Outcome.REFUSED
@@ -292,7 +297,8 @@ class TeamEKF:
         if not (det > 0.0 and S[0, 0] > 0.0):
             return Outcome.SINGULAR
         S_inv = np.array(((S[1, 1], -S[0, 1]), (-S[1, 0], S[0, 0]))) / det
-        if nu @ S_inv @ nu > self.gate:
+        self.last_nis = float(nu @ S_inv @ nu)
+        if self.last_nis > self.gate:
             return Outcome.REJECTED
         d = self.d
         K = HSigma.T @ S_inv  # (d, 2)
