@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from ekfslam.core.diagnosis import Diagnosis, diagnose_sightings
 from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.filter.history import Outcome
 from ekfslam.core.filter.team import TeamEKF
@@ -92,6 +93,9 @@ class RobotTrack:
     recoveries : s on the team's clock, when recovery widened its pose covariance.
     lost_at_end : its last `RecoveryConfig.after` (20) landmark sightings were all rejected: its
         pose at the end cannot be trusted.
+    diagnosis : does its replay agree with its data (`ekfslam.core.diagnosis.diagnose_sightings`:
+        a single replay's diagnosis, over its landmark sightings, alone before it entered and in
+        the joint filter after), its times from its first control.
     """
 
     t: Array
@@ -103,6 +107,7 @@ class RobotTrack:
     skipped: int
     recoveries: tuple[float, ...] = ()
     lost_at_end: bool = False
+    diagnosis: Diagnosis | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,7 +160,8 @@ class _Robot:
 
     breaks: Array  # (P + 1,) s: its control times and its events' times
     u: Array  # (P, 3) the increments between breaks
-    M: Array  # (P, 3, 3) their control covariances
+    dt: Array  # (P,) s, their durations
+    N: Array  # (3, 3) the control noise per second of driving
     done: int = 0  # pieces predicted
     times: list = field(default_factory=list)
     poses: list = field(default_factory=list)
@@ -166,6 +172,7 @@ class _Robot:
     skipped: int = 0
     recovery: Recovery | None = None
     rejected_in_a_row: int = 0
+    sighted: list = field(default_factory=list)  # (t, landmark, NIS, Outcome) for the diagnosis
 
 
 #: Rejected sightings in a row at the end of a run that mark a robot as lost (`RobotTrack`).
@@ -253,6 +260,7 @@ def replay_team(
                     state[a].recovery = Recovery(_OneRobot(joint, a), recovery)
                 stepper = state[a].recovery or _OneRobot(joint, a)
                 outcome = stepper.update(int(det.tag_id[k]), z, Q_of[a], t)
+                state[a].sighted.append((t, int(det.tag_id[k]), joint.last_nis, int(outcome)))
                 state[a].landmarks[outcome.label] += 1
                 if outcome == Outcome.REJECTED:
                     state[a].rejected_in_a_row += 1
@@ -260,7 +268,8 @@ def replay_team(
                     state[a].rejected_in_a_row = 0
                 _record(state[a], t, joint.pose(a))
             else:
-                alone[a].update(a, z, int(det.tag_id[k]), Q_of[a])
+                outcome = alone[a].update(a, z, int(det.tag_id[k]), Q_of[a])
+                state[a].sighted.append((t, int(det.tag_id[k]), alone[a].last_nis, int(outcome)))
                 state[a].alone += 1
                 entry = _try_entry(alone[a], joint, a, t, t0)
                 if entry is not None:
@@ -358,8 +367,7 @@ def _pieces(run, event_times: Array, noise: NoiseConfig) -> _Robot:
     dt = np.diff(breaks)
     row = np.searchsorted(c_t, breaks[:-1], side="right") - 1
     u = twist[row] * dt[:, None]
-    M = noise.motion_density()[None, :, :] * dt[:, None, None]
-    return _Robot(breaks=breaks, u=u, M=M)
+    return _Robot(breaks=breaks, u=u, dt=dt, N=noise.motion_density())
 
 
 def _predict_to(robot: _Robot, t: float, filt: TeamEKF | None, number: int) -> bool:
@@ -368,7 +376,7 @@ def _predict_to(robot: _Robot, t: float, filt: TeamEKF | None, number: int) -> b
         return False
     k = int(np.searchsorted(robot.breaks, t, side="left"))
     if k > robot.done:
-        filt.predict_many(number, robot.u[robot.done : k], robot.M[robot.done : k])
+        filt.predict_many(number, robot.u[robot.done : k], robot.dt[robot.done : k], robot.N)
         robot.done = k
     return True
 
@@ -379,6 +387,10 @@ def _record(robot: _Robot, t: float, pose: Array) -> None:
 
 
 def _track(robot: _Robot) -> RobotTrack:
+    recoveries = tuple(robot.recovery.times) if robot.recovery is not None else ()
+    sighted = np.array(robot.sighted, dtype=float).reshape(-1, 4)  # t, landmark, NIS, outcome
+    ids, outcomes = sighted[:, 1].astype(np.int64), sighted[:, 3].astype(np.int8)
+    span = (float(robot.breaks[0]), float(robot.breaks[-1]))
     return RobotTrack(
         t=np.array(robot.times),
         pose=np.array(robot.poses).reshape(-1, 3),
@@ -387,8 +399,9 @@ def _track(robot: _Robot) -> RobotTrack:
         seen_by=robot.seen_by,
         alone=robot.alone,
         skipped=robot.skipped,
-        recoveries=tuple(robot.recovery.times) if robot.recovery is not None else (),
+        recoveries=recoveries,
         lost_at_end=robot.rejected_in_a_row >= LOST_AFTER,
+        diagnosis=diagnose_sightings(span, sighted[:, 0], ids, sighted[:, 2], outcomes, recoveries),
     )
 
 

@@ -3,9 +3,10 @@ robots replayed through one joint filter (`ekfslam.team.replay_team`).
 
 Prints the joint map's Table 1 row (eq. 17 against the true landmarks) and, per robot, how it
 entered the map, its trajectory error against Vicon where there is one, the sightings it used
-(landmarks, robots) and whether its filter lost it (a run of rejected sightings at the end, and
-how often recovery widened its pose); ``--json`` carries the same, ``--plot FILE`` draws the
-robots' trajectories and the one map.
+(landmarks, robots) and its diagnosis, a single replay's (`ekfslam.core.diagnosis`: does its
+replay agree with its data; a robot that does not says so on stderr, as ``run`` does), with
+whether its filter lost it at the end and how often recovery widened its pose; ``--json``
+carries the same, ``--plot FILE`` draws the robots' trajectories and the one map.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -93,6 +95,9 @@ def cmd_team(args: argparse.Namespace) -> int:
         print(json.dumps(out, indent=2, allow_nan=False))
     else:
         print(team_lines(out))
+    for robot, r in out["robots"].items():  # a robot that does not agree with its data says so
+        if r["diagnosis"]["warning"] is not None:
+            print(f"warning: robot {robot}: {r['diagnosis']['warning']}", file=sys.stderr)
     return 0
 
 
@@ -138,11 +143,7 @@ def team_dict(team, result: TeamResult, report) -> dict:
                 "alone_before_entering": track.alone,
                 "skipped": track.skipped,
             },
-            "diagnosis": {
-                "recoveries_s": [round(t - team.span()[0], 3) for t in track.recoveries],
-                "lost_at_end": track.lost_at_end,
-                "verdict": "lost" if track.lost_at_end else "ok",
-            },
+            "diagnosis": _diagnosis(track, team.span()[0]),
         }
     return {
         "name": result.name,
@@ -158,6 +159,28 @@ def team_dict(team, result: TeamResult, report) -> dict:
         "seconds": result.seconds,
         "loaded": report.as_dict(),
     }
+
+
+def _diagnosis(track, t0: float) -> dict:
+    """A robot's ``diagnosis`` block: a single replay's (`ekfslam.core.diagnosis.Diagnosis`,
+    its times from the robot's first control), its one line and warning, when recovery widened
+    its pose (s on the team's clock) and whether its last sightings were all rejected (then its
+    verdict is "lost" whatever the figures say)."""
+    d = track.diagnosis
+    out = d.as_dict()
+    out["recoveries_s"] = [round(t - t0, 3) for t in track.recoveries]
+    out["lost_at_end"] = track.lost_at_end
+    if track.lost_at_end:
+        out["verdict"] = "lost"
+    out["line"] = d.line()
+    out["warning"] = d.warning() or (LOST_AT_END if track.lost_at_end else None)
+    return out
+
+
+#: What a robot whose last sightings were all rejected says (`_diagnosis`).
+LOST_AT_END = (
+    "lost: its last 20 landmark sightings were all rejected; its final pose is not to be trusted"
+)
 
 
 def team_lines(out: dict) -> str:
@@ -186,6 +209,7 @@ def team_lines(out: dict) -> str:
                 else ""
             )
         )
+        lines.append(f"  {r['diagnosis']['line']}")
     lines.append(f"{len(out['robots'])} robots in {out['seconds']:.1f} s")
     return "\n".join(lines)
 

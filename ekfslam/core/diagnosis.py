@@ -54,7 +54,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.filter.config import CHI2_2DOF_99
 from ekfslam.core.filter.history import History, Outcome
@@ -295,14 +295,57 @@ def diagnose(
     h = history
     start = float(h.t[0]) if len(h.t) else 0.0
     duration = float(h.t[-1] - h.t[0]) if len(h.t) else 0.0
-    outcome = np.asarray(h.obs_outcome)
+    figures, windows = _figures(
+        start, duration, h.obs_t, h.obs_id, h.obs_nis, h.obs_outcome, recoveries
+    )
+    if association is not None:
+        outcome = np.asarray(h.obs_outcome)
+        figures["duplicate_pairs"] = duplicate_pairs(h)
+        founded = np.asarray(h.obs_t, dtype=float)[outcome == Outcome.INITIALISED] - start
+        figures["late_foundings"] = int(np.count_nonzero(founded > duration / 2))
+        decided = len(association.estimated)
+        figures["ambiguous_share"] = association.counts.ambiguous / decided if decided else 0.0
+    return _verdict(figures | windows, thresholds)
+
+
+def diagnose_sightings(
+    span: tuple[float, float],
+    t: ArrayLike,
+    landmark_id: ArrayLike,
+    nis: ArrayLike,
+    outcome: ArrayLike,
+    recoveries: tuple[float, ...] = (),
+) -> Diagnosis:
+    """`diagnose` with the ids known, from a replay's landmark sightings as arrays rather than a
+    `History`: what a team replay has for each of its robots (`ekfslam.team`).
+
+    span : (first, last) s, the replay's clock: the robot's first and last control.
+    t, landmark_id, nis, outcome : (S,) each sighting's time (s), landmark, NIS (NaN when not
+        tested) and `Outcome`. recoveries : times (s) its pose covariance was widened.
+    """
+    start, end = float(span[0]), float(span[1])
+    figures, windows = _figures(start, end - start, t, landmark_id, nis, outcome, recoveries)
+    return _verdict(figures | windows)
+
+
+def _figures(
+    start: float,
+    duration: float,
+    obs_t: ArrayLike,
+    obs_id: ArrayLike,
+    obs_nis: ArrayLike,
+    obs_outcome: ArrayLike,
+    recoveries: tuple[float, ...],
+) -> tuple[dict, dict]:
+    """The figures of the ids-known diagnosis, and those over time (`_windows`)."""
+    outcome = np.asarray(obs_outcome)
     tested = np.isin(outcome, (Outcome.ACCEPTED, Outcome.REJECTED, Outcome.REINITIALISED))
-    nis = np.asarray(h.obs_nis, dtype=float)[tested]
+    nis = np.asarray(obs_nis, dtype=float)[tested]
     # NaN is no agreement either: `~(nis <= bound)` counts it
     out = (outcome[tested] != Outcome.ACCEPTED) | ~(nis <= OUTLIER_NIS)
-    t = np.asarray(h.obs_t, dtype=float)[tested] - start
+    t = np.asarray(obs_t, dtype=float)[tested] - start
     n = len(out)
-    ids = np.asarray(h.obs_id)[tested]
+    ids = np.asarray(obs_id)[tested]
     misplaced = []
     for landmark in np.unique(ids):
         mine = out[ids == landmark]
@@ -320,17 +363,10 @@ def diagnose(
         duration=duration,
         late_foundings=None,
         ambiguous_share=None,
-        landmarks=len(np.unique(np.asarray(h.obs_id)[outcome == Outcome.INITIALISED])),
+        landmarks=len(np.unique(np.asarray(obs_id)[outcome == Outcome.INITIALISED])),
         duplicate_pairs=None,
     )
-    if association is not None:
-        figures["duplicate_pairs"] = duplicate_pairs(h)
-        founded = np.asarray(h.obs_t, dtype=float)[outcome == Outcome.INITIALISED] - start
-        figures["late_foundings"] = int(np.count_nonzero(founded > duration / 2))
-        decided = len(association.estimated)
-        figures["ambiguous_share"] = association.counts.ambiguous / decided if decided else 0.0
-    figures |= _windows(out, nis, t)
-    return _verdict(figures, thresholds)
+    return figures, _windows(out, nis, t)
 
 
 def duplicate_pairs(history: History, resolution: float = DUPLICATE_RESOLUTION) -> int:

@@ -24,7 +24,13 @@ def test_the_team_json_carries_the_joint_map_and_every_robot(mrclam7, tmp_path):
         assert 0.0 < robot["trajectory"]["ate_rmse"] < 0.3  # alone: 0.26-0.90 m
         assert robot["sightings"]["landmarks"]["accepted"] > 1000
         assert robot["sightings"]["robots"]["accepted"] > 300
-        assert robot["diagnosis"]["verdict"] == "ok"
+        diagnosis = robot["diagnosis"]  # a single replay's, per robot
+        assert diagnosis["verdict"] == "ok" and diagnosis["warning"] is None
+        assert diagnosis["sightings"] > 1500  # measured 1821-4420
+        assert diagnosis["outlier_share"] < 0.1  # measured 0.03-0.07
+        assert 0.8 < diagnosis["nis"]["mean_capped"] < 1.98  # measured 1.05-1.52
+        assert diagnosis["line"].startswith("diagnosis: ok: ")
+        assert not diagnosis["lost_at_end"]
     assert out["seconds"] > 0 and out["loaded"]["robot_sightings"]["kept"] > 4000
     assert figure.stat().st_size > 50_000 and figure.read_bytes()[:4] == b"\x89PNG"
 
@@ -37,6 +43,9 @@ def test_the_team_table_as_printed(mrclam7):
     robots = [line for line in lines if line.startswith("robot ")]
     assert [line.split(":")[0] for line in robots] == ["robot 1", "robot 3"]
     assert all("trajectory error 0." in line for line in robots)
+    diagnoses = [line for line in lines if line.startswith("  diagnosis: ")]
+    assert len(diagnoses) == 2 and all(" sightings beyond the χ² 99% bound" in d for d in diagnoses)
+    assert lines.index(diagnoses[0]) == lines.index(robots[0]) + 1  # under its robot
     assert lines[-1].startswith("2 robots in ")
 
 

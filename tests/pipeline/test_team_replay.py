@@ -44,6 +44,18 @@ def test_a_team_of_one_is_the_single_replay(seed, trajectory, size):
     assert np.allclose(together.mu, alone.mu, rtol=0, atol=1e-12)
     assert np.allclose(together.Sigma, alone.Sigma, rtol=0, atol=1e-14)
     assert sorted(together.landmarks) == sorted(alone.landmarks)
+    # and its diagnosis is the single replay's: the same sightings tested, the same NIS
+    mine, theirs = together.tracks[1].diagnosis, alone.diagnosis
+    assert (mine.verdict, mine.sightings, mine.outliers, mine.rejected, mine.landmarks) == (
+        theirs.verdict,
+        theirs.sightings,
+        theirs.outliers,
+        theirs.rejected,
+        theirs.landmarks,
+    )
+    assert mine.sightings > 0
+    assert mine.nis_mean == pytest.approx(theirs.nis_mean, rel=1e-9)
+    assert mine.longest_run == theirs.longest_run
 
 
 def _final_nees(team, result):
@@ -95,6 +107,31 @@ def test_robots_with_unknown_starts_enter_where_they_are():
         assert track.alone > 0
     assert "placed by its own map's landmarks" in team_table(result)
     assert align(result.landmarks, team.tag_map).mean_error < 0.05
+
+
+def test_each_robot_of_a_team_is_diagnosed_as_a_single_replay_would_be():
+    """A simulated team replayed with its noise right is ok robot by robot; with the sighting
+    noise 20x too small the NIS of every robot's sightings is far beyond χ²(2), and each robot's
+    diagnosis says so, as a single replay's does for the same mistake."""
+    config = dataclasses.replace(EXACT, seed=3, laps=2)
+    team = simulate_team((0.5, 0.75, 1.0), config)
+    noise = noise_for_simulation(config)
+    right = replay_team(team, noise, recovery=None)
+    for robot, track in right.tracks.items():
+        d = track.diagnosis
+        assert d.verdict == "ok", (robot, d.reasons)
+        tested = track.landmarks.get("accepted", 0) + track.landmarks.get("rejected", 0)
+        assert track.alone == 0 and d.sightings == tested > 100
+        assert 0.5 < d.nis_mean < 3.0
+    small = dataclasses.replace(
+        noise, sigma_range=noise.sigma_range / 20, sigma_bearing=noise.sigma_bearing / 20
+    )
+    wrong = replay_team(team, small, recovery=None)
+    alone = replay(team.runs[1], small)
+    for robot, track in wrong.tracks.items():
+        d = track.diagnosis
+        assert d.verdict != "ok" and d.outlier_share > 0.15, (robot, d.line())
+    assert alone.diagnosis.verdict != "ok"
 
 
 def test_robot_sightings_can_be_left_out_and_bad_choices_are_refused():
