@@ -39,8 +39,9 @@ class _Replays:
         self.verdicts, self.methods, self.real = verdicts, [], pipeline.replay
 
     def __call__(self, run, *args, association=None, **kwargs):
-        self.methods.append((association.method, association.hypotheses, kwargs["passes"]))
-        result = self.real(run, *args, association=association, **kwargs)
+        hidden, association = association, association.association  # a HiddenIds
+        self.methods.append((association.method, association.hypotheses, hidden.passes))
+        result = self.real(run, *args, association=hidden, **kwargs)
         verdict = self.verdicts[association.method]
         reasons = () if verdict == "ok" else (f"{association.method} said {verdict}",)
         d = dataclasses.replace(result.diagnosis, verdict=verdict, reasons=reasons)

@@ -126,7 +126,7 @@ def test_run_passes_the_time_error_and_the_founding_rule_to_the_replay(monkeypat
     real = pipeline.replay
 
     def spy(*args, **kwargs):
-        seen.append(kwargs["association"])
+        seen.append(kwargs["association"].association)  # a HiddenIds: its AssociationConfig
         return real(*args, **kwargs)
 
     monkeypatch.setattr(pipeline, "replay", spy)
