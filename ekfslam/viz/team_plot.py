@@ -99,8 +99,8 @@ def plot_team_covariance(
     C = np.divide(S, scale, out=np.zeros_like(S), where=scale > 0)
     image = ax.imshow(C, cmap="RdBu_r", vmin=-1.0, vmax=1.0)
     names = team_state_labels(rows, landmark_ids)[: len(S)]
-    ax.set_xticks(range(len(S)), names, rotation=90, fontsize=FONT - 4)
-    ax.set_yticks(range(len(S)), names, fontsize=FONT - 4)
+    ax.set_xticks(range(len(S)), names, rotation=90, fontsize=FONT)
+    ax.set_yticks(range(len(S)), names, fontsize=FONT)
     for k in range(1, len(rows) + 1):  # after each pose block; the last one is the map's edge
         ax.axhline(3 * k - 0.5, color="k", lw=1.5 if k == len(rows) else 0.6)
         ax.axvline(3 * k - 0.5, color="k", lw=1.5 if k == len(rows) else 0.6)
@@ -142,5 +142,5 @@ def draw_team_state(
         if n == 0:
             ellipse.set_label(f"landmarks{suffix}")
         ax.add_patch(ellipse)
-        ax.annotate(str(landmark), mu[l : l + 2], fontsize=FONT - 4, color="0.4")
+        ax.annotate(str(landmark), mu[l : l + 2], fontsize=FONT, color="0.4")
     ax.set_aspect("equal")
