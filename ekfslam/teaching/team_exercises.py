@@ -75,8 +75,8 @@ def update_robot_literal(
 def _random_team(rng: np.random.Generator, headings: list[float], landmarks: int) -> TeamEKF:
     """A TeamEKF that has seen some of everything: a robot per heading, at a random place with a
     random covariance; `landmarks` landmarks, each placed by a robot after a prediction; then
-    two sightings of one robot by another, so every block of Σ is filled. A robot's heading
-    stays as given only if it never predicts nor observes: the last robot does neither."""
+    two sightings of one robot by another, so every block of Σ is filled. The last robot never
+    predicts nor observes (it may be seen), so its heading moves only through correlations."""
     team = TeamEKF(gate=None)
     for k, heading in enumerate(headings):
         A = rng.normal(size=(3, 3)) * [0.05, 0.05, 0.03]
