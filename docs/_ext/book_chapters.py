@@ -11,7 +11,7 @@ the solved one, executed, so a reader sees the chapter finished. On every notebo
   worked answer (a solution cell) folded under it, without the lab's markers
   (``# BEGIN SOLUTION`` ...) and without the stub line a typed-in answer replaces;
 - a check cell's hidden tests (the grader's, ``### BEGIN HIDDEN TESTS``) are left out;
-- a notebook without a solved version (08-12) keeps a cell's worked answer in the cell's
+- a notebook without a solved version (08-13) keeps a cell's worked answer in the cell's
   metadata (``"ekfslam": {"book": "consistent_q = (0.02, 0.02)"}``), shown in its place;
 - notebook 08's live panel (widgets, which need a kernel) is shown as a still picture of its
   figure, under a note that says how to run it live.

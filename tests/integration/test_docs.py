@@ -216,6 +216,7 @@ def test_the_notebooks_that_need_mrclam_are_read_off_their_code():
     needs = book_notebooks.mrclam_needs(REPO / "notebooks")
     assert needs["notebooks/09-trust-the-ellipses"] == (7,)
     assert set(needs["notebooks/10-real-robots"]) >= {4, 7}
+    assert needs["notebooks/13-five-robots-one-map"] == (7,)
     assert "notebooks/06-full-slam" not in needs
 
 

@@ -68,3 +68,38 @@ def test_notebooks_09_and_10_state_the_lag_and_the_short_drive_notebook_10_measu
     nine, ten = notebook("09-trust-the-ellipses.ipynb"), notebook("10-real-robots.ipynb")
     assert short in ten and short in nine.replace("\n  ", " ")
     assert f"lags\n  the commands by about {fit.lag_s:.1f} s" in nine
+
+
+def test_notebook_13_says_what_its_robots_and_its_filter_do() -> None:
+    """Its simulated team as its cells make it: robot 1 sees no other robot; one sighting of a
+    robot whose heading is uncorrelated leaves that heading's σ as it was (H_b's zero column),
+    and a sighting the other way shrinks it; and the whole of Dataset 7 is replayed."""
+    import numpy as np
+
+    from ekfslam.core.filter.team import TeamEKF
+    from ekfslam.core.models import robot_observation
+    from ekfslam.sim.config import SimulationConfig
+    from ekfslam.sim.team import simulate_team
+
+    path = ROOT / "notebooks" / "13-five-robots-one-map.ipynb"
+    flat = " ".join(prose(path).split())
+    cells = json.loads(path.read_text(encoding="utf-8"))["cells"]
+    code = "\n".join("".join(c["source"]) for c in cells if c["cell_type"] == "code")
+    assert "simulate_team((0.5, 0.75, 1.0), SimulationConfig(laps=1, seed=1))" in code
+    team = simulate_team((0.5, 0.75, 1.0), SimulationConfig(laps=1, seed=1))
+    assert "Robot 1 saw no other robot" in flat and 1 not in set(team.sightings.observer)
+    assert (3, 1) in team.sightings.pairs()  # "the moment robot 3 first sees robot 1"
+
+    assert "one sighting says nothing directly about the seen robot's heading" in flat
+    ekf = TeamEKF()
+    ekf.add_robot(1, [0.3, 0.1, 0.2], np.diag([0.15, 0.15, 0.1]) ** 2)
+    ekf.add_robot(3, [0.5, -0.4, 1.6], np.diag([0.005, 0.005, 0.005]) ** 2)
+    before = ekf.pose_covariance(1)[2, 2]
+    ekf.update_robot(
+        3, 1, robot_observation(ekf.pose(3), ekf.pose(1)) + np.array([0.01, 0.0]), np.eye(2) * 4e-4
+    )
+    assert ekf.pose_covariance(1)[2, 2] == before
+    ekf.update_robot(1, 3, robot_observation(ekf.pose(1), ekf.pose(3)), np.eye(2) * 4e-4)
+    assert ekf.pose_covariance(1)[2, 2] < before / 4
+
+    assert "The whole dataset is replayed" in flat and "truncate" not in code

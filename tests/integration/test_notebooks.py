@@ -296,6 +296,7 @@ def test_notebooks_reach_mrclam_only_through_the_stopping_helper() -> None:
     assert [p.name for p in NOTEBOOKS if _reads_shared_data(p)] == [
         "09-trust-the-ellipses.ipynb",
         "10-real-robots.ipynb",
+        "13-five-robots-one-map.ipynb",
     ]
 
 

@@ -126,4 +126,8 @@ def test_every_test_that_reads_shared_data_is_marked_and_deselectable(tmp_path: 
     notebooks = {
         row["id"].split("[")[-1] for row in deselected if "test_notebook_executes" in row["id"]
     }
-    assert notebooks == {"09-trust-the-ellipses.ipynb]", "10-real-robots.ipynb]"}
+    assert notebooks == {
+        "09-trust-the-ellipses.ipynb]",
+        "10-real-robots.ipynb]",
+        "13-five-robots-one-map.ipynb]",
+    }
