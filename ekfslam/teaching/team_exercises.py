@@ -85,7 +85,8 @@ def _random_team(rng: np.random.Generator, headings: list[float], landmarks: int
     movers = len(headings) - 1
     for j in range(landmarks):
         k = int(rng.integers(movers))
-        team.predict_many(k, rng.normal(0.0, [0.1, 0.02, 0.2], (3, 3)), np.stack([M_TEAM] * 3))
+        us = rng.normal(0.0, [0.1, 0.02, 0.2], (3, 3))
+        team.predict_many(k, us, np.ones(3), M_TEAM)  # M per second, one second a step
         team.update(k, [rng.uniform(0.5, 2.0), rng.uniform(-1.0, 1.0)], j, Q_TEAM)
     for _ in range(2):
         a = int(rng.integers(movers))
