@@ -20,7 +20,7 @@ from matplotlib.image import AxesImage
 from numpy.typing import ArrayLike
 
 from ekfslam.geometry import rotation
-from ekfslam.viz.plotting import covariance_ellipse
+from ekfslam.viz.plotting import covariance_ellipse, state_labels
 from ekfslam.viz.style import FONT
 
 #: Okabe & Ito (2008), "Color Universal Design": five hues apart under deuteranopia and protanopia.
@@ -74,9 +74,7 @@ def team_state_labels(rows: Mapping[int, int], landmark_ids: Sequence[int]) -> l
     names = []
     for robot in sorted(rows, key=rows.get):
         names += [f"x{robot}", f"y{robot}", f"θ{robot}"]
-    for i in landmark_ids:
-        names += [f"m{i}x", f"m{i}y"]
-    return names
+    return names + state_labels(landmark_ids)[3:]  # the map's names as the single state's
 
 
 def plot_team_covariance(
