@@ -139,6 +139,9 @@ ADVICE_TOO_LARGE = "R or Q is larger than this log needs; try --noise fit"
 ADVICE_MISPLACED = "try re-initialising landmarks (--reinit-after 3) or --noise fit"
 ADVICE_SINGULAR = "the noise is so small or so large that S is singular; try --noise fit"
 #: (issue 39: on MRCLAM a second pass left 14 of 14 bad JCBB maps bad; mht mended 11)
+ADVICE_NO_SIGHTINGS = (
+    "check that the log's sightings reach the filter (its detections, their ids, the gate)"
+)
 ADVICE_ASSOCIATION = "the association may be wrong; try --association mht (auto escalates to it)"
 
 
@@ -493,6 +496,12 @@ def _verdict(f: dict, thresholds: AssociationThresholds = ASSOCIATION_THRESHOLDS
         )
     if lost or suspect:
         advice = ADVICE_TOO_SMALL
+    if f["sightings"] == 0:  # nothing tested against the map: no agreement to speak of
+        suspect.append(
+            "no sighting was tested against the map: the pose is odometry alone, and nothing "
+            "says the replay agrees with its data"
+        )
+        advice = ADVICE_NO_SIGHTINGS
     if f["misplaced"] and not lost:  # a lost filter rejects every landmark's sightings
         shown = ", ".join(map(str, f["misplaced"][:5])) + (
             ", ..." if len(f["misplaced"]) > 5 else ""

@@ -129,9 +129,9 @@ def test_singular_updates_are_suspect() -> None:
     assert (d.verdict, d.singular, d.sightings) == ("suspect", 3, 100)
 
 
-def test_no_tested_sighting_is_ok_with_no_figures() -> None:
+def test_no_tested_sighting_has_no_figures() -> None:
     d = dg.diagnose(_history([I, I, I]))
-    assert (d.verdict, d.sightings, d.nis_mean, d.lost_after) == ("ok", 0, None, None)
+    assert (d.sightings, d.nis_mean, d.lost_after) == (0, None, None)
     assert d.as_dict()["nis"]["mean_capped"] is None
 
 
@@ -246,3 +246,13 @@ def test_a_landmark_whose_sightings_are_nearly_all_rejected_is_misplaced() -> No
     assert "1 landmark(s) (7) with 80% or more of their sightings rejected: misplaced" in d.reasons
     few = dg.diagnose(_history([A] * 100 + [R] * 9, ids=[1] * 100 + [2] * 9))
     assert few.misplaced == ()  # 9 sightings: under MISPLACED_MIN
+
+
+@pytest.mark.parametrize("outcomes", [[], [I] * 8])
+def test_a_replay_with_no_sighting_tested_is_not_called_ok(outcomes) -> None:
+    """Regression: a run whose detections.csv held only its header (or only first sightings)
+    was "diagnosis: ok: 0% of 0 sightings": a verdict on nothing."""
+    d = dg.diagnose(_history(outcomes))
+    assert d.verdict == "suspect" and d.sightings == 0
+    assert "no sighting was tested against the map" in d.reasons[0]
+    assert d.advice == dg.ADVICE_NO_SIGHTINGS

@@ -388,3 +388,16 @@ def test_warm_fills_the_cache_and_marks_it(tmp_path: Path):
     assert "the filter's compiled steps are in the cache" in out.stdout
     compiler = importlib.import_module(COMPILER)  # numba: this test only
     assert compiler.warm_stamp(ROOTS, models_of(ODOMETRY, RANGE_BEARING)).exists()
+
+
+def test_a_run_without_sightings_says_it_cannot_be_judged(tmp_path: Path):
+    """Regression: a run whose detections.csv held only its header printed "diagnosis: ok"."""
+    run = tmp_path / "run"
+    run.mkdir()
+    for name in ("run.json", "controls.csv", "groundtruth.csv"):
+        (run / name).write_bytes((RUNS / "octagon-2laps" / name).read_bytes())
+    (run / "detections.csv").write_text("t,tag_id,range,bearing\n")
+    out = cli("run", str(run))
+    assert out.returncode == 0, out.stderr  # the replay itself is sound: odometry alone
+    assert "diagnosis: suspect" in out.stdout and "no sighting was tested" in out.stdout
+    assert "no alignment" in out.stdout
