@@ -25,7 +25,8 @@ from ekfslam import checks
 from ekfslam.core.association import AssociationConfig
 from ekfslam.core.diagnosis import Diagnosis, diagnose
 from ekfslam.core.filter.associating import AssociatingFilter, AssociationLog
-from ekfslam.core.filter.config import FilterConfig, FilterCounts, backend_for
+from ekfslam.core.filter.backend import for_replay
+from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.ekf import EKFSLAM
 from ekfslam.core.filter.history import History, Keyframes
 from ekfslam.core.filter.prior import PassRecord
@@ -146,7 +147,7 @@ def replay(
     strategy.check(asked)
     started = time.perf_counter()  # the schedule counts: it is part of the replay's work
     steps = schedule(run, noise)
-    config = backend_for(asked, strategy.work(steps))  # "auto": compiled for a long replay
+    config = for_replay(asked, strategy.work(steps))  # "auto": compiled for a long replay
     each = sighting_noise(noise, run.detections)
     if np.ndim(each) == 3 and not strategy.hidden:  # each sighting its own Q (by range, ...)
         steps = dataclasses.replace(steps, Q=each)
@@ -195,7 +196,8 @@ def batch_config(
     """The config `count` replays like ``replay(run, config=config, association=association)``
     should run with in one process (a Monte Carlo, a noise fit, a sweep): with backend "auto",
     their work together decides whether the compiled steps pay for their loading
-    (`backend_for`): twenty replays of a short run are a long one. Another backend is kept."""
+    (`ekfslam.core.filter.backend.for_replay`): twenty replays of a short run are a long one.
+    Another backend is kept."""
     if not checks.is_whole(count) or int(count) < 1:
         raise ConfigError(
             f"batch_config: count must be a whole number >= 1, got {checks.shown(count)}"
@@ -204,7 +206,7 @@ def batch_config(
     if config.backend != "auto":
         return config
     work = strategy_of(association).work(schedule(run, default_noise(run)))
-    return backend_for(config, work * int(count))
+    return for_replay(config, work * int(count))
 
 
 def _start(run: RunLog, start: Start | ArrayLike | None) -> Start:
@@ -288,7 +290,7 @@ def replay_until_each(
     config = config or default_config(run)
     started = time.perf_counter()
     steps = schedule(run, noise)
-    config = backend_for(config, steps.events)
+    config = for_replay(config, steps.events)
     ekf = EKFSLAM(run.meta.nominal_start, None, config)
     waiting: dict[int, list[tuple[int, RunLog, Schedule]]] = {}
     for k, t in enumerate(times):
@@ -346,7 +348,7 @@ def decisions_from_known_state(
     """
     noise = noise or default_noise(run)
     steps = schedule(run, noise)
-    config = backend_for(config or default_config(run), steps.events)
+    config = for_replay(config or default_config(run), steps.events)
     ekf = EKFSLAM(run.meta.nominal_start, None, config)
     judge = AssociatingFilter(ekf, association)
     chosen: list[int] = []

@@ -1,17 +1,23 @@
 """``FilterConfig(backend="auto")`` compiles a workload, not a replay: twenty short replays are a
 long run, and the package's own batches (Monte Carlo, noise fit, error budget, sweeps) say how
 many replays they make (`pipeline.batch_config`), so that notebooks 07-09 do not replay each
-short run as Python."""
+short run as Python; and, while the compiled steps are not in the cache, a replay runs on the
+Python steps unless compiling would cost less than it (`backend.for_replay`)."""
 
 from __future__ import annotations
+
+import dataclasses
+import importlib
+import sys
 
 import pytest
 
 from ekfslam import pipeline
 from ekfslam.analysis import association_stress, consistency, error_budget, laps, noise_fit
 from ekfslam.core.association import AssociationConfig
-from ekfslam.core.filter import config as filter_config
+from ekfslam.core.filter import backend
 from ekfslam.core.filter.config import COMPILE_ABOVE_EVENTS, FilterConfig
+from ekfslam.core.models import ODOMETRY, RANGE_BEARING
 from ekfslam.core.noise import default_noise
 from ekfslam.errors import ConfigError
 from ekfslam.strategies import PYTHON_COST
@@ -19,9 +25,10 @@ from ekfslam.strategies import PYTHON_COST
 
 @pytest.fixture
 def chosen(monkeypatch) -> list[tuple[int, str]]:
-    """(events, backend) of every "auto" the replays resolve."""
+    """(events, backend) of every "auto" the replays resolve, the compiled steps cached."""
     seen: list[tuple[int, str]] = []
-    real = filter_config.backend_for
+    real = backend.for_replay
+    monkeypatch.setattr(backend, "compiled_ready", lambda motion, sensor: True)
 
     def recording(config: FilterConfig, events: int) -> FilterConfig:
         out = real(config, events)
@@ -29,8 +36,52 @@ def chosen(monkeypatch) -> list[tuple[int, str]]:
             seen.append((events, out.backend))
         return out
 
-    monkeypatch.setattr(pipeline, "backend_for", recording)
+    monkeypatch.setattr(pipeline, "for_replay", recording)
     return seen
+
+
+@pytest.mark.parametrize(
+    ("events", "ready", "expected"),
+    [
+        (COMPILE_ABOVE_EVENTS // 2, False, "python"),  # short: never worth loading
+        (COMPILE_ABOVE_EVENTS + 1, True, "numba"),
+        (COMPILE_ABOVE_EVENTS + 1, False, "python"),  # cold: a minute's compile for 0.5 s
+        (backend.COMPILE_COLD_ABOVE_EVENTS, False, "python"),
+        (backend.COMPILE_COLD_ABOVE_EVENTS + 1, False, "numba"),  # the compile pays, cold too
+    ],
+)
+def test_a_cold_cache_keeps_a_replay_on_the_python_steps_unless_compiling_pays(
+    monkeypatch, events, ready, expected
+) -> None:
+    """Regression (issue 37): notebooks 07-10 and 12 took 45-56 s on a fresh machine against
+    5-19 s warm, their first long replay compiling the steps in the notebook's kernel."""
+    asked: list[tuple] = []
+
+    def compiled_ready(motion, sensor) -> bool:
+        asked.append((motion, sensor))
+        return ready
+
+    monkeypatch.setattr(backend, "compiled_ready", compiled_ready)
+    assert backend.for_replay(FilterConfig(), events).backend == expected
+    named = FilterConfig(backend="numba")
+    assert backend.for_replay(named, COMPILE_ABOVE_EVENTS // 2) is named  # a name is kept
+    assert all(models == (ODOMETRY, RANGE_BEARING) for models in asked)
+
+
+def test_a_cold_cache_starts_the_seed_models_compiling_once_in_another_process(
+    monkeypatch, tmp_path
+) -> None:
+    started: list[list[str]] = []
+    monkeypatch.setattr(backend, "_loaded", set())
+    monkeypatch.setattr(backend, "_warming", set())
+    monkeypatch.setattr(backend.subprocess, "Popen", lambda argv, **kw: started.append(argv))
+    compiler = importlib.import_module(backend.COMPILER)
+    monkeypatch.setattr(compiler, "warm_stamp", lambda roots, models: tmp_path / "cold.stamp")
+    assert not backend.compiled_ready(ODOMETRY, RANGE_BEARING)
+    assert not backend.compiled_ready(ODOMETRY, RANGE_BEARING)
+    assert started == [[sys.executable, *backend.WARMER]]  # once, not per replay
+    (tmp_path / "cold.stamp").touch()  # the other process is done
+    assert backend.compiled_ready(ODOMETRY, RANGE_BEARING)
 
 
 def test_replays_together_decide_the_backend(square, chosen) -> None:
@@ -116,3 +167,23 @@ def octagon_run():
     from ekfslam.places import seed_runs_dir
 
     return read_run(seed_runs_dir() / "octagon-2laps")
+
+
+def test_a_users_models_on_a_cold_cache_say_once_how_to_compile_them(
+    monkeypatch, tmp_path, capsys
+) -> None:
+    started: list = []
+    monkeypatch.setattr(backend, "_loaded", set())
+    monkeypatch.setattr(backend, "_warming", set())
+    monkeypatch.setattr(backend.subprocess, "Popen", lambda argv, **kw: started.append(argv))
+    compiler = importlib.import_module(backend.COMPILER)
+    monkeypatch.setattr(compiler, "warm_stamp", lambda roots, models: tmp_path / "cold.stamp")
+    sensor = dataclasses.replace(RANGE_BEARING, name="my camera")
+    assert not backend.compiled_ready(ODOMETRY, sensor)
+    assert not backend.compiled_ready(ODOMETRY, sensor)
+    said = capsys.readouterr().err.splitlines()
+    assert said == [
+        "ekfslam: the odometry and my camera models run on the Python steps; "
+        'FilterConfig(backend="numba") compiles them (a minute or more, once per machine)'
+    ]
+    assert started == []  # only the seed's models compile by themselves

@@ -12,6 +12,7 @@ nothing is written twice: a new sensor model is a `SensorModel` handed to `Filte
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import importlib
 import subprocess
@@ -20,6 +21,7 @@ import types
 from collections.abc import Callable
 
 from ekfslam.core.filter import iterated, jcbb_search, predictions, steps
+from ekfslam.core.filter.config import FilterConfig, backend_for
 from ekfslam.core.filter.rebinding import interpreted, rebind
 from ekfslam.core.models import ODOMETRY, RANGE_BEARING, MotionModel, SensorModel
 
@@ -56,6 +58,13 @@ COMPILE_AFTER_EVENTS = 5_000
 #: ``python -m ekfslam warm`` (`ekfslam.cli.warm`).
 WARMER = ("-m", "ekfslam", "warm", "--quiet")
 
+#: With backend "auto", a replay (or a batch of them) long enough for the compiled steps whose
+#: machine code is not in the cache yet runs on the Python steps (the cache compiled meanwhile in
+#: a process of its own, `auto_steps`' message) unless its work is more than this many events:
+#: compiling takes 40-60 s, which the Python steps spend on about a million events (the octagon's
+#: 1,928 in 88 ms: 46 µs an event, `ekfslam.strategies.PYTHON_COST`).
+COMPILE_COLD_ABOVE_EVENTS = 1_000_000
+
 _events: dict[tuple[MotionModel, SensorModel], int] = {}  # per models: events run in Python
 _look_again: dict[tuple[MotionModel, SensorModel], int] = {}  # ... when the cache is looked at
 _loaded: set[tuple[MotionModel, SensorModel]] = set()  # compiled steps loaded in this process
@@ -86,10 +95,37 @@ def auto_steps(
     if total < max(COMPILE_AFTER_EVENTS, _look_again.get(key, 0)):
         return None
     _look_again[key] = total + COMPILE_AFTER_EVENTS
+    return steps_for(motion, sensor, "numba") if compiled_ready(motion, sensor) else None
+
+
+def for_replay(config: FilterConfig, events: int) -> FilterConfig:
+    """`config` with backend "auto" resolved for a replay of `events` weighed events
+    (`ekfslam.core.filter.config.backend_for`: compiled above `COMPILE_ABOVE_EVENTS`), on the
+    Python steps when their machine code is not cached yet and compiling it would cost more than
+    the replay (`COMPILE_COLD_ABOVE_EVENTS`): a notebook's first replay does not wait a minute
+    for the compiler (issue 37)."""
+    resolved = backend_for(config, events)
+    if config.backend != "auto" or resolved.backend != "numba":
+        return resolved
+    motion, sensor = config.motion or ODOMETRY, config.sensor or RANGE_BEARING
+    if events > COMPILE_COLD_ABOVE_EVENTS or compiled_ready(motion, sensor):
+        return resolved
+    return dataclasses.replace(resolved, backend="python")
+
+
+def compiled_ready(motion: MotionModel, sensor: SensorModel) -> bool:
+    """Whether the compiled steps for these models run without compiling first (loaded in this
+    process, or their machine code in the cache: `compile.warm_stamp`). When they do not, the
+    seed's models are compiled in a process of its own (``python -m ekfslam warm``, about a
+    minute, once per machine) with a one-line message; other models are compiled only where
+    backend "numba" is named."""
+    key = (motion, sensor)
+    if key in _loaded:
+        return True
     compiler = importlib.import_module(COMPILER)
     if compiler.warm_stamp(ROOTS, models_of(motion, sensor)).exists():
         _loaded.add(key)
-        return steps_for(motion, sensor, "numba")
+        return True
     if key == (ODOMETRY, RANGE_BEARING) and key not in _warming:
         _warming.add(key)
         subprocess.Popen(  # this interpreter, a module of ours
@@ -104,7 +140,14 @@ def auto_steps(
             "a minute); the Python steps run until then",
             file=sys.stderr,
         )
-    return None
+    elif key != (ODOMETRY, RANGE_BEARING) and key not in _warming:
+        _warming.add(key)  # said once: a model of the user's is compiled only when asked
+        print(
+            f"ekfslam: the {motion.name} and {sensor.name} models run on the Python steps; "
+            'FilterConfig(backend="numba") compiles them (a minute or more, once per machine)',
+            file=sys.stderr,
+        )
+    return False
 
 
 @functools.cache
