@@ -8,7 +8,9 @@ R, a z with 3 coordinates, a string id or NaN end in one `ConfigError` (ValueErr
 A replay checks its run once and then calls the filter with ``validate=False``; a loop of the
 user's own calls `predict`, `predict_many` and `update` event after event, so they take a fast
 path for small float input (Python floats, C-ordered float arrays) and check a noise matrix (the
-same one, call after call) once per distinct content.
+same one, call after call) once per distinct content. `check_predict_many` and `check_update`
+say (True) when their arrays are float64 and C-ordered already, so the filter hands them to its
+steps as they are instead of converting them a second time.
 """
 
 from __future__ import annotations

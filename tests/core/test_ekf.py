@@ -538,3 +538,24 @@ def test_a_filter_without_history_steps_as_one_with_it(linearization) -> None:
     assert np.array_equal(kept.mu, bare.mu)
     assert np.array_equal(kept.Sigma, bare.Sigma)
     assert kept.counts == bare.counts
+
+
+def test_a_loops_float_arrays_reach_the_steps_unconverted(monkeypatch) -> None:
+    """Once M and Q were found good, a loop's C-ordered float64 arrays pass the fast checks
+    and go to the steps as they are: nothing converts them a second time."""
+    from ekfslam.core.filter import ekf
+
+    f = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(backend="python"), record=False)
+    M, Q = np.diag([1e-3, 1e-4, 1e-3]), np.diag([1e-2, 1e-2])
+    step = (np.array([[0.1, 0.0, 0.01]]), np.array([0.1]), np.array([0.1]))
+    f.predict_many(*step, M=M)
+    f.update(4, np.array([2.0, 0.3]), Q, 0.1)
+
+    def converted(*args):
+        raise AssertionError("converted again")
+
+    monkeypatch.setattr(ekf, "_rows", converted)
+    monkeypatch.setattr(ekf, "_contiguous", converted)
+    f.predict_many(*step, M=M)
+    assert f.update(4, np.array([1.95, 0.29]), Q, 0.2) == Outcome.ACCEPTED
+    assert f.counts.predictions == 2
