@@ -13,6 +13,9 @@
   floor: one in-place ``Sigma -= A @ B`` of the same rank (2) on an array of the same size;
 - the peak memory of the n = 1000 run (tracemalloc: numpy buffers and Python objects);
 - a full replay of one MRCLAM Dataset 7 robot, when the shared data folder has it;
+- a user's own loop of the step API (`EKFSLAM.predict_many`, `update`, `pose`,
+  `pose_covariance` every step) on ukfm's 2D SLAM world against ukfm's and PythonRobotics' loops
+  (`benchmarks.loop`), per step and per event beside the replays' events;
 - association with the ids hidden: the octagon with nn and jcbb against known, and one decision
   against the number of sightings at one time (`benchmarks.association`).
 
@@ -37,8 +40,10 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.association import bench_association
+from benchmarks.loop import bench_loop
 from benchmarks.startup import startup_times
 from benchmarks.timing import median_time
+from benchmarks.ukfm_slam2d import STEPS
 from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.models import observation_noise
 from ekfslam.core.noise import default_noise
@@ -66,7 +71,14 @@ ITERATED = FilterConfig(linearization="invariant", iterations=3, backend="numba"
 
 
 #: The repeat counts of `BenchConfig` (``--repeats`` sets them all).
-REPEATS = ("replay_repeats", "step_repeats", "literal_repeats", "mrclam_repeats", "startup_repeats")
+REPEATS = (
+    "replay_repeats",
+    "step_repeats",
+    "literal_repeats",
+    "mrclam_repeats",
+    "startup_repeats",
+    "loop_runs",
+)
 
 
 @dataclass(frozen=True)
@@ -80,6 +92,9 @@ class BenchConfig:
     mrclam_repeats: int = 3
     #: whole-process runs of ``--help`` and ``run`` (`benchmarks.startup`)
     startup_repeats: int = 5
+    #: worlds of the user's loop (`benchmarks.loop`), and the steps of each
+    loop_runs: int = 5
+    loop_steps: int = STEPS
     #: the seed's runs (default: the source checkout's data/runs; None when installed)
     runs_dir: Path | None = field(default_factory=seed_runs_dir)
     mrclam_dir: Path | None = None
@@ -92,6 +107,12 @@ class BenchConfig:
             raise ConfigError(f"BenchConfig.sizes must be whole numbers, got {sizes!r}")
         if not all(1 <= n <= MAX_SIZE for n in sizes):
             raise ConfigError(f"BenchConfig.sizes must be in 1..{MAX_SIZE}, got {sizes!r}")
+        if isinstance(self.loop_steps, bool) or not isinstance(self.loop_steps, int):
+            raise ConfigError(
+                f"BenchConfig.loop_steps must be a whole number, got {self.loop_steps!r}"
+            )
+        if self.loop_steps < 2:
+            raise ConfigError(f"BenchConfig.loop_steps must be >= 2, got {self.loop_steps!r}")
         for name in REPEATS:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
@@ -105,6 +126,7 @@ class BenchConfig:
             literal_repeats=1,
             mrclam_repeats=1,
             startup_repeats=3,
+            loop_runs=3,
         )
         return cls(**{**base, **kwargs})
 
@@ -372,6 +394,7 @@ def run_benchmarks(config: BenchConfig, command: str = "python -m benchmarks ben
     }
     result.update(bench_replays(config))
     result.update(bench_mrclam(config))
+    result["loop"] = bench_loop(config.loop_runs, config.loop_steps)
     result.update(bench_association(config.runs_dir, config.replay_repeats))
     result.update(bench_sizes(config))
     result["peak_mb_1000"] = peak_memory_mb(result["floor_n"])

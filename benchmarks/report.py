@@ -12,6 +12,7 @@ from pathlib import Path
 
 from benchmarks.association import association_lines
 from benchmarks.bench import MRCLAM_ROBOT, RUNS
+from benchmarks.loop import loop_table
 from benchmarks.startup import startup_lines
 from ekfslam.files import atomic_write_text
 
@@ -47,6 +48,9 @@ def markdown_table(r: dict) -> str:
         f"{_fmt(r['mrclam_replay_s'], digits=3)} s | "
         f"{_fmt(r['mrclam_events'], digits=0)} | {_fmt(r['mrclam_events_per_s'], digits=0)} |"
     )
+    loop = r.get("loop")
+    if loop is not None:  # results written before the user's loop was timed here have none
+        lines += ["", loop_table(loop), "", *_per_event_lines(r, loop)]
     lines += [
         "",
         "| n | predict (µs) | update (µs) | literal predict (ms) | literal update (ms) "
@@ -99,6 +103,22 @@ def markdown_table(r: dict) -> str:
     if "startup_s" in r:  # results written before the startup section have none
         lines += startup_lines(r)
     return "\n".join(lines)
+
+
+def _per_event_lines(r: dict, loop: dict) -> list[str]:
+    """The user's loop against the replays, per event (a prediction or a sighting)."""
+    per_event = loop["us_per_step"]["ekfslam default"] / loop["events_per_step"]
+    replays = [
+        f"{name} {_fmt(1e6 / r['replay_events_per_s'][key], digits=2)}"
+        for key, name in RUNS.items()
+        if r["replay_events_per_s"][key] is not None
+    ]
+    if r.get("mrclam_events_per_s"):
+        replays.append(f"MRCLAM robot {MRCLAM_ROBOT} {1e6 / r['mrclam_events_per_s']:.2f}")
+    return [
+        f"- µs per event: the user's loop (default config, its own Python around each call) "
+        f"{per_event:.2f}; the replays {', '.join(replays) or '–'}"
+    ]
 
 
 def write_outputs(r: dict, out: Path) -> None:

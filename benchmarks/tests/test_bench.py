@@ -58,9 +58,12 @@ def test_smoke_run_prints_the_issue_keys_and_writes_its_files(tmp_path: Path, ca
     assert r["machine"]["cores"] >= 1 and r["date"] and r["command"].startswith("python -m")
     assert r["association_vs_known"]["nn"] > 0 and r["association_vs_known"]["jcbb"] > 0
     assert r["association_map_size"] == 16 and "1" in r["association_step_ms"]
+    assert r["loop"]["runs"] == 3 and positive(r["loop"]["us_per_step"]["ekfslam default"])
+    assert 2.0 < r["loop"]["events_per_step"] < 5.0  # a prediction and 2 to 3 sightings
 
     table = (out / "bench.md").read_text()
     assert "| 120 |" in table and "octagon-2laps" in table
+    assert "| ukfm ekf (reimplemented) |" in table and "- µs per event: the user's loop" in table
     assert "| MRCLAM Dataset 7, robot 1 (not run: --no-mrclam) | – s |" in table
     assert "| startup (whole process, median of 3) | wall time | target |" in table
     assert json.loads((out / "bench.json").read_text())["sizes"] == [2, 120]
@@ -109,7 +112,13 @@ def _table_with(markdown_table, mrclam: dict) -> str:
 
     r = run_benchmarks(
         BenchConfig(
-            sizes=(2, 4), replay_repeats=1, step_repeats=1, literal_repeats=1, startup_repeats=1
+            sizes=(2, 4),
+            replay_repeats=1,
+            step_repeats=1,
+            literal_repeats=1,
+            startup_repeats=1,
+            loop_runs=1,
+            loop_steps=40,
         ),
         command="test",
     )
@@ -136,6 +145,7 @@ def test_bench_reports_the_whole_process_startup_times_with_their_targets():
         lambda: BenchConfig(sizes=(-5,)),
         lambda: BenchConfig(sizes=()),
         lambda: BenchConfig(replay_repeats=0),
+        lambda: BenchConfig(loop_steps=1),
     ],
 )
 def test_a_bad_bench_config_is_our_config_error_and_still_a_value_error(make):

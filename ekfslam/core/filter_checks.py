@@ -8,7 +8,9 @@ R, a z with 3 coordinates, a string id or NaN end in one `ConfigError` (ValueErr
 A replay checks its run once and then calls the filter with ``validate=False``; a loop of the
 user's own calls `predict`, `predict_many` and `update` event after event, so they take a fast
 path for small float input (Python floats, C-ordered float arrays) and check a noise matrix (the
-same one, call after call) once per distinct content.
+same one, call after call) once per distinct content. `check_predict_many` and `check_update`
+say (True) when their arrays are float64 and C-ordered already, so the filter hands them to its
+steps as they are instead of converting them a second time.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ _REALS = (float, np.float64)  # a Python float, or numpy's (a value read from an
 _INTS = (int, np.int64)  # a whole-number id: Python's, or one read from an int64 array
 _M_KEY = ("EKFSLAM.predict_many: M", 3)
 _R_KEY = ("EKFSLAM.predict: R", 3)
+_ONE_STEP, _ONE, _NOISE = (1, 3), (1,), (3, 3)  # one step's us, dts and ts, and M
 
 
 def check_start(pose: Any, pose_covariance: Any, config: Any, record: Any) -> None:
@@ -57,11 +60,13 @@ def check_predict(u: Any, R: Any, t: Any) -> None:
         checks.real(t, "EKFSLAM.predict: t", lo=-MAX_TIME, hi=MAX_TIME, unit="s")
 
 
-def check_predict_many(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> None:
+def check_predict_many(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> bool:
     """`EKFSLAM.predict_many(us, dts, ts, M, R)`: K increments, K durations >= 0, K times, and
-    exactly one of M (per second) and R (per step), a 3x3 covariance."""
+    exactly one of M (per second) and R (per step), a 3x3 covariance. Returns True when they
+    are already as the filter's steps take them (float64 C-ordered arrays of those shapes: one
+    step and the M found good before), so the filter need not convert them."""
     if _one_plain_step(us, dts, ts, M, R):
-        return
+        return True
     if (
         R is None
         and type(M) is _ARRAY
@@ -86,7 +91,7 @@ def check_predict_many(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> None:
             and (not u or -MAX_POSITION <= min(u) <= max(u) <= MAX_POSITION)
             and (not t or -MAX_TIME <= min(t) <= max(t) <= MAX_TIME)
         ):
-            return
+            return False
     name = "EKFSLAM.predict_many"
     if (M is None) == (R is None):
         raise ConfigError(f"{name}: give exactly one of M (per second) or R (per step)")
@@ -98,27 +103,24 @@ def check_predict_many(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> None:
     )  # R ignores them; K all the same
     if smallest < 0.0:
         raise ConfigError(f"{name}: dts must be durations >= 0 s, got {smallest!r}")
+    return False
 
 
 def _one_plain_step(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> bool:
     """The fast path of `check_predict_many` for a user's loop, one step a call: us (1, 3),
-    dts (1,), ts (1,) float64 arrays and the M found good before, read as six Python floats
-    (a NaN fails every comparison, so it takes the full check, which names it)."""
-    if (
-        R is not None
-        or type(us) is not _ARRAY
-        or type(dts) is not _ARRAY
-        or type(ts) is not _ARRAY
-        or type(M) is not _ARRAY
-        or us.shape != (1, 3)
-        or dts.shape != (1,)
-        or ts.shape != (1,)
-        or us.dtype is not _FLOAT
-        or dts.dtype is not _FLOAT
-        or ts.dtype is not _FLOAT
-        or M.dtype is not _FLOAT
-        or M.shape != (3, 3)
-        or _GOOD_NOISE.get(_M_KEY) != M.tobytes()
+    dts (1,), ts (1,) float64 arrays (us C-ordered; one number is, whatever its strides) and
+    the M found good before, C-ordered, read as five Python floats (a NaN fails every
+    comparison, so it takes the full check, which names it)."""
+    if not (
+        R is None
+        and type(us) is type(dts) is type(ts) is type(M) is _ARRAY
+        and us.dtype is dts.dtype is ts.dtype is M.dtype is _FLOAT
+        and us.shape == _ONE_STEP
+        and dts.shape == ts.shape == _ONE
+        and M.shape == _NOISE
+        and M.tobytes() == _GOOD_NOISE.get(_M_KEY)
+        and us.flags.c_contiguous
+        and M.flags.c_contiguous
     ):
         return False
     ((a, b, c),), (d,), (t,) = us.tolist(), dts.tolist(), ts.tolist()
@@ -132,13 +134,14 @@ def _one_plain_step(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> bool:
     )
 
 
-def check_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> None:
+def check_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> bool:
     """`EKFSLAM.update(landmark_id, z, Q, t)`: a whole-number id, z = (r, φ) finite (|r| within
     the plausible 1e7 m), Q a 2x2 positive-definite covariance, t a plausible time or None. (A
     negative range is the sensor's business, refused by the readers; the filter's algebra takes
-    it.)"""
+    it.) Returns True when z and Q are already as the filter's steps take them (float64
+    C-ordered arrays), so the filter need not convert them."""
     if _a_plain_update(landmark_id, z, Q, t):
-        return
+        return type(z) is _ARRAY and z.flags.c_contiguous and Q.flags.c_contiguous
     if not checks.is_whole(landmark_id) or not -(2**63) <= int(landmark_id) < 2**63:
         raise WrongTypeError(
             "EKFSLAM.update: landmark_id must be a whole number within 64 bits, got "
@@ -149,6 +152,7 @@ def check_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> None:
     _noise(Q, "EKFSLAM.update: Q", 2, definite=True)
     if t is not None:
         checks.real(t, "EKFSLAM.update: t", lo=-MAX_TIME, hi=MAX_TIME, unit="s")
+    return False
 
 
 def _a_plain_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> bool:

@@ -513,3 +513,49 @@ def test_predict_many_refuses_durations_and_times_of_another_length(noise) -> No
         ekf.predict_many(us, [0.1, 0.1], [0.0, 0.1, 0.2], **{noise: 1e-3 * np.eye(3)})
     with pytest.raises(ValueError, match="3 increments need as many values"):
         ekf.predict_many(us, [0.1, 0.1, 0.1], [0.0, 0.1], **{noise: 1e-3 * np.eye(3)})
+
+
+@pytest.mark.parametrize("linearization", ["standard", "fej", "invariant"])
+def test_a_filter_without_history_steps_as_one_with_it(linearization) -> None:
+    """record=False skips recording each sighting (`steps.sight`, event -1) and passes a
+    loop's arrays on unconverted, strided or not: the state is the recording filter's, to
+    the bit."""
+    rng = np.random.default_rng(5)
+    config = FilterConfig(linearization=linearization, backend="python")
+    kept, bare = (EKFSLAM([0.0, 0.0, 0.1], config=config, record=r) for r in (True, False))
+    M = np.diag([1e-3, 1e-4, 1e-3])
+    Q = np.diag([1e-3, 1e-4])
+    for k in range(60):
+        u = np.array([[0.05, 0.0, 0.02]]) + rng.normal(0.0, 0.002, (1, 3))
+        for f in (kept, bare):
+            f.predict_many(u, np.array([0.1]), np.array([0.1 * k]), M=M)
+        for i in rng.choice(6, 2, replace=False):
+            spaced = np.zeros(4)  # z (range, bearing) at every other entry: a strided view
+            spaced[::2] = np.array((2.0 + 0.1 * i, -1.0 + 0.4 * i)) + rng.normal(0.0, 0.01, 2)
+            zs = {kept: spaced[::2].copy(), bare: spaced[::2]}
+            outcomes = [f.update(int(i), zs[f], Q) for f in (kept, bare)]
+            assert outcomes[0] == outcomes[1]
+    assert np.array_equal(kept.mu, bare.mu)
+    assert np.array_equal(kept.Sigma, bare.Sigma)
+    assert kept.counts == bare.counts
+
+
+def test_a_loops_float_arrays_reach_the_steps_unconverted(monkeypatch) -> None:
+    """Once M and Q were found good, a loop's C-ordered float64 arrays pass the fast checks
+    and go to the steps as they are: nothing converts them a second time."""
+    from ekfslam.core.filter import ekf
+
+    f = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(backend="python"), record=False)
+    M, Q = np.diag([1e-3, 1e-4, 1e-3]), np.diag([1e-2, 1e-2])
+    step = (np.array([[0.1, 0.0, 0.01]]), np.array([0.1]), np.array([0.1]))
+    f.predict_many(*step, M=M)
+    f.update(4, np.array([2.0, 0.3]), Q, 0.1)
+
+    def converted(*args):
+        raise AssertionError("converted again")
+
+    monkeypatch.setattr(ekf, "_rows", converted)
+    monkeypatch.setattr(ekf, "_contiguous", converted)
+    f.predict_many(*step, M=M)
+    assert f.update(4, np.array([1.95, 0.29]), Q, 0.2) == Outcome.ACCEPTED
+    assert f.counts.predictions == 2

@@ -149,3 +149,20 @@ def test_the_fast_path_of_update_passes_only_what_the_full_check_passes(q, z) ->
     if filter_checks._a_plain_update(3, zs, Q, 1.0):
         filter_checks._GOOD_NOISE.clear()  # the full check itself, not its cache
         filter_checks.check_update(np.int32(3), list(map(float, zs)), Q.tolist(), 1.0)
+
+
+def test_the_checks_say_when_the_arguments_are_as_the_steps_take_them() -> None:
+    """True only for float64 C-ordered arrays (the filter then passes them on unconverted);
+    a list, a strided view or a transposed noise is taken, and converted by the filter."""
+    check_update(1, [1.0, 0.1], Q, 0.0)
+    assert check_update(1, np.array([1.0, 0.1]), Q, 0.0) is True
+    assert check_update(1, [1.0, 0.1], Q, 0.0) is False
+    assert check_update(1, np.array([1.0, 9.0, 0.1])[::2], Q, 0.0) is False
+    assert check_update(1, np.array([1.0, 0.1]), np.asfortranarray(Q + 1e-4), 0.0) is False
+    us, dts, ts = np.array([[0.1, 0.0, 0.01]]), np.ones(1), np.zeros(1)
+    check_predict_many(us, dts, ts, M, None)
+    assert check_predict_many(us, dts, ts, M, None) is True
+    assert check_predict_many(np.zeros((1, 6))[:, ::2], dts, ts, M, None) is False
+    assert check_predict_many(us, dts, ts, np.asfortranarray(M + np.eye(3)), None) is False
+    assert check_predict_many(np.zeros((2, 3)), np.ones(2), np.zeros(2), M, None) is False
+    assert check_predict_many(us.tolist(), [1.0], [0.0], M, None) is False

@@ -54,6 +54,7 @@ _NO_ROWS = np.zeros((0, len(ROW)))  # where a prediction records nothing
 _NO_TAPE = (_NO_ROWS, np.zeros(0, dtype=np.int8), np.zeros((0, len(OBS_ROW))))  # a `Tape`
 _OUTCOME = tuple(Outcome)  # _OUTCOME[code] is Outcome(code), at a tenth of the cost
 _ACCEPTED = int(Outcome.ACCEPTED)
+_ACCEPTED_OUTCOME = Outcome.ACCEPTED  # read as a global: a tenth of the enum's lookup
 
 
 def _rows(values: ArrayLike, width: int | None = None) -> Array:
@@ -207,8 +208,7 @@ class EKFSLAM(FilterState):
         """
         per_second = M is not None
         N = M if per_second else R
-        if validate:
-            check_predict_many(us, dts, ts, M, R)
+        if validate and not check_predict_many(us, dts, ts, M, R):  # not as the steps take them
             us, dts, ts, N = _rows(us, 3), _contiguous(dts), _contiguous(ts), _contiguous(N)
         self._propagate((us, dts, ts, N, per_second))
 
@@ -311,26 +311,26 @@ class EKFSLAM(FilterState):
             singular or not finite: the noise is too small or too large). Each is counted
             (`counts`, under its `Outcome.label`).
         """
-        if validate:
-            check_update(landmark_id, z, Q, t)
+        if validate and not check_update(landmark_id, z, Q, t):  # not as the steps take them
+            z, Q = _contiguous(z), _contiguous(Q)
         if t is not None:
             self._t = float(t)
         self._events += 1
         if self._events >= self._look_at:
             self._ran(0)
-        z, Q = _contiguous(z), _contiguous(Q)
-        row, obs, event = self._rows_for_observation()
+        row, obs, event = self._no_rows if self._recorder is None else self._rows_to_record()
         j = self.slot.get(landmark_id)
         if j is not None and self._plain:  # the commonest case, in as few Python steps as it takes
-            gate = self._gate if self._sightings[j] >= self._gate_after else math.inf
+            seen = self._sightings[j]
+            gate = self._gate if seen >= self._gate_after else math.inf
             sighting = (self._t, int(landmark_id), z, Q, gate, event)  # a `Sighting`
             code = self._steps.sight(self._arrays, self._dim, 3 + 2 * j, sighting, row, obs)
             if code == _ACCEPTED:
-                self._sightings[j] += 1
+                self._sightings[j] = seen + 1
                 if self._rejected[j]:
                     self._rejected[j].clear()
                 self._counts["accepted"] += 1
-                return Outcome.ACCEPTED
+                return _ACCEPTED_OUTCOME
             return self._decide(landmark_id, j, z, Q, Rows(row, obs, event), _OUTCOME[code])
         rows = Rows(row, obs, event)
         if j is None:
@@ -343,13 +343,11 @@ class EKFSLAM(FilterState):
         gated = self.config.gate is not None and self._sightings[j] >= self.config.gate_after
         return self._correct(landmark_id, j, z, Q, rows, gate=self.config.gate if gated else None)
 
-    def _rows_for_observation(self) -> tuple[Array, Array, int]:
+    def _rows_to_record(self) -> tuple[Array, Array, int]:
         """Where the observation being made is recorded, as a `Rows` (a plain tuple: the
         commonest path reads it by position): the history's event row (`ROW`), its observation
-        row (`OBS_ROW`) and the event's index; scratch rows when nothing is kept."""
+        row (`OBS_ROW`) and the event's index."""
         rec = self._recorder
-        if rec is None:
-            return self._no_rows
         n = rec.reserve(OBSERVE, 1)
         m = rec.reserve_observation()  # may grow rec.obs: index the array it leaves
         return rec.rows[n], rec.obs[m], n

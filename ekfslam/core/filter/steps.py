@@ -138,7 +138,7 @@ class Update(NamedTuple):
 class Sighting(NamedTuple):
     """One sighting of a mapped landmark as `sight` takes it: its time (s), the landmark's id,
     z (2,), Q (2, 2), the gate (the largest NIS accepted; inf: none) and the index of its event
-    row."""
+    row (-1: no history is kept, nothing is recorded)."""
 
     t: float
     landmark_id: int
@@ -375,11 +375,13 @@ def correct(storage: Storage, d: int, l: int, update: Update, obs: Array) -> int
 
 def sight(storage: Storage, d: int, l: int, sighting: Sighting, row: Array, obs: Array) -> int:
     """A sighting of the landmark at rows l, l+1: corrected (`correct`, H at
-    `linearisation_point`) and recorded (`record_observation`), the filter's commonest step in
-    one call. Returns the `Outcome`'s code."""
+    `linearisation_point`) and recorded (`record_observation`; not when its event's index is
+    -1, a filter that keeps no history), the filter's commonest step in one call. Returns the
+    `Outcome`'s code."""
     t, landmark_id, z, Q, gate, event = sighting
     outcome = correct(storage, d, l, (z, Q, gate, linearisation_point(storage, l)), obs)
-    record_observation(storage, d, l, (t, landmark_id, z, outcome, event), row, obs)
+    if event >= 0:
+        record_observation(storage, d, l, (t, landmark_id, z, outcome, event), row, obs)
     return outcome
 
 
