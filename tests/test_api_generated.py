@@ -298,7 +298,12 @@ SPECS = [
     Spec(
         "EKFSLAM.predict",
         lambda **kw: _filter_predict(**kw),
-        {"u": lambda: np.array([0.1, 0.0, 0.05]), "R": lambda: 1e-4 * np.eye(3), "t": lambda: 0.5},
+        {
+            "u": lambda: np.array([0.1, 0.0, 0.05]),
+            "R": lambda: 1e-4 * np.eye(3),
+            "t": lambda: 0.5,
+            "dt": lambda: 0.1,
+        },
         arrays=("u", "R"),
         result=lambda f: _finite(f.mu, f.Sigma),
         forms=("u", "R"),

@@ -95,7 +95,7 @@ NO_GROUNDTRUTH = (
 class RunSummary:
     """Everything the command line reports about one replay.
 
-    accepted ... singular: how many sightings had each `Outcome` (fields named by its `label`).
+    accepted ... deferred: how many sightings had each `Outcome` (fields named by its `label`).
     diagnosis: the replay's self-diagnosis (`ekfslam.core.diagnosis.Diagnosis`), None for a
     result made without one.
     """
@@ -120,6 +120,7 @@ class RunSummary:
     singular: int = (
         0  # updates skipped: S singular or not finite (`ekfslam.core.filter.history.Outcome`)
     )
+    deferred: int = 0  # first sightings held for a second (a bearing-only sensor)
     diagnosis: Diagnosis | None = None
 
     def as_dict(self) -> dict:

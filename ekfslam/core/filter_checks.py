@@ -49,26 +49,31 @@ def check_start(pose: Any, pose_covariance: Any, config: Any, record: Any) -> No
     checks.flag(record, "EKFSLAM: record")
 
 
-def check_predict(u: Any, R: Any, t: Any) -> None:
-    """`EKFSLAM.predict(u, R, t)`: u (3,) finite, R a 3x3 covariance, t a finite time or None."""
-    if _a_loops_call(u, R, t, _R_KEY):
+def check_predict(u: Any, R: Any, t: Any, control: int = 3, dt: Any = 0.0) -> None:
+    """`EKFSLAM.predict(u, R, t, dt=dt)`: u (control,) finite (the motion model's
+    `control_size`), R a 3x3 covariance, t a finite time or None, dt a duration >= 0 s."""
+    if type(dt) is not float or not 0.0 <= dt <= MAX_TIME:
+        checks.real(dt, "EKFSLAM.predict: dt", lo=0.0, hi=MAX_TIME, unit="s")
+    if control == 3 and _a_loops_call(u, R, t, _R_KEY):
         return
-    what = "an increment (dx, dy, dtheta) in m, m, rad"
-    checks.array(u, "EKFSLAM.predict: u", (3,), what, bound=MAX_POSITION)
+    what = "an increment (dx, dy, dtheta) in m, m, rad" if control == 3 else "a control"
+    checks.array(u, "EKFSLAM.predict: u", (control,), what, bound=MAX_POSITION)
     _noise(R, "EKFSLAM.predict: R", 3)
     if t is not None:
         checks.real(t, "EKFSLAM.predict: t", lo=-MAX_TIME, hi=MAX_TIME, unit="s")
 
 
-def check_predict_many(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> bool:
-    """`EKFSLAM.predict_many(us, dts, ts, M, R)`: K increments, K durations >= 0, K times, and
-    exactly one of M (per second) and R (per step), a 3x3 covariance. Returns True when they
-    are already as the filter's steps take them (float64 C-ordered arrays of those shapes: one
-    step and the M found good before), so the filter need not convert them."""
-    if _one_plain_step(us, dts, ts, M, R):
+def check_predict_many(us: Any, dts: Any, ts: Any, M: Any, R: Any, control: int = 3) -> bool:
+    """`EKFSLAM.predict_many(us, dts, ts, M, R)`: K controls of `control` numbers (the motion
+    model's `control_size`; the seed's increments: 3), K durations >= 0, K times, and exactly
+    one of M (per second, control x control) and R (per step, 3x3), a covariance. Returns True
+    when they are already as the filter's steps take them (float64 C-ordered arrays of those
+    shapes: one step and the M found good before), so the filter need not convert them."""
+    if control == 3 and _one_plain_step(us, dts, ts, M, R):
         return True
     if (
-        R is None
+        control == 3
+        and R is None
         and type(M) is _ARRAY
         and M.shape == (3, 3)
         and type(us) is _ARRAY
@@ -95,8 +100,11 @@ def check_predict_many(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> bool:
     name = "EKFSLAM.predict_many"
     if (M is None) == (R is None):
         raise ConfigError(f"{name}: give exactly one of M (per second) or R (per step)")
-    _noise(M if M is not None else R, f"{name}: {'M' if M is not None else 'R'}", 3)
-    k, _ = _rows(us, f"{name}: us", 3, bound=MAX_POSITION)
+    if M is not None:
+        _noise(M, f"{name}: M", control)
+    else:
+        _noise(R, f"{name}: R", 3)
+    k, _ = _rows(us, f"{name}: us", control, bound=MAX_POSITION)
     _rows(ts, f"{name}: ts", None, k, bound=MAX_TIME)
     _, smallest = _rows(
         dts, f"{name}: dts", None, k, bound=MAX_TIME
@@ -134,22 +142,23 @@ def _one_plain_step(us: Any, dts: Any, ts: Any, M: Any, R: Any) -> bool:
     )
 
 
-def check_update(landmark_id: Any, z: Any, Q: Any, t: Any) -> bool:
-    """`EKFSLAM.update(landmark_id, z, Q, t)`: a whole-number id, z = (r, φ) finite (|r| within
-    the plausible 1e7 m), Q a 2x2 positive-definite covariance, t a plausible time or None. (A
-    negative range is the sensor's business, refused by the readers; the filter's algebra takes
-    it.) Returns True when z and Q are already as the filter's steps take them (float64
-    C-ordered arrays), so the filter need not convert them."""
-    if _a_plain_update(landmark_id, z, Q, t):
+def check_update(landmark_id: Any, z: Any, Q: Any, t: Any, size: int = 2) -> bool:
+    """`EKFSLAM.update(landmark_id, z, Q, t)`: a whole-number id, z of `size` finite numbers
+    (the sensor's `SensorModel.size`; the seed's (r, φ), |r| within the plausible 1e7 m), Q a
+    size x size positive-definite covariance, t a plausible time or None. (A negative range is
+    the sensor's business, refused by the readers; the filter's algebra takes it.) Returns True
+    when z and Q are already as the filter's steps take them (float64 C-ordered arrays), so the
+    filter need not convert them."""
+    if size == 2 and _a_plain_update(landmark_id, z, Q, t):
         return type(z) is _ARRAY and z.flags.c_contiguous and Q.flags.c_contiguous
     if not checks.is_whole(landmark_id) or not -(2**63) <= int(landmark_id) < 2**63:
         raise WrongTypeError(
             "EKFSLAM.update: landmark_id must be a whole number within 64 bits, got "
             f"{checks.shown(landmark_id)}"
         )
-    what = "an observation (range, bearing)"
-    checks.array(z, "EKFSLAM.update: z", (2,), what, bound=MAX_POSITION)
-    _noise(Q, "EKFSLAM.update: Q", 2, definite=True)
+    what = "an observation (range, bearing)" if size == 2 else f"an observation of {size}"
+    checks.array(z, "EKFSLAM.update: z", (size,), what, bound=MAX_POSITION)
+    _noise(Q, "EKFSLAM.update: Q", size, definite=True)
     if t is not None:
         checks.real(t, "EKFSLAM.update: t", lo=-MAX_TIME, hi=MAX_TIME, unit="s")
     return False

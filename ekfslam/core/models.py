@@ -32,7 +32,8 @@ finite difference of its function.
 
 They are written so that numba compiles them unchanged: plain `math` on floats, small arrays
 built from tuples. A new sensor is four such functions and an `innovation`, gathered in a
-`SensorModel` (ARCHITECTURE.md, "Where a new sensor model goes").
+`SensorModel` of any measurement size (a bearing alone: h, H, `triangulate`, innovation), a new
+robot a `MotionModel` of any control size (ARCHITECTURE.md, "Where a new sensor model goes").
 """
 
 from __future__ import annotations
@@ -57,13 +58,16 @@ class DegenerateGeometry(ValueError):
 
 
 # ----------------------------------------------------------------------------------- motion
-def motion(pose: ArrayLike, u: ArrayLike) -> Array:
+def motion(pose: ArrayLike, u: ArrayLike, dt: float = 0.0) -> Array:
     """Predicted pose after the body-frame increment u, eqs. (5)-(6).
 
     Parameters
     ----------
     pose : array (3,)   (x, y, θ) at t-1.
     u : array (3,)      (Δux, Δuy, Δθ), eq. (4).
+    dt : s, the step's duration: an increment is already integrated, so it is not read (a
+        `MotionModel`'s functions all take it: a model of rates, such as a unicycle's (v, ω),
+        integrates over it).
 
     Returns
     -------
@@ -74,8 +78,9 @@ def motion(pose: ArrayLike, u: ArrayLike) -> Array:
     return np.array((x + u[0] * c - u[1] * s, y + u[0] * s + u[1] * c, wrap_angle(theta + u[2])))
 
 
-def motion_jacobian(pose: ArrayLike, u: ArrayLike) -> Array:
-    """G: the 3x3 Jacobian of eq. (6) with respect to the pose (the block inside eq. 7)."""
+def motion_jacobian(pose: ArrayLike, u: ArrayLike, dt: float = 0.0) -> Array:
+    """G: the 3x3 Jacobian of eq. (6) with respect to the pose (the block inside eq. 7); dt is
+    not read (`motion`)."""
     c, s = math.cos(pose[2]), math.sin(pose[2])
     return np.array(
         (
@@ -86,8 +91,9 @@ def motion_jacobian(pose: ArrayLike, u: ArrayLike) -> Array:
     )
 
 
-def motion_control_jacobian(pose: ArrayLike) -> Array:
+def motion_control_jacobian(pose: ArrayLike, u: ArrayLike = None, dt: float = 0.0) -> Array:
     """V: the 3x3 Jacobian of eq. (6) with respect to the control u (the rotation of eq. 5).
+    It does not depend on u or dt (the record's F_v takes them, for models whose V does).
 
     A control-noise covariance M (in u-space) becomes the state-space motion noise R = V M Vᵀ.
     """
@@ -194,28 +200,48 @@ def observation_noise(sigma_range: float, sigma_bearing: float) -> Array:
 # ----------------------------------------------------------------------------- the records
 @dataclass(frozen=True)
 class MotionModel:
-    """How the robot moves (the Robotics Toolbox's vehicle model).
+    """How the robot moves (the Robotics Toolbox's vehicle model), for a control of any size.
 
-    f(pose, u) -> pose (3,); F_x(pose, u) -> G (3, 3) = ∂f/∂pose; F_v(pose) -> V (3, 3) = ∂f/∂u,
-    so that a control noise M becomes R = V M Vᵀ. Each is plain math on small arrays (see the
-    module). name : how messages call it.
+    f(pose, u, dt) -> pose (3,); F_x(pose, u, dt) -> G (3, 3) = ∂f/∂pose; F_v(pose, u, dt) ->
+    V (3, k) = ∂f/∂u, so that a control noise M (k, k) becomes R = V M Vᵀ (3, 3). u : (k,) the
+    control, k = control_size: the seed's body-frame increment (Δux, Δuy, Δθ) (k = 3, dt not
+    read), or rates such as a unicycle's (v, ω) (k = 2) that f integrates over the step's dt
+    (s). The Jacobians see the control and dt (the Toolbox's ``Fv(x, odo)``). Each is plain math
+    on small arrays (see the module). name : how messages call it.
     """
 
     f: Callable
     F_x: Callable
     F_v: Callable
     name: str
+    control_size: int = 3
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.control_size, int) and self.control_size >= 1):
+            raise ValueError(
+                f"MotionModel {self.name!r}: control_size must be a whole number >= 1, got "
+                f"{self.control_size!r}"
+            )
 
 
 @dataclass(frozen=True)
 class SensorModel:
-    """What a sensor measures of a landmark, and where one sighting puts a new landmark.
+    """What a sensor measures of a landmark, and where its sightings put a new landmark.
 
-    h(pose, landmark) -> ẑ (2,), the predicted measurement (eq. 13 for range and bearing);
-    H(pose, landmark) -> (H_r (2, 3), H_l (2, 2)), ∂h/∂pose and ∂h/∂landmark (eq. 14's blocks);
-    g(pose, z) -> landmark (2,), where a measurement puts a new landmark (eq. 12);
-    G(pose, z) -> (G_r (2, 3), G_z (2, 2)), ∂g/∂pose and ∂g/∂z;
-    innovation(z, z_hat) -> ν (2,), z - ẑ in the measurement's space (angles wrapped).
+    For a measurement of m = `size` numbers (2 for range and bearing, 1 for a bearing alone):
+    h(pose, landmark) -> ẑ (m,), the predicted measurement (eq. 13 for range and bearing);
+    H(pose, landmark) -> (H_r (m, 3), H_l (m, 2)), ∂h/∂pose and ∂h/∂landmark (eq. 14's blocks);
+    innovation(z, z_hat) -> ν (m,), z - ẑ in the measurement's space (angles wrapped).
+    A landmark is placed by one of two means (`ekfslam.core.initialisation`):
+
+    - an invertible sensor (one sighting fixes the landmark): g(pose, z) -> landmark (2,),
+      where a measurement puts it (eq. 12), and G(pose, z) -> (G_r (2, 3), G_z (2, m)), ∂g/∂pose
+      and ∂g/∂z; the landmark is placed at its first sighting;
+    - a sensor that needs two sightings (a bearing alone): g = G = None and triangulate(pose_a,
+      z_a, pose_b, z_b) -> landmark (2,), where two sightings from two poses put it (NaN where
+      they do not meet); the filter holds a first sighting and places the landmark at a later one
+      with enough parallax, by delayed triangulation.
+
     Each is plain math on small arrays (see the module), so the filter compiles it. h and H may
     assume the landmark is not on the robot (the filter refuses such a sighting first,
     `MIN_RANGE_SQUARED`). name : how messages call it.
@@ -223,10 +249,31 @@ class SensorModel:
 
     h: Callable
     H: Callable
-    g: Callable
-    G: Callable
+    g: Callable | None
+    G: Callable | None
     innovation: Callable
     name: str
+    size: int = 2
+    triangulate: Callable | None = None
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.size, int) and self.size >= 1):
+            raise ValueError(
+                f"SensorModel {self.name!r}: size (the numbers in one measurement) must be a "
+                f"whole number >= 1, got {self.size!r}"
+            )
+        if (self.g is None) != (self.G is None):
+            raise ValueError(f"SensorModel {self.name!r}: give both g and G, or neither")
+        if self.g is None and self.triangulate is None:
+            raise ValueError(
+                f"SensorModel {self.name!r}: a sensor without g (one sighting does not fix a "
+                "landmark) needs triangulate(pose_a, z_a, pose_b, z_b) to place one from two"
+            )
+
+    @property
+    def invertible(self) -> bool:
+        """Does one sighting place a landmark (g, G), or does it take two (`triangulate`)?"""
+        return self.g is not None
 
 
 @dataclass(frozen=True)

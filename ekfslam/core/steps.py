@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.filter import steps
-from ekfslam.core.filter.history import OBS_NIS, OBS_ROW, Outcome
+from ekfslam.core.filter.history import OBS_NIS, Outcome, obs_width
 
 Array = NDArray[np.float64]
 
@@ -93,13 +93,13 @@ def update_steps(
     r, l = slice(0, 3), slice(3 + 2 * j, 5 + 2 * j)  # the robot's rows, landmark j's rows
     s = _storage(mu, Sigma, d, invariant)
     point = np.concatenate([mu[r], mu[l]])
-    obs = np.full(len(OBS_ROW), math.nan)
+    obs = np.full(obs_width(len(z)), math.nan)
     outcome = steps.correct(s, d, l.start, steps.Update(z, Q, math.inf, point), obs)
     if outcome != Outcome.ACCEPTED:
         raise ValueError(f"the correction was {Outcome(outcome).label}, not accepted")
     mu_post, Sigma_post = _arrays(s, d)
     H_r, H_l = steps.jacobians(s, point)  # eq. (14), in the filter's error
-    H = np.zeros((2, d))
+    H = np.zeros((len(z), d))
     H[:, r], H[:, l] = H_r, H_l
     S = H @ Sigma @ H.T + Q
     K = Sigma @ H.T @ np.linalg.inv(S)  # eq. (15)
@@ -143,7 +143,9 @@ def predict_step(
     d = len(mu)
     s = _storage(mu, np.array(Sigma, dtype=float), d, invariant)
     one = np.zeros(1)
-    batch = steps.Batch(np.array(u, dtype=float).reshape(1, 3), one, one, np.array(R, float), False)
+    batch = steps.Batch(
+        np.array(u, dtype=float).reshape(1, -1), one, one, np.array(R, float), False
+    )
     steps.predict(s, d, batch, np.zeros((0, 10)))
     return _arrays(s, d)
 

@@ -61,20 +61,26 @@ def jacobian_errors(
     other: ArrayLike,
     eps: float = EPS,
     angles: Sequence[int] = (1,),
+    dt: float = 0.0,
 ) -> dict[str, float]:
     """The largest |hand-written - finite-difference| of each of the model's Jacobians at one
-    point: {"F_x": ..., "F_v": ...} for a motion model at (pose, u = other); {"H_r", "H_l",
+    point: {"F_x": ..., "F_v": ...} for a motion model at (pose, u = other, dt); {"H_r", "H_l",
     "G_r", "G_z"} for a sensor at (pose, landmark = other) for h, and at (pose, z = h(pose,
-    landmark)) for g. angles : which of the sensor's outputs are angles (the bearing, by
-    default); the pose's heading is always one."""
+    landmark)) for g (only "H_r", "H_l" for a sensor without g, which places a landmark from two
+    sightings). angles : which of the sensor's outputs are angles (the bearing, by default);
+    the pose's heading is always one. dt : s, the motion model's step."""
     pose = array(pose, "jacobian_errors: pose", (3,), "a pose (x, y, theta)")
     other = array(other, "jacobian_errors: other", (None,), "a control u or a landmark")
     if isinstance(model, MotionModel):
         return {
             "F_x": _largest(
-                model.F_x(pose, other), central(lambda p: model.f(p, other), pose, eps, (2,))
+                model.F_x(pose, other, dt),
+                central(lambda p: model.f(p, other, dt), pose, eps, (2,)),
             ),
-            "F_v": _largest(model.F_v(pose), central(lambda v: model.f(pose, v), other, eps, (2,))),
+            "F_v": _largest(
+                model.F_v(pose, other, dt),
+                central(lambda v: model.f(pose, v, dt), other, eps, (2,)),
+            ),
         }
     if not isinstance(model, SensorModel):
         raise WrongTypeError(
@@ -82,14 +88,17 @@ def jacobian_errors(
             f"ekfslam.core.models, got {type(model).__name__}"
         )
     H_r, H_l = model.H(pose, other)
-    z = np.asarray(model.h(pose, other), dtype=float)
-    G_r, G_z = model.G(pose, z)
-    return {
+    errors = {
         "H_r": _largest(H_r, central(lambda p: model.h(p, other), pose, eps, angles)),
         "H_l": _largest(H_l, central(lambda m: model.h(pose, m), other, eps, angles)),
-        "G_r": _largest(G_r, central(lambda p: model.g(p, z), pose, eps)),
-        "G_z": _largest(G_z, central(lambda v: model.g(pose, v), z, eps)),
     }
+    if model.g is None:
+        return errors
+    z = np.asarray(model.h(pose, other), dtype=float)
+    G_r, G_z = model.G(pose, z)
+    errors["G_r"] = _largest(G_r, central(lambda p: model.g(p, z), pose, eps))
+    errors["G_z"] = _largest(G_z, central(lambda v: model.g(pose, v), z, eps))
+    return errors
 
 
 def _largest(analytic: ArrayLike, numeric: Array) -> float:

@@ -25,6 +25,7 @@ from numpy.typing import ArrayLike
 
 from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.history import Outcome
+from ekfslam.core.initialisation import Held, too_spread, triangulated
 from ekfslam.core.invariant import INVARIANT_NEW_LANDMARK_POSE, error_map, noise_map, retract
 from ekfslam.core.models import MIN_RANGE_SQUARED, ODOMETRY, RANGE_BEARING
 from ekfslam.geometry import wrap_angle
@@ -60,6 +61,10 @@ class LiteralEKFSLAM:
         self._first: list[np.ndarray] = []  # FEJ: each landmark's first estimate
         self._rejected: list[list[np.ndarray]] = []  # per slot: rejected sightings' positions
         self._counts = dict.fromkeys((f.name for f in fields(FilterCounts)), 0)
+        # a two-sighting sensor's held sightings (id -> z, Q) and their poses' clones: means
+        # c (h, 3), Cov(c, x) C (3h, d), Cov(c, c) P (3h, 3h), Bailey's augmented state
+        self._held: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._c, self._C, self._P = np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 0))
 
     @classmethod
     def from_state(
@@ -96,19 +101,35 @@ class LiteralEKFSLAM:
     def landmark_map(self) -> dict[int, np.ndarray]:
         return {i: self.mu[3 + 2 * j : 5 + 2 * j].copy() for i, j in self.slot.items()}
 
-    def predict(self, u: ArrayLike, R: ArrayLike, t: float | None = None) -> None:
-        """Eqs. (6), (7), (9) with F_x (eq. 8)."""
+    def predict(
+        self,
+        u: ArrayLike,
+        R: ArrayLike | None = None,
+        t: float | None = None,
+        *,
+        dt: float = 0.0,
+        M: ArrayLike | None = None,
+    ) -> None:
+        """Eqs. (6), (7), (9) with F_x (eq. 8), for a control u (k,) of the motion model over dt
+        s; the noise a state-space R (3, 3), or a control covariance per second M (k, k) as
+        `EKFSLAM.predict_many` takes it: R = V (M dt) Vᵀ with V = F_v(pose, u, dt) (3, k)."""
         n = self.n_landmarks
         F_x = lift_matrix_numeric(n)  # 3 x (2n+3)
         I = np.eye(3 + 2 * n)
         pose = self.mu[:3]
-        predicted = self.motion.f(pose, u)
-        g = self.motion.F_x(pose, u)
+        u = np.asarray(u, dtype=float)
+        if M is not None:
+            V = self.motion.F_v(pose, u, dt)
+            R = V @ (np.asarray(M, dtype=float) * dt) @ V.T
+        predicted = self.motion.f(pose, u, dt)
+        g = self.motion.F_x(pose, u, dt)
         if self._fej:  # eq. (7) at the predicted positions p̂(k+1|k) and p̂(k|k-1)
             g[0, 2] = -(predicted[1] - self._prior[1])
             g[1, 2] = predicted[0] - self._prior[0]
         self._prior = predicted.copy()
         G = I + F_x.T @ (g - np.eye(3)) @ F_x
+        if self._held:  # the clones: Cov(c, G x) (the augmented state's G is I on c)
+            self._C = self._C @ G.T
         noise = F_x.T  # how the pose noise enters the state's error
         step = predicted - pose
         step[2] = wrap_angle(float(step[2]))
@@ -127,6 +148,8 @@ class LiteralEKFSLAM:
         z = np.asarray(z, dtype=float)
         Q = np.asarray(Q, dtype=float)
         j = self.slot.get(landmark_id)
+        if j is None and self.sensor.g is None:  # two sightings place it
+            return self._triangulate(landmark_id, z, Q)
         if j is None:
             if z[0] * z[0] <= MIN_RANGE_SQUARED:
                 return self._count(Outcome.REFUSED)
@@ -159,6 +182,69 @@ class LiteralEKFSLAM:
         self._sightings.append(1)
         self._rejected.append([])
         return n
+
+    def _triangulate(self, landmark_id: int, z: np.ndarray, Q: np.ndarray) -> Outcome:
+        """A sensor that needs two sightings (Bailey 2003, `ekfslam.core.initialisation`): the
+        first held, its pose cloned into the augmented state (x, c); the landmark placed by a
+        later one with enough parallax, through the lifts: G_x = G_b F_x, Σ[L, :] = G_x Σ +
+        G_a C_i, Σ[L, L] = G_x Σ G_xᵀ + G_a P_ii G_aᵀ + G_x C_iᵀ G_aᵀ + G_a C_i G_xᵀ + L Q Lᵀ;
+        the clone then dropped."""
+        ids = list(self._held)
+        if landmark_id in ids:
+            i = ids.index(landmark_id)
+            held = Held(self._c[i].copy(), *self._held[landmark_id])
+            later = Held(self.mu[:3].copy(), z, Q)
+            placement, keep = triangulated(self.sensor, held, later, self.config.min_parallax)
+            if placement is not None:
+                return self._place_triangulated(landmark_id, i, placement)
+            if keep:
+                return self._count(Outcome.DEFERRED)
+            self._drop_clone(i)
+        ids = list(self._held)
+        h, F_x = len(ids), lift_matrix_numeric(self.n_landmarks)
+        C_new = F_x @ self.Sigma  # Cov(p, x)
+        P = np.zeros((3 * h + 3, 3 * h + 3))
+        P[: 3 * h, : 3 * h] = self._P
+        P[: 3 * h, 3 * h :] = self._C @ F_x.T  # Cov(c_i, p)
+        P[3 * h :, : 3 * h] = P[: 3 * h, 3 * h :].T
+        P[3 * h :, 3 * h :] = F_x @ self.Sigma @ F_x.T
+        self._c = np.vstack([self._c, self.mu[:3]])
+        self._C = np.vstack([self._C.reshape(-1, len(self.mu)), C_new])
+        self._P = P
+        self._held[landmark_id] = (z, Q)
+        return self._count(Outcome.DEFERRED)
+
+    def _place_triangulated(self, landmark_id: int, i: int, placement) -> Outcome:
+        n = self.n_landmarks
+        G_x = placement.G_b @ lift_matrix_numeric(n)
+        G_a = placement.G_a
+        C_i, P_ii = self._C[3 * i : 3 * i + 3], self._P[3 * i : 3 * i + 3, 3 * i : 3 * i + 3]
+        cross = G_x @ self.Sigma + G_a @ C_i
+        own = (
+            G_x @ self.Sigma @ G_x.T
+            + G_a @ P_ii @ G_a.T
+            + G_x @ C_i.T @ G_a.T
+            + G_a @ C_i @ G_x.T
+            + placement.L @ placement.Q @ placement.L.T
+        )
+        if too_spread(own, placement.landmark, self.mu[:3], self.config.max_spread):
+            return self._count(Outcome.DEFERRED)  # held on, nothing changed
+        self.Sigma = np.block([[self.Sigma, cross.T], [cross, own]])
+        self._C = np.hstack([self._C, self._C @ G_x.T + self._P[:, 3 * i : 3 * i + 3] @ G_a.T])
+        self._drop_clone(i)
+        self.mu = np.concatenate([self.mu, placement.landmark])
+        self._first.append(placement.landmark.copy())
+        self.slot[landmark_id] = n
+        self._sightings.append(1)
+        self._rejected.append([])
+        return self._count(Outcome.INITIALISED)
+
+    def _drop_clone(self, i: int) -> None:
+        """Marginalise clone i: its rows out of the augmented state."""
+        del self._held[list(self._held)[i]]
+        keep = [k for k in range(len(self._c) * 3) if k // 3 != i]
+        self._c = np.delete(self._c, i, axis=0)
+        self._C, self._P = self._C[keep], self._P[np.ix_(keep, keep)]
 
     def _reinitialise(self, j: int, z: np.ndarray, Q: np.ndarray) -> Outcome:
         """Slot j from this sighting alone: eq. (12) again, its old rows and columns replaced."""
@@ -237,6 +323,11 @@ class LiteralEKFSLAM:
         if self.config.iterations > 1:  # Gauss-Newton: H and ν again at the updated estimate
             H, S, nu = self._iterate(j, z, Q, H, S, nu)
         K = self.Sigma @ H.T @ np.linalg.inv(S)  # eq. (15)
+        if self._held:  # the clones' rows of the augmented state's gain and update
+            K_c = self._C @ H.T @ np.linalg.inv(S)
+            self._c = self._c + (K_c @ nu).reshape(-1, 3)
+            self._C = self._C - K_c @ H @ self.Sigma
+            self._P = self._P - K_c @ S @ K_c.T
         if self._invariant:  # eq. (16) through the group: exp(K ν) X̂
             self.mu = retract(self.mu, K @ nu)
         else:

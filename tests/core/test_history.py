@@ -13,7 +13,16 @@ import pytest
 from ekfslam.core.filter import steps
 from ekfslam.core.filter.config import FilterConfig, FilterCounts
 from ekfslam.core.filter.ekf import EKFSLAM
-from ekfslam.core.filter.history import OBS_COLUMNS, OBS_ROW, ROW, ROW_COLUMNS, Outcome
+from ekfslam.core.filter.history import (
+    OBS_COLUMNS,
+    OBS_ROW,
+    ROW,
+    ROW_COLUMNS,
+    Outcome,
+    obs_columns,
+    obs_row,
+    obs_width,
+)
 
 
 def test_every_outcome_the_correction_returns_is_a_member() -> None:
@@ -27,7 +36,7 @@ def test_every_outcome_the_correction_returns_is_a_member() -> None:
     }
 
 
-def test_the_codes_are_0_to_5_so_a_code_indexes_the_members() -> None:
+def test_the_codes_are_0_to_6_so_a_code_indexes_the_members() -> None:
     assert [int(o) for o in Outcome] == list(range(len(Outcome)))
     assert [o.label for o in Outcome] == [
         "initialised",
@@ -36,13 +45,14 @@ def test_the_codes_are_0_to_5_so_a_code_indexes_the_members() -> None:
         "refused",
         "reinitialised",
         "singular",
+        "deferred",
     ]
 
 
 def test_filter_counts_has_one_field_per_outcome_label() -> None:
     assert [f.name for f in fields(FilterCounts)] == ["predictions"] + [o.label for o in Outcome]
     counts = FilterCounts(predictions=9, **{o.label: 10 + o for o in Outcome})
-    assert [counts.of(o) for o in Outcome] == [10, 11, 12, 13, 14, 15]
+    assert [counts.of(o) for o in Outcome] == [10, 11, 12, 13, 14, 15, 16]
 
 
 def test_every_outcome_the_filter_records_is_a_member_and_counted() -> None:
@@ -90,7 +100,7 @@ def test_the_seed_initialisation_records_its_own_outcome_not_the_corrections(bac
     assert np.allclose(h.obs_landmark[-1], f.landmark(2)[0])
 
 
-def test_the_named_columns_cover_each_row_once_in_order() -> None:
+def test_the_named_columns_cover_each_row_once() -> None:
     def covered(columns) -> list[int]:
         out: list[int] = []
         for c in columns:
@@ -98,8 +108,12 @@ def test_the_named_columns_cover_each_row_once_in_order() -> None:
         return out
 
     assert covered(ROW_COLUMNS) == list(range(len(ROW)))
-    assert covered(OBS_COLUMNS) == list(range(len(OBS_ROW)))
-    assert OBS_ROW[OBS_COLUMNS.z_hat] == ("r_hat", "phi_hat")
+    assert sorted(covered(OBS_COLUMNS)) == list(range(len(OBS_ROW)))
+    for size in (1, 2, 3):  # a measurement of any size: z, ẑ, ν of `size`, S of size²
+        columns = obs_columns(size)
+        assert sorted(covered(columns)) == list(range(obs_width(size)))
+        assert len(obs_row(size)[columns.S]) == size * size
+    assert OBS_ROW[OBS_COLUMNS.z_hat] == ("z_hat0", "z_hat1")
     assert OBS_ROW[OBS_COLUMNS.S] == ("S00", "S01", "S10", "S11")
     assert OBS_ROW[OBS_COLUMNS.outcome] == "outcome"
 

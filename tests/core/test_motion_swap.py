@@ -45,7 +45,7 @@ def make_model(trig: str, turn: str) -> MotionModel:
     def straight(turn_: float) -> bool:
         return abs(turn_) < 1e-9 if turn == "abs" else turn_ == 0
 
-    def f(pose, u):
+    def f(pose, u, dt):
         x, y, th = pose[0], pose[1], pose[2]
         d, s, w = slip * u[0], slip * u[1], u[2]
         if turn == "seed" or straight(w):
@@ -60,7 +60,7 @@ def make_model(trig: str, turn: str) -> MotionModel:
             )
         )
 
-    def F_x(pose, u):
+    def F_x(pose, u, dt):
         th = pose[2]
         d, s, w = slip * u[0], slip * u[1], u[2]
         if turn == "seed" or straight(w):
@@ -77,7 +77,7 @@ def make_model(trig: str, turn: str) -> MotionModel:
             )
         )
 
-    def F_v(pose):  # the seed's V (exact for the seed's composition; the noise map for all)
+    def F_v(pose, u, dt):  # the seed's V (exact for the seed's composition; the noise map for all)
         c, sn = cos(pose[2]), sin(pose[2])
         return np.array(((c, -sn, 0.0), (sn, c, 0.0), (0.0, 0.0, 1.0)))
 
@@ -96,8 +96,8 @@ def test_each_models_jacobian_is_its_finite_difference(trig, turn):
     rng = np.random.default_rng(1)
     for w in (0.0, 0.3, -0.05):
         pose, u = rng.normal(size=3), np.array([0.1, 0.02, w])
-        numeric = central(lambda p, u=u: model.f(p, u), pose)
-        np.testing.assert_allclose(model.F_x(pose, u), numeric, atol=1e-7)
+        numeric = central(lambda p, u=u: model.f(p, u, 0.0), pose)
+        np.testing.assert_allclose(model.F_x(pose, u, 0.0), numeric, atol=1e-7)
 
 
 def _events(steps: int, seed: int):
@@ -161,8 +161,8 @@ def test_a_branch_the_symbols_took_silently_is_caught_by_the_check():
 def test_a_model_numba_cannot_compile_ends_in_one_line_naming_it():
     registry = {"gain": 1.0, "label": "mixed"}  # a dict of mixed values: numba cannot type it
 
-    def f(pose, u):
-        return ODOMETRY.f(pose, u * registry["gain"])
+    def f(pose, u, dt):
+        return ODOMETRY.f(pose, u * registry["gain"], dt)
 
     model = MotionModel(f=f, F_x=ODOMETRY.F_x, F_v=ODOMETRY.F_v, name="registry")
     with warnings.catch_warnings():
@@ -201,8 +201,8 @@ def test_a_table_a_model_reads_is_in_the_digest_whole():
     in the middle, which a repr elides, must not share it."""
 
     def scaled(table: np.ndarray) -> MotionModel:
-        def f(pose, u):
-            return ODOMETRY.f(pose, u * table[1000])
+        def f(pose, u, dt):
+            return ODOMETRY.f(pose, u * table[1000], dt)
 
         return MotionModel(f=f, F_x=ODOMETRY.F_x, F_v=ODOMETRY.F_v, name="scaled")
 
@@ -217,17 +217,17 @@ def test_a_table_a_model_reads_is_in_the_digest_whole():
 SLOWER = make_model("math", "seed")
 
 
-def f(pose, u):  # a global named as a model's function: `SLOWER.f` below must not read it
+def f(pose, u, dt):  # a global named as a model's function: `SLOWER.f` below must not read it
     return pose
 
 
-def g(pose, u):
+def g(pose, u, dt):
     """The seed's composition at half the increment, through another model's ``f``."""
-    return SLOWER.f(pose, 0.5 * u)
+    return SLOWER.f(pose, 0.5 * u, dt)
 
 
-def G(pose, u):
-    return SLOWER.F_x(pose, 0.5 * u)
+def G(pose, u, dt):
+    return SLOWER.F_x(pose, 0.5 * u, dt)
 
 
 HALF = MotionModel(f=g, F_x=G, F_v=SLOWER.F_v, name="half")
@@ -240,7 +240,7 @@ def test_a_model_calling_another_models_function_by_attribute():
     `ModelNotCompiled` line."""
     ekf = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(motion=HALF, backend="python"))
     ekf.predict([0.2, 0.0, 0.4], np.eye(3) * 1e-3)
-    np.testing.assert_allclose(ekf.mu, SLOWER.f(np.zeros(3), np.array([0.1, 0.0, 0.2])))
+    np.testing.assert_allclose(ekf.mu, SLOWER.f(np.zeros(3), np.array([0.1, 0.0, 0.2]), 0.0))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SlowStepWarning)
         compiled = EKFSLAM([0.0, 0.0, 0.0], config=FilterConfig(motion=HALF, backend="numba"))

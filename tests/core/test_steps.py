@@ -10,7 +10,7 @@ import pytest
 
 from ekfslam import EKFSLAM, FilterConfig
 from ekfslam.core.filter.backend import steps_for
-from ekfslam.core.filter.history import OBS_NIS, OBS_NU, OBS_ROW, OBS_S, OBS_Z_HAT, Outcome
+from ekfslam.core.filter.history import OBS_COLUMNS, OBS_NIS, OBS_ROW, Outcome
 from ekfslam.core.filter.steps import Linearization
 from ekfslam.core.models import ODOMETRY, RANGE_BEARING, observation
 from ekfslam.core.steps import update_steps
@@ -100,9 +100,9 @@ def test_the_compiled_correction_is_the_block_form(seed: int, invariant: bool) -
     outcome = compiled.correct((*storage, int(lin)), d, l, (z, Q, math.inf, point), obs)
     assert outcome == Outcome.ACCEPTED
     np.testing.assert_array_equal(storage[1], storage[1].T)  # both halves, exactly symmetric
-    np.testing.assert_allclose(obs[OBS_Z_HAT : OBS_Z_HAT + 2], steps.z_hat, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(obs[OBS_NU : OBS_NU + 2], steps.nu, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(obs[OBS_S : OBS_S + 4], steps.S.ravel(), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(obs[OBS_COLUMNS.z_hat], steps.z_hat, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(obs[OBS_COLUMNS.innovation], steps.nu, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(obs[OBS_COLUMNS.S], steps.S.ravel(), rtol=0, atol=1e-9)
     assert obs[OBS_NIS] == pytest.approx(steps.nis, rel=0, abs=1e-9)
     np.testing.assert_allclose(storage[0][:d], steps.mu_post, rtol=0, atol=1e-9)
     np.testing.assert_allclose(storage[1][:d, :d], steps.Sigma_joseph, rtol=0, atol=1e-9)

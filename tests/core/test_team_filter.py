@@ -206,8 +206,8 @@ def _stepped(pose, P, us, dts, M, motion=models.ODOMETRY):
     """The batch one increment at a time, eqs. (6), (7), (9) on numpy arrays."""
     pose, P, G_all = np.array(pose, float), np.array(P, float), np.eye(3)
     for u, dt in zip(us, dts, strict=True):
-        G, V = motion.F_x(pose, u), motion.F_v(pose)
-        pose = motion.f(pose, u)
+        G, V = motion.F_x(pose, u, dt), motion.F_v(pose, u, dt)
+        pose = motion.f(pose, u, dt)
         P = G @ P @ G.T + V @ (M * dt) @ V.T
         G_all = G @ G_all
     return pose, P, G_all
@@ -236,10 +236,10 @@ def test_a_batch_runs_the_generated_straight_line_step_and_equals_stepping():
     assert np.array_equal(Sigma[3:6, 3:6], Sigma_before[3:6, 3:6])  # robot 2 did not move
 
 
-def _branching_motion(pose, u):
+def _branching_motion(pose, u, dt):
     if abs(u[2]) < 1e-9:  # a branch on a value: not straight-line code
-        return models.motion(pose, (u[0], u[1], 0.0))
-    return models.motion(pose, u)
+        return models.motion(pose, (u[0], u[1], 0.0), dt)
+    return models.motion(pose, u, dt)
 
 
 def test_a_motion_model_with_a_branch_runs_advance_as_written():

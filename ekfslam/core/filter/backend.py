@@ -33,6 +33,7 @@ ROOTS: dict[str, Callable] = {
     "feed": steps.feed,
     "linearisation_point": steps.linearisation_point,
     "place_landmark": steps.place_landmark,
+    "set_landmark": steps.set_landmark,
     "record_observation": steps.record_observation,
     "settle": steps.settle,
     "linearise": iterated.linearise,

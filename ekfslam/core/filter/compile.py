@@ -197,6 +197,9 @@ def _digest(functions: list[Callable], models: dict[str, object]) -> str:
     h.update(inspect.getsource(inspect.getmodule(_digest)).encode())
     h.update(importlib.metadata.version("sympy").encode())  # the generator's (and its code)
     h.update(Path(importlib.util.find_spec(GENERATOR).origin).read_bytes())
+    for name, model in models.items():  # the sizes the generated code is written for
+        sizes = (getattr(model, "control_size", None), getattr(model, "size", None))
+        h.update(f"{name}:{sizes}".encode())
     for fn in functions:
         h.update(f"{fn.__module__}.{fn.__qualname__}".encode())
         h.update(inspect.getsource(fn).encode())

@@ -7,6 +7,7 @@ re-initialisation, linearisation); the noise levels R and Q are passed with each
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
@@ -91,7 +92,16 @@ class FilterConfig:
         first evaluated.
     motion, sensor : the models the filter uses (`ekfslam.core.models`): None (the default)
         is the seed's robot (`ODOMETRY`) and camera (`RANGE_BEARING`). Another sensor is a
-        `SensorModel`; nothing else changes.
+        `SensorModel` of any measurement size, another robot a `MotionModel` of any control
+        size; nothing else changes. The gate's default is χ²(2)'s: a sensor of another size m
+        takes χ²(m)'s (99%: 6.63 for m = 1, 11.34 for m = 3). A sensor that needs two
+        sightings to place a landmark (a bearing alone, `SensorModel.triangulate`) takes
+        init "inverse" and reinit_after None (both place a landmark from one sighting).
+    min_parallax, max_spread : for a sensor that needs two sightings: a held first sighting
+        and a later one place the landmark once their rays meet at min_parallax rad or more
+        (0.05, 2.9°, by default) and the landmark's largest standard deviation is at most
+        max_spread of its distance (0.1: a wider one is far from Gaussian along its ray;
+        `ekfslam.core.initialisation`).
     backend : "python" runs the filter's steps (`ekfslam.core.filter.steps`) as written;
         "numba" runs them compiled from that source (`ekfslam.core.filter.compile`: the first
         run on a machine compiles, about a minute, and caches); "auto" (the default) decides
@@ -117,6 +127,8 @@ class FilterConfig:
     motion: MotionModel | None = None
     sensor: SensorModel | None = None
     backend: Literal["auto", "python", "numba"] = "auto"
+    min_parallax: float = 0.05
+    max_spread: float = 0.1
 
     def __post_init__(self) -> None:
         field_types(self)
@@ -147,18 +159,53 @@ class FilterConfig:
             )
         if self.backend not in BACKENDS:
             raise ConfigError(f"backend must be one of {', '.join(BACKENDS)}, got {self.backend!r}")
-        for name, fields in (("motion", ("f", "F_x", "F_v")), ("sensor", ("h", "H", "g", "G"))):
+        for name, fields in (("motion", ("f", "F_x", "F_v")), ("sensor", ("h", "H"))):
             model = getattr(self, name)
             if model is not None and not all(callable(getattr(model, f, None)) for f in fields):
                 raise ConfigError(
                     f"{name} must be a {name.capitalize()}Model of ekfslam.core.models (with "
                     f"{', '.join(fields)}), got {type(model).__name__}"
                 )
+        if self.motion is not None:
+            _takes_control_and_dt(self.motion)
+        if not 0.0 < self.min_parallax < math.pi:
+            raise ConfigError(f"min_parallax must be in (0, π) rad, got {self.min_parallax!r}")
+        if not self.max_spread > 0.0:
+            raise ConfigError(f"max_spread must be positive, got {self.max_spread!r}")
+        if self.sensor is not None and getattr(self.sensor, "g", None) is None:
+            name = getattr(self.sensor, "name", "?")
+            if self.init != "inverse" or self.reinit_after is not None:
+                raise ConfigError(
+                    f"sensor {name!r} places a landmark from two sightings (triangulate): it "
+                    "needs init='inverse' and reinit_after=None, which place one from one"
+                )
+            if self.linearization != "standard" or self.iterations != 1:
+                raise ConfigError(
+                    f"sensor {name!r} places a landmark from two sightings: its held poses' "
+                    "clones follow the standard EKF with one linearisation (linearization="
+                    "'standard', iterations=1)"
+                )
         if self.iterations > 1 and self.linearization == "fej":
             raise ConfigError(
                 "iterations > 1 needs linearization 'standard' or 'invariant': FEJ keeps each "
                 "Jacobian at its first estimate, which iterating would move"
             )
+
+
+def _takes_control_and_dt(motion: MotionModel) -> None:
+    """A motion model's f, F_x and F_v each take (pose, u, dt), or one `ConfigError` says which
+    does not (a model written for f(pose, u) before the control and dt reached every function)."""
+    for field in ("f", "F_x", "F_v"):
+        fn = getattr(motion, field)
+        try:
+            inspect.signature(fn).bind(None, None, None)
+        except TypeError:
+            raise ConfigError(
+                f"motion {getattr(motion, 'name', '?')!r}: {field} must take (pose, u, dt), the "
+                f"control and the step's duration in s (ekfslam.core.models.MotionModel)"
+            ) from None
+        except ValueError:  # a builtin without a signature: called as it is
+            continue
 
 
 @dataclass(frozen=True)
@@ -176,6 +223,7 @@ class FilterCounts:
     refused: int
     reinitialised: int = 0
     singular: int = 0  # S singular or not finite (see `ekfslam.core.filter.history.Outcome`)
+    deferred: int = 0  # a first sighting held for a second (a bearing-only sensor)
 
     def of(self, outcome: Outcome) -> int:
         """How many observations had this outcome."""

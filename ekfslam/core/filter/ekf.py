@@ -33,7 +33,16 @@ from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.filter.config import CHI2_2DOF_99 as CHI2_2DOF_99
 from ekfslam.core.filter.config import FilterConfig
-from ekfslam.core.filter.history import OBS_OUTCOME, OBS_ROW, OBSERVE, PREDICT, ROW, Outcome
+from ekfslam.core.filter.delayed import Clones
+from ekfslam.core.filter.history import (
+    OBS_OUTCOME,
+    OBS_ROW,
+    OBSERVE,
+    PREDICT,
+    ROW,
+    Outcome,
+    obs_width,
+)
 from ekfslam.core.filter.predictions import Predicted, Rate
 from ekfslam.core.filter.state import FilterState
 from ekfslam.core.filter.steps import (
@@ -46,6 +55,7 @@ from ekfslam.core.filter.steps import (
     Linearization,
 )
 from ekfslam.core.filter_checks import check_predict, check_predict_many, check_update
+from ekfslam.core.initialisation import Held, triangulated
 from ekfslam.core.models import MIN_RANGE_SQUARED
 
 Array = NDArray[np.float64]
@@ -55,6 +65,8 @@ _NO_TAPE = (_NO_ROWS, np.zeros(0, dtype=np.int8), np.zeros((0, len(OBS_ROW))))  
 _OUTCOME = tuple(Outcome)  # _OUTCOME[code] is Outcome(code), at a tenth of the cost
 _ACCEPTED = int(Outcome.ACCEPTED)
 _ACCEPTED_OUTCOME = Outcome.ACCEPTED  # read as a global: a tenth of the enum's lookup
+#: outcomes the correction did not compute (`EKFSLAM._finish`)
+_PLACED_OR_NOT = (Outcome.INITIALISED, Outcome.REINITIALISED, Outcome.REFUSED, Outcome.DEFERRED)
 
 
 def _rows(values: ArrayLike, width: int | None = None) -> Array:
@@ -132,7 +144,9 @@ class EKFSLAM(FilterState):
         self._rejected: list[list[Array]] = []  # per slot: where the rejected sightings put it
         self._t = 0.0
         self._linearisations = 1  # the iterated update's last count (`steps.linearise`)
-        self._scratch = np.full(len(OBS_ROW), math.nan)  # an observation row nobody keeps
+        self._scratch = np.full(obs_width(self.sensor.size), math.nan)  # a row nobody keeps
+        self._held = Clones()  # a two-sighting sensor's first sightings, their poses cloned
+        self._control, self._size = self.motion.control_size, self.sensor.size
         self._event = np.zeros(len(ROW))  # an event row nobody keeps
         self._fej = self._storage.linearization == Linearization.FEJ  # H at first estimates
         self._cache_config()
@@ -151,29 +165,37 @@ class EKFSLAM(FilterState):
         c._sightings = list(self._sightings)
         c._rejected = [list(r) for r in self._rejected]
         c._scratch, c._event = self._scratch.copy(), self._event.copy()
+        c._held = self._held.copy()
         c._cache_config()
         return c
 
     # ------------------------------------------------------------- prediction
-    def predict(self, u: ArrayLike, R: ArrayLike, t: float | None = None) -> None:
-        """Move the pose by the body-frame increment u, eqs. (6), (7) and (9).
+    def predict(
+        self, u: ArrayLike, R: ArrayLike, t: float | None = None, *, dt: float = 0.0
+    ) -> None:
+        """Move the pose by the control u, eqs. (6), (7) and (9).
 
         Parameters
         ----------
-        u : array (3,)
+        u : array (k,)
+            The control, k the motion model's `control_size`: the seed's body-frame increment
             (Δux, Δuy, Δθ) in m, m, rad, eq. (4).
         R : array (3, 3)
             Motion noise covariance in the state (x, y, θ) for this step; see
             `ekfslam.core.models.motion_noise` to build it from a control-noise covariance.
         t : float, optional
             Time after the step, s, for the history.
+        dt : float, s
+            The step's duration, which a motion model of rates integrates over (a unicycle's
+            (v, ω)); the seed's increments do not read it.
 
         Only the pose block and the pose-landmark cross blocks change:
         Σ_rr <- G Σ_rr Gᵀ + R and Σ_rm <- G Σ_rm, which is eq. (9) with its lifts done right.
         """
-        check_predict(u, R, t)
+        check_predict(u, R, t, self._control, dt)
         ts = np.array([self._t if t is None else float(t)])
-        self._propagate((_rows(u, 3), ts, ts, _rows(R), False))  # R's shape checked above
+        step = np.array([float(dt)])
+        self._propagate((_rows(u, self._control), step, ts, _rows(R), False))  # R checked
 
     def predict_many(
         self,
@@ -193,12 +215,13 @@ class EKFSLAM(FilterState):
 
         Parameters
         ----------
-        us : (K, 3) increments (Δux, Δuy, Δθ).
-        dts : (K,) s, the duration of each step (scales M).
+        us : (K, k) controls, k the motion model's `control_size` (the seed's increments
+            (Δux, Δuy, Δθ)).
+        dts : (K,) s, the duration of each step (scales M; a model of rates integrates over it).
         ts : (K,) s, the time after each step, for the history.
-        M : (3, 3), control-increment covariance per second of driving: step k gets
-            R_k = V(θ_k) (M dt_k) V(θ_k)ᵀ (`ekfslam.core.models.motion_noise`), θ_k its start
-            heading.
+        M : (k, k), control covariance per second of driving: step k gets
+            R_k = V (M dt_k) Vᵀ with V = F_v(pose, u_k, dt_k) (3, k)
+            (`ekfslam.core.models.motion_noise`), at its start pose.
         R : (3, 3), or a fixed state-space R for every step (the seed's way). Give M or R.
         validate : check the arguments first (`ekfslam.core.filter_checks`) and take them as
             float arrays. False is for a caller whose arrays were checked already and are
@@ -208,8 +231,10 @@ class EKFSLAM(FilterState):
         """
         per_second = M is not None
         N = M if per_second else R
-        if validate and not check_predict_many(us, dts, ts, M, R):  # not as the steps take them
-            us, dts, ts, N = _rows(us, 3), _contiguous(dts), _contiguous(ts), _contiguous(N)
+        if validate and not check_predict_many(us, dts, ts, M, R, self._control):
+            # not as the steps take them
+            us, dts = _rows(us, self._control), _contiguous(dts)
+            ts, N = _contiguous(ts), _contiguous(N)
         self._propagate((us, dts, ts, N, per_second))
 
     def _propagate(self, batch: tuple) -> None:
@@ -219,6 +244,8 @@ class EKFSLAM(FilterState):
         if rec is not None:
             r0 = rec.reserve(PREDICT, k)
             rows = rec.rows[r0 : r0 + k]
+        if self._held.ids:  # a two-sighting sensor's held sightings: their poses' clones
+            self._held.predict(self.motion, self._storage.mu[:3], batch)
         self._steps.predict(self._arrays, self._dim, batch, rows)
         self._counts["predictions"] += k
         if self._events + k >= self._look_at:
@@ -241,6 +268,11 @@ class EKFSLAM(FilterState):
         `predict_many`'s ``validate=False``). With `FilterConfig.iterations` > 1 every
         sighting goes back to `update` (the iterated update linearises in Python).
         """
+        if self.sensor.g is None:
+            raise ValueError(
+                f"feed (and replay) take a sensor whose one sighting places a landmark; sensor "
+                f"{self.sensor.name!r} needs two: feed it by predict_many and update"
+            )
         u, dt, t, M, R = pieces
         per_second = M is not None
         batch = (u, dt, t, M if per_second else R, per_second)  # a `Batch`
@@ -288,17 +320,21 @@ class EKFSLAM(FilterState):
         *,
         validate: bool = True,
     ) -> Outcome:
-        """Use one range-bearing observation z = (r, φ) of a landmark, eqs. (10)-(16).
+        """Use one observation z of a landmark (the seed's range and bearing), eqs. (10)-(16).
 
-        A landmark seen for the first time is added to the state (eq. 12, see `FilterConfig.init`).
+        A landmark seen for the first time is added to the state (eq. 12, see `FilterConfig.init`);
+        with a sensor that needs two sightings (a bearing alone), the first is held (DEFERRED)
+        and the landmark placed at a later one with enough parallax
+        (`ekfslam.core.initialisation`, `FilterConfig.min_parallax`).
         Otherwise the innovation ν = z - ẑ (eq. 13, bearing wrapped) is gated on its NIS, and
         accepted ones update the state with the gain of eq. (15).
 
         Parameters
         ----------
         landmark_id : int
-        z : array (2,)  range (m) and bearing (rad).
-        Q : array (2, 2)  observation noise covariance, eq. (11).
+        z : array (m,)  the measurement, m the sensor's `SensorModel.size`: the seed's range
+            (m) and bearing (rad).
+        Q : array (m, m)  observation noise covariance, eq. (11).
         t : float, optional  time of the observation, s.
         validate : check the arguments first (as `predict_many`'s).
 
@@ -311,8 +347,8 @@ class EKFSLAM(FilterState):
             singular or not finite: the noise is too small or too large). Each is counted
             (`counts`, under its `Outcome.label`).
         """
-        if validate and not check_update(landmark_id, z, Q, t):  # not as the steps take them
-            z, Q = _contiguous(z), _contiguous(Q)
+        if validate and not check_update(landmark_id, z, Q, t, self._size):
+            z, Q = _contiguous(z), _contiguous(Q)  # not as the steps take them
         if t is not None:
             self._t = float(t)
         self._events += 1
@@ -320,8 +356,8 @@ class EKFSLAM(FilterState):
             self._ran(0)
         row, obs, event = self._no_rows if self._recorder is None else self._rows_to_record()
         j = self.slot.get(landmark_id)
-        if j is not None and self._plain:  # the commonest case, in as few Python steps as it takes
-            seen = self._sightings[j]
+        if j is not None and self._plain and not self._held.ids:  # the commonest case, in as few
+            seen = self._sightings[j]  # Python steps as it takes
             gate = self._gate if seen >= self._gate_after else math.inf
             sighting = (self._t, int(landmark_id), z, Q, gate, event)  # a `Sighting`
             code = self._steps.sight(self._arrays, self._dim, 3 + 2 * j, sighting, row, obs)
@@ -333,6 +369,8 @@ class EKFSLAM(FilterState):
                 return _ACCEPTED_OUTCOME
             return self._decide(landmark_id, j, z, Q, Rows(row, obs, event), _OUTCOME[code])
         rows = Rows(row, obs, event)
+        if j is None and self.sensor.g is None:
+            return self._triangulate(landmark_id, z, Q, rows)
         if j is None:
             if z[0] * z[0] <= MIN_RANGE_SQUARED:
                 return self._finish(landmark_id, z, Outcome.REFUSED, -1, rows)
@@ -373,8 +411,13 @@ class EKFSLAM(FilterState):
         if self.config.iterations > 1:
             outcome = self._correct_iterated(l, z, Q, gate, rows.obs)
         else:
+            held = self._held
+            if held.ids:  # the clones are corrected with the state (`ekfslam.core.filter.delayed`)
+                before = held.before_correction(self.sensor, *s[:2], self._dim, l, z, Q)
             sighting = (self._t, int(landmark_id), z, Q, gate, rows.event)  # a `Sighting`
             outcome = _OUTCOME[self._steps.sight(s, self._dim, l, sighting, rows.row, rows.obs)]
+            if held.ids and outcome == Outcome.ACCEPTED:
+                held.corrected(before)
         return self._decide(landmark_id, j, z, Q, rows, outcome, accepted_as)
 
     def _decide(
@@ -410,17 +453,29 @@ class EKFSLAM(FilterState):
         taken = self._steps.linearise(s, self._dim, l, update, self.config.iterations, obs)
         target = obs
         if not np.isnan(taken[0]):  # the history keeps the first linearisation's ν, S
-            update = (taken[5:7].copy(), Q, math.inf, taken[:5].copy())
-            target, self._linearisations = self._scratch, int(taken[7])
+            update = (taken[5:-1].copy(), Q, math.inf, taken[:5].copy())
+            target, self._linearisations = self._scratch, int(taken[-1])
         return _OUTCOME[self._steps.correct(s, self._dim, l, update, target)]
 
-    def _add_landmark(self, landmark_id: int, z: Array, Q: Array) -> int:
-        """Append a landmark slot, eq. (12) for the mean; covariance by `config.init`."""
+    def _add_landmark(self, landmark_id: int, z: Array, Q: Array, placement=None) -> int | None:
+        """Append a landmark slot, eq. (12) for the mean; covariance by `config.init`; or where
+        its two sightings put it (`ekfslam.core.initialisation.Placement`, its first sighting's
+        clone marginalised: `ekfslam.core.filter.delayed.Clones.place`; None: too spread to
+        place yet, nothing changed)."""
         j = len(self._ids)
         if self._dim + 2 > self._storage.mu.shape[0]:
             self._grow()
-        self._dim += 2
-        self._place(j, z, Q)
+        if placement is None:
+            self._dim += 2
+            self._place(j, z, Q)
+        else:
+            d, s = self._dim, self._storage
+            spread = self.config.max_spread
+            rows = self._held.place(landmark_id, placement, s.Sigma, d, s.mu[:3], spread)
+            if rows is None:  # too wide to place yet: held on
+                return None
+            self._dim += 2
+            self._steps.set_landmark(self._arrays, self._dim, d, placement.landmark, rows)
         self._ids.append(landmark_id)
         self.slot[landmark_id] = j
         self._sightings.append(1)
@@ -432,6 +487,25 @@ class EKFSLAM(FilterState):
         seed = self.config.seed_init_variance if self.config.init == "seed" else 0.0
         update = (z, Q, math.inf, self._point(3 + 2 * j))  # an `Update`
         self._steps.place_landmark(self._arrays, self._dim, 3 + 2 * j, update, seed)
+
+    def _triangulate(self, landmark_id: int, z: Array, Q: Array, rows: Rows) -> Outcome:
+        """A sighting of a landmark not mapped yet by a sensor that needs two: held (DEFERRED,
+        the pose cloned) if it is the first, or if it and the one held do not place the landmark
+        (too little parallax: the first is kept; sightings that disagree: this one is held
+        instead), else the landmark placed by both (`ekfslam.core.initialisation`)."""
+        s = self._storage
+        held = self._held.held(landmark_id)
+        if held is not None:
+            later = Held(s.mu[:3].copy(), z, Q)
+            placement, keep = triangulated(self.sensor, held, later, self.config.min_parallax)
+            if placement is not None:
+                j = self._add_landmark(landmark_id, z, Q, placement)
+                if j is None:
+                    return self._finish(landmark_id, z, Outcome.DEFERRED, -1, rows)
+                return self._finish(landmark_id, z, Outcome.INITIALISED, 3 + 2 * j, rows)
+        if held is None or not keep:
+            self._held.hold(landmark_id, z, Q, s.mu, s.Sigma, self._dim)
+        return self._finish(landmark_id, z, Outcome.DEFERRED, -1, rows)
 
     def _should_reinitialise(self, j: int, z: Array) -> bool:
         """Have the landmark's last sightings, all rejected, agreed on a new place?
@@ -467,9 +541,7 @@ class EKFSLAM(FilterState):
         An outcome the correction did not compute (a landmark placed, or refused) records its
         ẑ, ν, S and NIS as NaN.
         """
-        if outcome in (Outcome.INITIALISED, Outcome.REINITIALISED, Outcome.REFUSED) and (
-            l < 0 or self.config.init == "inverse"
-        ):
+        if outcome in _PLACED_OR_NOT and (l < 0 or self.config.init == "inverse"):
             rows.obs[:] = math.nan
         self._counts[_LABEL[outcome]] += 1
         observed = (self._t, int(landmark_id), z, int(outcome), rows.event)  # an `Observed`

@@ -96,24 +96,50 @@ def straight_line(
     what fn writes, as straight-line code (see the module).
 
     spec : what fn takes, by argument: a shape (a tuple: an array of symbols), () (one symbol)
-        or a list of the values a flag takes (one branch of code each).
+        or a list of the values a flag takes (one branch of code each); a shape's "control" is
+        the motion model's `control_size`.
     """
+    spec = sized(spec, models)
     source = _trace(fn, spec, models, name)
     _check(fn, spec, models, source, name)
     return source
 
 
-def _trace(
-    fn: Callable, spec: dict[str, tuple | list], models: dict[str, object], name: str
-) -> str:
+def sized(spec: dict, models: dict[str, object]) -> dict:
+    """spec with each "control" in a shape read as the motion model's `control_size`."""
+    k = getattr(models.get("motion"), "control_size", 3)
+
+    def resolve(shape: object) -> object:
+        if isinstance(shape, dict):  # a shape by a flag's value
+            return {f: {v: resolve(s) for v, s in by.items()} for f, by in shape.items()}
+        if isinstance(shape, tuple):
+            return tuple(k if n == "control" else n for n in shape)
+        return shape
+
+    return {a: resolve(s) for a, s in spec.items()}
+
+
+def _shapes(spec: dict, flags: dict[str, object]) -> dict[str, tuple]:
+    """Each array argument's shape for these flag values: a shape is a tuple, or {flag: {value:
+    shape}} when it depends on a flag (advance's N: k x k per second, a 3x3 R otherwise)."""
+    out = {}
+    for a, s in spec.items():
+        if isinstance(s, dict):
+            ((flag, by_value),) = s.items()
+            s = by_value[flags[flag]]
+        if isinstance(s, tuple) and s:
+            out[a] = s
+    return out
+
+
+def _trace(fn: Callable, spec: dict, models: dict[str, object], name: str) -> str:
     """`straight_line`'s source, not yet checked."""
     traced = rebind({"fn": fn}, models, _symbolic).fn
-    arrays = {a: s for a, s in spec.items() if isinstance(s, tuple) and s}
     scalars = [a for a, s in spec.items() if s == ()]
     flags = {a: s for a, s in spec.items() if isinstance(s, list)}
-    reads: set[str] = set()
     branches = []
     for values in itertools.product(*flags.values()):
+        arrays = _shapes(spec, dict(zip(flags, values, strict=True)))
         args = {a: _symbols(a, s) for a, s in arrays.items()}
         args |= {a: sympy.Symbol(a, real=True) for a in scalars}
         args |= dict(zip(flags, values, strict=True))
@@ -129,23 +155,23 @@ def _trace(
             if value != before[a][index]
         ]
         common, reduced = sympy.cse([value for _, _, value in writes], optimizations="basic")
+        reads: set[str] = set()
         for expr in [*(e for _, e in common), *reduced]:
             reads |= {s.name for s in expr.free_symbols}
         condition = " and ".join(f"{a} == {v!r}" for a, v in zip(flags, values, strict=True))
         lines = [f"    if {condition or 'True'}:"]
+        for a, shape in arrays.items():  # the entries this branch reads, as floats
+            for index in np.ndindex(*shape):
+                symbol = f"{a}_{int(np.ravel_multi_index(index, shape))}"
+                if symbol in reads:
+                    lines.append(f"        {symbol} = {a}[{', '.join(map(str, index))}]")
         lines += [f"        {s} = {_code(e)}" for s, e in common]
         for (a, index, _), expr in zip(writes, reduced, strict=True):
             lines.append(f"        {a}[{', '.join(map(str, index))}] = {_code(expr)}")
         lines.append("        return")
         branches.append("\n".join(lines))
-    loads = []
-    for a, shape in arrays.items():
-        for index in np.ndindex(*shape):
-            symbol = f"{a}_{int(np.ravel_multi_index(index, shape))}"
-            if symbol in reads:
-                loads.append(f"    {symbol} = {a}[{', '.join(map(str, index))}]")
     head = f"def {name}({', '.join(spec)}):"
-    return "\n".join([head, *loads, *branches, ""])
+    return "\n".join([head, *branches, ""])
 
 
 class _Printer(PythonCodePrinter):
@@ -183,20 +209,22 @@ def _check(
     exec(compile(source, f"<generated {name}>", "exec"), env)
     generated = env[name]
     readable = rebind({"fn": fn}, models, interpreted).fn
-    arrays = [a for a, s in spec.items() if isinstance(s, tuple)]
     flags = {a: s for a, s in spec.items() if isinstance(s, list)}
-    zeros = [(a, index) for a in arrays for index in np.ndindex(*spec[a])]  # one value
-    zeros += [(a, None) for a in arrays] + [("all", None), (None, None)]  # one argument, all
     rng = np.random.default_rng(0)
     for values in itertools.product(*flags.values()):
+        shapes = _shapes(spec, dict(zip(flags, values, strict=True)))
+        shapes |= {a: () for a, s in spec.items() if s == ()}
+        arrays = list(shapes)
+        zeros = [(a, index) for a in arrays for index in np.ndindex(*shapes[a])]  # one value
+        zeros += [(a, None) for a in arrays] + [("all", None), (None, None)]  # one argument, all
         for where, index in zeros:
-            point = {a: rng.uniform(0.1, 1.0, spec[a]) * rng.choice((-1, 1)) for a in arrays}
+            point = {a: rng.uniform(0.1, 1.0, shapes[a]) * rng.choice((-1, 1)) for a in arrays}
             for a in arrays if where == "all" else [where] if where else []:
-                if index is None or not spec[a]:
+                if index is None or not shapes[a]:
                     point[a] = point[a] * 0.0
                 else:
                     point[a][index] = 0.0
-            point = {a: v if spec[a] else float(v) for a, v in point.items()}
+            point = {a: v if shapes[a] else float(v) for a, v in point.items()}
             point |= dict(zip(flags, values, strict=True))
             want, got = _run(readable, point), _run(generated, point)
             for a, w in want.items():

@@ -32,7 +32,9 @@ class Outcome(IntEnum):
     robot, so there is no bearing to linearise. REINITIALISED: a landmark placed again (see
     `FilterConfig.reinit_after`). SINGULAR: the innovation covariance S of eq. (15) is singular
     or not finite (noise so small that S underflows, or so large that it overflows), so there is
-    no gain.
+    no gain. DEFERRED: a sighting of a landmark not yet mapped by a sensor that needs two
+    (a bearing alone, `ekfslam.core.models.SensorModel.triangulate`), held until a later one
+    meets it with enough parallax to place the landmark (`ekfslam.core.initialisation`).
     """
 
     INITIALISED = 0
@@ -41,6 +43,7 @@ class Outcome(IntEnum):
     REFUSED = 3
     REINITIALISED = 4
     SINGULAR = 5
+    DEFERRED = 6
 
     @property
     def label(self) -> str:
@@ -57,9 +60,10 @@ class History:
         pose_cov (K, 3, 3) its covariance.
     Per observation (M observations)
         obs_t (M,), obs_event (M,) index into the per-event arrays, obs_id (M,) landmark id,
-        obs_z (M, 2) measured (r, φ), obs_z_hat (M, 2) predicted (r, φ) before the update
-        (NaN for a new landmark, which has no prediction), obs_innovation (M, 2) z - ẑ with the
-        bearing wrapped, obs_S (M, 2, 2) innovation covariance, obs_nis (M,) νᵀ S⁻¹ ν,
+        obs_z (M, m) measured (r, φ for the seed's sensor; m the sensor's `SensorModel.size`),
+        obs_z_hat (M, m) predicted before the update (NaN for a new landmark, which has no
+        prediction), obs_innovation (M, m) z - ẑ with the bearing wrapped, obs_S (M, m, m)
+        innovation covariance, obs_nis (M,) νᵀ S⁻¹ ν,
         obs_outcome (M,) an `Outcome` code, obs_landmark (M, 2) and obs_landmark_cov
         (M, 2, 2) that landmark's estimate after the event.
     """
@@ -154,32 +158,33 @@ class KeyframeRecorder:
 
 #: Columns of one recorded event row: time, pose and the six distinct entries of its covariance.
 ROW = ("t", "x", "y", "theta", "xx", "xy", "xtheta", "yy", "ytheta", "thetatheta")
-#: Columns of one recorded observation row (NaN where a value is absent, such as a new
-#: landmark's ẑ): time, the index of its event, the landmark id, z, ẑ, ν, S (2x2, row-major),
-#: the NIS, the outcome (an `Outcome` code), the landmark's mean and covariance after it.
-OBS_ROW = (
-    "t",
-    "event",
-    "id",
-    "r",
-    "phi",
-    "r_hat",
-    "phi_hat",
-    "nu_r",
-    "nu_phi",
-    "S00",
-    "S01",
-    "S10",
-    "S11",
-    "nis",
-    "outcome",
-    "mx",
-    "my",
-    "Mxx",
-    "Mxy",
-    "Myx",
-    "Myy",
-)
+#: The columns every observation row has, whatever the measurement's size: time, the index of
+#: its event, the landmark id, the NIS, the outcome (an `Outcome` code), the landmark's mean and
+#: covariance after it (2x2, row-major).
+OBS_FIXED = ("t", "event", "id", "nis", "outcome", "mx", "my", "Mxx", "Mxy", "Myx", "Myy")
+
+
+def obs_row(size: int) -> tuple[str, ...]:
+    """Columns of one recorded observation row for a measurement of `size` numbers (NaN where a
+    value is absent, such as a new landmark's ẑ): `OBS_FIXED`, then z, ẑ, ν (`size` each) and
+    S (size x size, row-major): 11 + 3 m + m² floats, 21 for the seed's range and bearing."""
+    m = range(size)
+    return (
+        *OBS_FIXED,
+        *(f"z{i}" for i in m),
+        *(f"z_hat{i}" for i in m),
+        *(f"nu{i}" for i in m),
+        *(f"S{i}{j}" for i in m for j in m),
+    )
+
+
+def obs_width(size: int) -> int:
+    """How many floats an observation row of a `size`-number measurement holds (`obs_row`)."""
+    return len(OBS_FIXED) + 3 * size + size * size
+
+
+#: The seed's observation row: z = (r, φ).
+OBS_ROW = obs_row(2)
 
 
 def _span(names: tuple[str, ...], first: str, last: str) -> slice:
@@ -196,7 +201,7 @@ class RowColumns(NamedTuple):
 
 
 class ObsColumns(NamedTuple):
-    """Where each `History.obs_*` field sits in an observation row (`OBS_ROW`)."""
+    """Where each `History.obs_*` field sits in an observation row (`obs_row`)."""
 
     t: int
     event: int
@@ -204,34 +209,42 @@ class ObsColumns(NamedTuple):
     z: slice
     z_hat: slice
     innovation: slice
-    S: slice  # 2x2, row-major
+    S: slice  # m x m, row-major
     nis: int
     outcome: int
     landmark: slice
     landmark_cov: slice  # 2x2, row-major
 
 
+def obs_columns(size: int) -> ObsColumns:
+    """Where each part of an observation row of a `size`-number measurement sits."""
+    names, last = obs_row(size), size - 1
+    return ObsColumns(
+        t=names.index("t"),
+        event=names.index("event"),
+        id=names.index("id"),
+        z=_span(names, "z0", f"z{last}"),
+        z_hat=_span(names, "z_hat0", f"z_hat{last}"),
+        innovation=_span(names, "nu0", f"nu{last}"),
+        S=_span(names, "S00", f"S{last}{last}"),
+        nis=names.index("nis"),
+        outcome=names.index("outcome"),
+        landmark=_span(names, "mx", "my"),
+        landmark_cov=_span(names, "Mxx", "Myy"),
+    )
+
+
 ROW_COLUMNS = RowColumns(
     t=ROW.index("t"), pose=_span(ROW, "x", "theta"), cov=_span(ROW, "xx", "thetatheta")
 )
-OBS_COLUMNS = ObsColumns(
-    t=OBS_ROW.index("t"),
-    event=OBS_ROW.index("event"),
-    id=OBS_ROW.index("id"),
-    z=_span(OBS_ROW, "r", "phi"),
-    z_hat=_span(OBS_ROW, "r_hat", "phi_hat"),
-    innovation=_span(OBS_ROW, "nu_r", "nu_phi"),
-    S=_span(OBS_ROW, "S00", "S11"),
-    nis=OBS_ROW.index("nis"),
-    outcome=OBS_ROW.index("outcome"),
-    landmark=_span(OBS_ROW, "mx", "my"),
-    landmark_cov=_span(OBS_ROW, "Mxx", "Myy"),
-)
-#: Where the steps write (`ekfslam.core.filter.steps`): each part's first column in a row.
+OBS_COLUMNS = obs_columns(2)
+#: Where the steps write (`ekfslam.core.filter.steps`): each part's first column in a row. The
+#: measurement's part starts at OBS_Z: z at OBS_Z, ẑ at OBS_Z + m, ν at OBS_Z + 2 m, S at
+#: OBS_Z + 3 m, for z of m numbers (`obs_row`).
 ROW_T, ROW_POSE, ROW_COV = ROW.index("t"), ROW.index("x"), ROW.index("xx")
-OBS_T, OBS_EVENT, OBS_ID, OBS_Z = (OBS_ROW.index(c) for c in ("t", "event", "id", "r"))
-OBS_Z_HAT, OBS_NU, OBS_S, OBS_NIS = (OBS_ROW.index(c) for c in ("r_hat", "nu_r", "S00", "nis"))
-OBS_OUTCOME, OBS_LANDMARK, OBS_LANDMARK_COV = (OBS_ROW.index(c) for c in ("outcome", "mx", "Mxx"))
+OBS_T, OBS_EVENT, OBS_ID, OBS_NIS = (OBS_FIXED.index(c) for c in ("t", "event", "id", "nis"))
+OBS_OUTCOME, OBS_LANDMARK, OBS_LANDMARK_COV = (OBS_FIXED.index(c) for c in ("outcome", "mx", "Mxx"))
+OBS_Z = len(OBS_FIXED)
 #: Where each entry of the 3x3 pose covariance sits in a row's covariance part (`ROW_COLUMNS.cov`).
 _COV_INDEX = np.array([0, 1, 2, 1, 3, 4, 2, 4, 5])
 
@@ -240,15 +253,17 @@ class Recorder:
     """Collects events in pre-allocated arrays that double when full, and freezes them at the end.
 
     An event is its kind and one row laid out as `ROW`: 10 floats, O(1) per event whatever the
-    map size; an observation adds one row laid out as `OBS_ROW`. The filter's steps
+    map size; an observation adds one row laid out as `obs_row(size)`, size the number of
+    values in a measurement (2, the seed's range and bearing, by default). The filter's steps
     (`ekfslam.core.filter.steps`) write the rows in place: `reserve` says where.
     """
 
-    def __init__(self, capacity: int = 1024) -> None:
+    def __init__(self, capacity: int = 1024, size: int = 2) -> None:
         self.rows = np.empty((capacity, len(ROW)))
         self.kinds = np.empty(capacity, dtype=np.int8)
         self.n = 0  # events so far
-        self.obs = np.empty((capacity, len(OBS_ROW)))
+        self.size = size
+        self.obs = np.empty((capacity, obs_width(size)))
         self.m = 0  # observations so far
 
     def reserve(self, kind: int, count: int) -> int:
@@ -285,7 +300,7 @@ class Recorder:
 
     def finish(self) -> History:
         rows, obs = self.rows[: self.n], self.obs[: self.m]
-        r, o = ROW_COLUMNS, OBS_COLUMNS
+        r, o, m = ROW_COLUMNS, obs_columns(self.size), self.size
         return History(
             t=rows[:, r.t].copy(),
             event=self.kinds[: self.n].copy(),
@@ -297,7 +312,7 @@ class Recorder:
             obs_z=obs[:, o.z].copy(),
             obs_z_hat=obs[:, o.z_hat].copy(),
             obs_innovation=obs[:, o.innovation].copy(),
-            obs_S=obs[:, o.S].reshape(-1, 2, 2).copy(),
+            obs_S=obs[:, o.S].reshape(-1, m, m).copy(),
             obs_nis=obs[:, o.nis].copy(),
             obs_outcome=obs[:, o.outcome].astype(np.int8),
             obs_landmark=obs[:, o.landmark].copy(),

@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ekfslam.core.filter.history import OBS_NIS, OBS_NU, OBS_S, OBS_Z_HAT
+from ekfslam.core.filter.history import OBS_NIS
 from ekfslam.core.filter.predictions import indices
 from ekfslam.core.filter.steps import (
     Linearization,
@@ -45,6 +45,7 @@ from ekfslam.core.filter.steps import (
     jacobians,
     owed_direction,
     positive,
+    record_innovation,
     sensor,
     solve_lower,
     solve_upper,
@@ -64,9 +65,10 @@ def linearise(
 ) -> Array:
     """Iterate the linearisation point of one observation of the landmark at l (see the module).
 
-    obs (`OBS_ROW`) receives the first linearisation's ẑ, ν, S and NIS, as `correct` writes them.
-    Returns (8,): the point (5,) at which to evaluate H and the equivalent observation z' (2,),
-    for `correct` with no gate, and how many linearisations were run up to the one taken; or NaN
+    obs (`obs_row`) receives the first linearisation's ẑ, ν, S and NIS, as `correct` writes them.
+    Returns (6 + m,): the point (5,) at which to evaluate H and the equivalent observation z'
+    (m,), for `correct` with no gate, and how many linearisations were run up to the one taken;
+    or NaN
     when the first linearisation is refused, singular or gated (`correct` as without iterations
     then finds the same verdict).
     """
@@ -79,10 +81,11 @@ def linearise(
         P[3:, 3:] += owed[0] * np.outer(v, v)
     x_hat = np.concatenate((mu[:3], mu[l : l + 2]))
     C_Q = cholesky(Q)
-    result = np.full(8, np.nan)
+    m = z.shape[0]
+    result = np.full(6 + m, np.nan)
     delta = np.zeros(5)  # δ on (x, y, θ, mx, my)
-    z_hat_0 = np.zeros(2)  # h(x̂)
-    on_probation = np.full(8, np.nan)  # linearisation it - 1: taken if its step lowers the cost
+    z_hat_0 = np.zeros(m)  # h(x̂)
+    on_probation = np.full(6 + m, np.nan)  # linearisation it - 1: taken if its step lowers the cost
     prior = best = 0.0
     for it in range(iterations + 1):  # the last pass only scores where the last step landed
         x = retract(x_hat, delta) if invariant else x_hat + delta  # x(δ)
@@ -100,25 +103,27 @@ def linearise(
         if it == 0:
             w = solve_lower(C, r)
             nis = w @ w
-            obs[OBS_Z_HAT : OBS_Z_HAT + 2] = z_hat
-            obs[OBS_NU : OBS_NU + 2] = r
-            obs[OBS_S], obs[OBS_S + 1], obs[OBS_S + 2] = S[0, 0], S[1, 0], S[1, 0]
-            obs[OBS_S + 3], obs[OBS_NIS] = S[1, 1], nis
+            record_innovation(obs, z_hat, r, S)
+            obs[OBS_NIS] = nis
             if nis > gate or not positive(C_Q):
                 return result
             z_hat_0 = z_hat
-            result[:5], result[5:7], result[7] = x, z_hat_0 + r, 1  # the plain EKF's, always taken
+            result[:5], result[5 : 5 + m], result[5 + m] = (
+                x,
+                z_hat_0 + r,
+                1,
+            )  # the plain EKF's, always taken
         else:  # the MAP cost at δ_it, where the last step landed
             t = solve_lower(C_Q, sensor.innovation(z, z_hat))
             cost = 0.5 * t @ t + prior  # ½ tᵀ Q⁻¹ t + the prior's
             if it >= 2:  # did linearisation it - 1's step lower it? Then it is the one to take
                 if not cost < best:
                     break
-                result[:7], result[7] = on_probation[:7], it
+                result[: 5 + m], result[5 + m] = on_probation[: 5 + m], it
             best = cost
             if it == iterations:
                 break
-            on_probation[:5], on_probation[5:7] = x, z_hat_0 + r
+            on_probation[:5], on_probation[5 : 5 + m] = x, z_hat_0 + r
         w = solve_upper(C, solve_lower(C, r))  # S⁻¹ r = C⁻ᵀ C⁻¹ r
         # ½ δᵀ Σ⁻¹ δ at the next point, δ = Σ Hᵀ w: ½ wᵀ (S - Q) w, no inverse of Σ needed
         prior = 0.5 * w @ (S - Q) @ w
@@ -126,6 +131,6 @@ def linearise(
         moved = np.max(np.abs(step - delta))
         delta = step
         if it > 0 and moved < TOLERANCE:  # converged: this step lands where it started
-            result[:7], result[7] = on_probation[:7], it + 1
+            result[: 5 + m], result[5 + m] = on_probation[: 5 + m], it + 1
             break
     return result

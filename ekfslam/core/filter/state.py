@@ -89,9 +89,9 @@ class FilterState:
         self._ids: list[int] = []
         self.slot: dict[int, int] = {}
         self._counts = dict.fromkeys((f.name for f in fields(FilterCounts)), 0)
-        self._recorder = Recorder() if record else None
         self.motion = self.config.motion or ODOMETRY
         self.sensor = self.config.sensor or RANGE_BEARING
+        self._recorder = Recorder(size=self.sensor.size) if record else None
         self._events = 0  # run on the Python steps since "auto" last looked (`auto_steps`)
         self._look_at = math.inf  # ... when it looks again
         if self.config.backend == "auto":

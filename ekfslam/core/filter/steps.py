@@ -40,13 +40,9 @@ from ekfslam.core.filter.history import (
     OBS_LANDMARK,
     OBS_LANDMARK_COV,
     OBS_NIS,
-    OBS_NU,
     OBS_OUTCOME,
-    OBS_ROW,
-    OBS_S,
     OBS_T,
     OBS_Z,
-    OBS_Z_HAT,
     OBSERVE,
     PREDICT,
     ROW,
@@ -54,6 +50,7 @@ from ekfslam.core.filter.history import (
     ROW_POSE,
     ROW_T,
     Outcome,
+    obs_width,
 )
 from ekfslam.core.filter.symmetric import (
     diagonal_block,
@@ -109,9 +106,10 @@ class Storage(NamedTuple):
 class Batch(NamedTuple):
     """K control increments to predict through (`predict`).
 
-    u : (K, 3) body-frame increments (Δux, Δuy, Δθ), eq. (4); dt : (K,) s; t : (K,) s, the time
-    after each. N : (3, 3) the noise: the control covariance per second M when per_second (step
-    k gets R_k = V (M dt_k) Vᵀ), else a fixed state-space R for every step (the seed's way).
+    u : (K, k) controls, k the motion model's `control_size` (the seed's body-frame increments
+    (Δux, Δuy, Δθ), eq. (4)); dt : (K,) s; t : (K,) s, the time after each. N : the noise: the
+    control covariance per second M (k, k) when per_second (step k gets R_k = V (M dt_k) Vᵀ),
+    else a fixed state-space R (3, 3) for every step (the seed's way).
     """
 
     u: Array
@@ -124,7 +122,8 @@ class Batch(NamedTuple):
 class Update(NamedTuple):
     """One observation as the correction uses it (`correct`).
 
-    z : (2,) the measurement, eq. (10); Q : (2, 2) its noise, eq. (11); gate : the largest NIS
+    z : (m,) the measurement, eq. (10) (m: the sensor's `SensorModel.size`); Q : (m, m) its
+    noise, eq. (11); gate : the largest NIS
     accepted (inf: no gate); point : (5,) the pose and the landmark at which H is evaluated
     (the estimate; FEJ's first estimates; the iterated update's last point).
     """
@@ -251,12 +250,12 @@ def advance(block: Array, u: Array, N: Array, dt: float, per_second: bool, lin: 
     """
     pose, before, owed = block[POSE:COV], block[BEFORE:OWED], block[OWED:BLOCK]
     P, G_batch = block[COV:PRODUCT].reshape(3, 3), block[PRODUCT:BEFORE].reshape(3, 3)
-    G = motion.F_x(pose, u)  # eq. (7), at the pose before the step
+    G = motion.F_x(pose, u, dt)  # eq. (7), at the pose before the step
     R = N
-    if per_second:  # eq. (9)'s R: the control noise through V, R = V M Vᵀ
-        V = motion.F_v(pose)
+    if per_second:  # eq. (9)'s R: the control noise through V (3 x k), R = V M Vᵀ
+        V = motion.F_v(pose, u, dt)
         R = V @ (N * dt) @ V.T
-    pose[:] = motion.f(pose, u)  # eq. (6)
+    pose[:] = motion.f(pose, u, dt)  # eq. (6)
     if lin == Linearization.INVARIANT:  # ξ's motion Jacobian is I; its noise A R Aᵀ
         G = np.eye(3)
         A = invariant_noise_map(pose)
@@ -271,12 +270,13 @@ def advance(block: Array, u: Array, N: Array, dt: float, per_second: bool, lin: 
 
 #: The steps the compiled filter runs as straight-line code generated from their lines
 #: (`ekfslam.core.filter.generate`), with the shapes of their arguments (a flag: its values, a
-#: list).
+#: list; "control": the motion model's `MotionModel.control_size`; N's shape by per_second: the
+#: control covariance per second, k x k, or the fixed state-space R, 3x3).
 STRAIGHT_LINE = {
     "advance": {
         "block": (BLOCK,),
-        "u": (3,),
-        "N": (3, 3),
+        "u": ("control",),
+        "N": {"per_second": {True: ("control", "control"), False: (3, 3)}},
         "dt": (),
         "per_second": [False, True],
         "lin": [int(v) for v in Linearization],
@@ -329,12 +329,15 @@ def correct(storage: Storage, d: int, l: int, update: Update, obs: Array) -> int
 
     Only ACCEPTED changes μ and Σ. REJECTED: the NIS exceeds the gate. REFUSED: the landmark, or
     the point H is evaluated at, sits on the robot. SINGULAR: S is not positive definite, or not
-    finite. obs (`OBS_ROW`) receives ẑ, ν, S and the NIS, NaN where not reached.
+    finite. obs (`obs_row`) receives ẑ, ν, S and the NIS, NaN where not reached. z has the
+    sensor's m numbers (`SensorModel.size`), Q is m x m, S too: its Cholesky factor is a
+    loop over m (`cholesky`), 2x2 for the seed's range and bearing, 1x1 for a bearing.
     """
     mu, Sigma, _, owed, lin = storage
     z, Q, gate, point = update
     r, L = slice(0, 3), slice(l, l + 2)
-    obs[OBS_Z_HAT : OBS_NIS + 1] = np.nan
+    obs[OBS_Z + z.shape[0] :] = np.nan  # ẑ, ν, S
+    obs[OBS_NIS] = np.nan
     if not (apart(mu[r], mu[L]) and apart(point[:3], point[3:])):
         return Outcome.REFUSED.value
     z_hat = sensor.h(mu[r], mu[L])  # eq. (13)
@@ -346,9 +349,7 @@ def correct(storage: Storage, d: int, l: int, update: Update, obs: Array) -> int
         v = owed_direction(storage, d)
         HSigma += rho * np.outer(H_l @ v[L], v)
     S = HSigma[:, r] @ H_r.T + HSigma[:, L] @ H_l.T + Q  # eq. (15)'s H Σ Hᵀ + Q
-    obs[OBS_Z_HAT : OBS_Z_HAT + 2] = z_hat
-    obs[OBS_NU : OBS_NU + 2] = nu
-    obs[OBS_S], obs[OBS_S + 1], obs[OBS_S + 2], obs[OBS_S + 3] = S[0, 0], S[1, 0], S[1, 0], S[1, 1]
+    record_innovation(obs, z_hat, nu, S)
     C = cholesky(S)  # S = C Cᵀ
     if not positive(C):
         return Outcome.SINGULAR.value
@@ -371,6 +372,18 @@ def correct(storage: Storage, d: int, l: int, update: Update, obs: Array) -> int
     else:
         subtract_products(Sigma, d, W, W)  # eq. (16): Σ - K S Kᵀ = (I - K H) Σ
     return Outcome.ACCEPTED.value
+
+
+def record_innovation(obs: Array, z_hat: Array, nu: Array, S: Array) -> None:
+    """ẑ, ν (m,) and S (m, m) into an observation row (`obs_row`), S's lower triangle written to
+    both halves (the history's S exactly symmetric, as Σ is kept)."""
+    m = z_hat.shape[0]
+    obs[OBS_Z + m : OBS_Z + 2 * m] = z_hat
+    obs[OBS_Z + 2 * m : OBS_Z + 3 * m] = nu
+    at = OBS_Z + 3 * m
+    for i in range(m):
+        for j in range(m):
+            obs[at + i * m + j] = S[i, j] if i >= j else S[j, i]
 
 
 def sight(storage: Storage, d: int, l: int, sighting: Sighting, row: Array, obs: Array) -> int:
@@ -398,7 +411,7 @@ def feed(storage: Storage, d: int, pieces: Batch, plan: Plan, tape: Tape, at: ND
     sightings, pending, stop_on_reject, clock = plan[9:]
     rows, kinds, obs = tape
     recording = rows.shape[0] > 0
-    spare_row, spare_obs = np.empty(len(ROW)), np.empty(len(OBS_ROW))  # when nothing is kept
+    spare_row, spare_obs = np.empty(len(ROW)), np.empty(obs_width(z.shape[1]))  # nothing kept
     i, done, n, m = at[AT_DETECTION], at[AT_PIECE], at[AT_ROW], at[AT_OBS]
     while i <= upto.shape[0]:
         p = upto[i] if i < upto.shape[0] else u.shape[0]  # after the last detection: the end
@@ -509,7 +522,8 @@ def place_landmark(storage: Storage, d: int, l: int, update: Update, seed_varian
     Its covariance through eq. (12)'s Jacobians, Σ[L, :d] = G_r Σ[r, :d] (its correlation with
     the robot and every mapped landmark) and Σ[L, L] = G_r Σ[r, r] G_rᵀ + G_z Q G_zᵀ; or, with
     seed_variance > 0, eq. (3)'s "infinite" covariance as seed_variance I, uncorrelated (the
-    seed's way, followed by an update with the same sighting).
+    seed's way, followed by an update with the same sighting). For an invertible sensor
+    (`SensorModel.g`); one that needs two sightings is placed by `set_landmark`.
     """
     mu, Sigma, first, _, lin = storage
     z, Q, _, _ = update
@@ -530,6 +544,16 @@ def place_landmark(storage: Storage, d: int, l: int, update: Update, seed_varian
     set_rows(Sigma, l, d, rows)
 
 
+def set_landmark(storage: Storage, d: int, l: int, landmark: Array, rows: Array) -> None:
+    """Put a landmark at `landmark` (2,) into rows l, l+1 (d counts them) with its rows of Σ,
+    rows (2, d) = Σ[L, :d], its own block included: where two sightings placed it, with its
+    cross-covariance (`ekfslam.core.filter.delayed.Clones.place`)."""
+    mu, Sigma, first, _, _ = storage
+    mu[l : l + 2] = landmark
+    first[l : l + 2] = landmark  # FEJ: its first estimate
+    set_rows(Sigma, l, d, rows)
+
+
 # -------------------------------------------------------------------------------- history
 def record_pose(row: Array, t: float, pose: Array, P: Array, lin: int) -> None:
     """One event row (`ROW`): the time, the pose and its covariance (Cartesian, always)."""
@@ -546,13 +570,13 @@ def record_observation(
     storage: Storage, d: int, l: int, observed: Observed, row: Array, obs: Array
 ) -> None:
     """The state after an observation into its event row (`ROW`) and the observation into its
-    row (`OBS_ROW`, whose ẑ, ν, S and NIS `correct` wrote). l < 0: the landmark has no slot
+    row (`obs_row`, whose ẑ, ν, S and NIS `correct` wrote). l < 0: the landmark has no slot
     (a refused first sighting), so its estimate is NaN. Covariances are Cartesian."""
     mu, Sigma, _, owed, lin = storage
     t, landmark_id, z, outcome, event = observed
     record_pose(row, t, mu[:3], diagonal_block(Sigma, 0, 3), lin)
     obs[OBS_T], obs[OBS_EVENT], obs[OBS_ID] = t, event, landmark_id
-    obs[OBS_Z : OBS_Z + 2] = z
+    obs[OBS_Z : OBS_Z + z.shape[0]] = z
     obs[OBS_OUTCOME] = outcome
     if l < 0:
         obs[OBS_LANDMARK : OBS_LANDMARK_COV + 4] = np.nan
