@@ -176,14 +176,24 @@ class HypothesisBank:
                     option = (*best[:i], j, *best[i + 1 :])
                     options.setdefault(option, [])
         chi2 = af.joint_gates(m)
+        # every option's `log_likelihood` and free NIS in one compiled call (`option_likelihoods`)
+        table = np.array(list(options), dtype=np.int64).reshape(len(options), m)
+        scores, free_of = np.empty((len(options), 2)), np.empty((len(options), m))
+        Qs = np.empty((m, 2, 2))
+        Qs[:] = Q
+        af.ekf.steps.option_likelihoods((nu, P, nis), Qs, table, scores, free_of)
         out = []
-        for option, free in options.items():
-            pairs = [(i, j) for i, j in enumerate(option) if j >= 0]
-            ll, d2 = log_likelihood(pairs, nu, P, Q)
-            if option != best and pairs and d2 > chi2[len(pairs)]:
+        for b, (option, free) in enumerate(options.items()):
+            pairs = sum(j >= 0 for j in option)
+            ll, d2 = float(scores[b, 0]), float(scores[b, 1])
+            if option != best and pairs and d2 > chi2[pairs]:
                 continue
-            gain = ll + cfg.new_log_density * (m - len(pairs))
-            free = free if option == best else _free_nis(nis, P, Q, option, cfg)
+            gain = ll + cfg.new_log_density * (m - pairs)
+            if option != best and cfg.new_rule == "threshold":  # `_free_nis`'s, compiled
+                smallest = free_of[b].tolist()
+                free = [math.inf if j == NEW else f for j, f in zip(option, smallest, strict=True)]
+            elif option != best:
+                free = _free_nis(nis, P, Q, option, cfg)
             out.append((gain, option, free))
         return out
 
