@@ -136,12 +136,11 @@ class AssociationThresholds:
 #: MRCLAM 1% and 2% differ only by one false alarm of nn (never auto's choice), and on the
 #: realistic seed square 2% calls ok a JCBB map 1.7x known's with 81.5% of its sightings right
 #: (1.96% dropped).
-#: The worst landmark's share beyond the bound (issue 39, 2026-12-08): 15%, the value three of the
-#: four folds choose (the fourth, trained on Datasets 1, 2 and 4, 10%); measured on every jcbb
-#: replay and on every replay of Dataset 4 robot 2 (the other rows were stored before the figure
-#: existed and read as 0: they raise no alarm by it). It calls Dataset 4 robot 2's jcbb, jcbb x2
-#: and mht h3 maps (2.2-2.3x known, 23-27% of one landmark's sightings beyond the bound)
-#: suspect; mht's map of that robot, 2.05x known, has no landmark beyond 1.3% and stays ok.
+#: The worst landmark's share beyond the bound (issue 39, 2026-12-08): 15%, the choice of three
+#: of the four folds (the fourth, Dataset 1 held out, 20%) and of all four datasets. It calls
+#: Dataset 4 robot 2's jcbb, jcbb x2 and mht h3 maps (2.2-2.3x known, 23-27% of one landmark's
+#: sightings beyond the bound) suspect and raises no false alarm of its own; mht's map of that
+#: robot, 2.05x known, has no landmark beyond 1.3% and stays ok.
 ASSOCIATION_THRESHOLDS = AssociationThresholds(
     late_foundings=2, outlier_share=0.01, landmark_outlier_share=0.15
 )
