@@ -34,6 +34,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "studies.cli.association_auto",
         "with hidden ids: every MRCLAM robot by nn, jcbb, mht, two passes and auto; thresholds",
     ),
+    "noise-fit": (
+        "studies.cli.noise_fit",
+        "--noise fit on every MRCLAM robot: the default's map, the fit's, the one kept",
+    ),
     "vision-eval": (
         "studies.cli.vision_eval",
         "score range and bearing from rendered frames against the truth",

@@ -233,6 +233,7 @@ THRESHOLD_GRID: dict[str, tuple[float, ...]] = {
     "duplicate_pairs": (1, 2, 3, math.inf),
     "ambiguous_share": (0.005, 0.01, 0.02, math.inf),
     "outlier_share": (0.01, 0.0125, 0.015, 0.02, 0.03, 0.05, 0.15),
+    "landmark_outlier_share": (0.1, 0.15, 0.2, 0.25, 0.3, math.inf),
 }
 
 

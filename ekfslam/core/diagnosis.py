@@ -102,6 +102,9 @@ SUSPECT_AMBIGUOUS = 0.01
 #: (MRCLAM's ranges: 0.1-0.3 m), so that two estimates made certain by many sightings of one
 #: biased stretch still count as one.
 DUPLICATE_RESOLUTION = 0.1
+#: With hidden ids, a landmark's share of sightings beyond the χ² bound counts (the worst
+#: landmark's, `Diagnosis.landmark_outlier_share`) once it has this many tested sightings.
+LANDMARK_MIN = 20
 
 
 @dataclass(frozen=True)
@@ -111,13 +114,15 @@ class AssociationThresholds:
     late_foundings : landmarks founded in the second half of the run. ambiguous_share :
     sightings dropped as ambiguous. outlier_share : sightings beyond the χ² 99% bound (the
     ids known: `SUSPECT_SHARE`). duplicate_pairs : pairs of landmarks the sensor cannot tell
-    apart (`DUPLICATE_RESOLUTION`).
+    apart (`DUPLICATE_RESOLUTION`). landmark_outlier_share : one landmark's sightings beyond the
+    bound (`Diagnosis.landmark_outlier_share`: two landmarks merged into one).
     """
 
     late_foundings: float = SUSPECT_LATE_FOUNDINGS
     ambiguous_share: float = SUSPECT_AMBIGUOUS
     outlier_share: float = SUSPECT_SHARE
     duplicate_pairs: float = math.inf
+    landmark_outlier_share: float = math.inf
 
 
 #: What `diagnose` uses with hidden ids (the class's defaults are issue 26's, before the share
@@ -131,7 +136,14 @@ class AssociationThresholds:
 #: MRCLAM 1% and 2% differ only by one false alarm of nn (never auto's choice), and on the
 #: realistic seed square 2% calls ok a JCBB map 1.7x known's with 81.5% of its sightings right
 #: (1.96% dropped).
-ASSOCIATION_THRESHOLDS = AssociationThresholds(late_foundings=2, outlier_share=0.01)
+#: The worst landmark's share beyond the bound (issue 39, 2026-12-08): 15%, the choice of three
+#: of the four folds (the fourth, Dataset 1 held out, 20%) and of all four datasets. It calls
+#: Dataset 4 robot 2's jcbb, jcbb x2 and mht h3 maps (2.2-2.3x known, 23-27% of one landmark's
+#: sightings beyond the bound) suspect and raises no false alarm of its own; mht's map of that
+#: robot, 2.05x known, has no landmark beyond 1.3% and stays ok.
+ASSOCIATION_THRESHOLDS = AssociationThresholds(
+    late_foundings=2, outlier_share=0.01, landmark_outlier_share=0.15
+)
 
 #: What to try, by what was seen.
 ADVICE_TOO_SMALL = "R or Q is too small for this log; try --noise fit"
@@ -188,6 +200,13 @@ class Diagnosis:
         sensor cannot tell apart (see the module); None with the ids known.
     association_reasons : of `reasons`, those about the decisions with hidden ids (the
         thresholds of `AssociationThresholds`); () with the ids known.
+    landmark_outlier_share, worst_landmark : with hidden ids, the largest share of one
+        landmark's tested sightings beyond the χ² bound, over the landmarks with at least
+        `LANDMARK_MIN` of them, and that landmark's id (0.0 and None when none has so many);
+        None with the ids known. Two landmarks merged into one leave a landmark whose
+        sightings come from two places: on MRCLAM Dataset 4 robot 2 JCBB paired sightings of
+        five landmarks with their neighbours' in the first 10 s, and one landmark rejected 27%
+        of its sightings where every other rejected under 1%.
     """
 
     verdict: Verdict
@@ -216,6 +235,8 @@ class Diagnosis:
     landmarks: int = 0
     duplicate_pairs: int | None = None
     association_reasons: tuple[str, ...] = ()
+    landmark_outlier_share: float | None = None
+    worst_landmark: int | None = None
 
     @property
     def ok(self) -> bool:
@@ -273,6 +294,8 @@ class Diagnosis:
                 "late_foundings": self.late_foundings,
                 "ambiguous_share": self.ambiguous_share,
                 "duplicate_pairs": self.duplicate_pairs,
+                "landmark_outlier_share": self.landmark_outlier_share,
+                "worst_landmark": self.worst_landmark,
                 "reasons": list(self.association_reasons),
             },
             "landmarks": self.landmarks,
@@ -304,6 +327,7 @@ def diagnose(
     if association is not None:
         outcome = np.asarray(h.obs_outcome)
         figures["duplicate_pairs"] = duplicate_pairs(h)
+        figures["landmark_outlier_share"], figures["worst_landmark"] = worst_landmark(h)
         founded = np.asarray(h.obs_t, dtype=float)[outcome == Outcome.INITIALISED] - start
         figures["late_foundings"] = int(np.count_nonzero(founded > duration / 2))
         decided = len(association.estimated)
@@ -372,6 +396,24 @@ def _figures(
     return figures, _windows(out, nis, t)
 
 
+def worst_landmark(history: History, least: int = LANDMARK_MIN) -> tuple[float, int | None]:
+    """The largest share of one landmark's tested sightings (accepted, rejected or
+    re-initialised) beyond the χ²(2) 99% quantile, over the landmarks with at least `least` of
+    them, and that landmark's id; (0.0, None) when none has so many."""
+    outcome = np.asarray(history.obs_outcome)
+    tested = np.isin(outcome, (Outcome.ACCEPTED, Outcome.REJECTED, Outcome.REINITIALISED))
+    nis = np.asarray(history.obs_nis, dtype=float)[tested]
+    out = (outcome[tested] != Outcome.ACCEPTED) | ~(nis <= OUTLIER_NIS)
+    ids = np.asarray(history.obs_id)[tested]
+    landmarks, index, counts = np.unique(ids, return_inverse=True, return_counts=True)
+    shares = np.bincount(index, weights=out, minlength=len(landmarks)) / np.maximum(counts, 1)
+    shares[counts < least] = -1.0
+    if not len(shares) or shares.max() < 0:
+        return 0.0, None
+    k = int(np.argmax(shares))
+    return float(shares[k]), int(landmarks[k])
+
+
 def duplicate_pairs(history: History, resolution: float = DUPLICATE_RESOLUTION) -> int:
     """Pairs of landmarks whose final estimates (each one's last row of ``obs_landmark``) differ
     by less than the χ²(2) 99% ellipse of their covariances together plus `resolution`² (m) on
@@ -396,9 +438,9 @@ def duplicate_pairs(history: History, resolution: float = DUPLICATE_RESOLUTION) 
 def association_reasons(figures: dict, thresholds: AssociationThresholds) -> list[str]:
     """What makes the decisions of a replay with hidden ids suspect, in words (empty: none).
 
-    figures : ``late_foundings``, ``ambiguous_share``, ``duplicate_pairs`` and
-    ``outlier_share`` (a `Diagnosis`'s fields, or its ``as_dict()``'s flattened); a
-    ``late_foundings`` of None (the ids known) gives none.
+    figures : ``late_foundings``, ``ambiguous_share``, ``duplicate_pairs``,
+    ``landmark_outlier_share`` (absent: 0) and ``outlier_share`` (a `Diagnosis`'s fields, or
+    its ``as_dict()``'s flattened); a ``late_foundings`` of None (the ids known) gives none.
     """
     if figures.get("late_foundings") is None:
         return []
@@ -423,6 +465,12 @@ def association_reasons(figures: dict, thresholds: AssociationThresholds) -> lis
         out.append(
             f"{figures['duplicate_pairs']} pair(s) of landmarks the sensor cannot tell apart "
             "(duplicates)"
+        )
+    worst = figures.get("landmark_outlier_share") or 0.0
+    if worst >= t.landmark_outlier_share:
+        out.append(
+            f"landmark {figures.get('worst_landmark')} has {100 * worst:.0f}% of its sightings "
+            "beyond the χ² 99% bound (two landmarks merged into one?)"
         )
     return out
 

@@ -167,10 +167,37 @@ def test_with_hidden_ids_many_ambiguous_sightings_are_suspect() -> None:
         "late_foundings": 0,
         "ambiguous_share": 3 / 201,
         "duplicate_pairs": 0,
+        "landmark_outlier_share": 0.0,
+        "worst_landmark": 0,
         "reasons": ["1% of sightings dropped as ambiguous (landmarks merged?)"],
     }
     few = dg.diagnose(_history([I] + [A] * 200), association=_log(201, 1))  # 0.5%: ok
     assert few.verdict == "ok"
+
+
+def test_with_hidden_ids_one_landmark_rejecting_a_share_of_its_sightings_is_a_merge() -> None:
+    """Issue 39: Dataset 4 robot 2's JCBB map, 2.3x known's, was called ok; one of its landmarks
+    rejected 27% of its sightings (two landmarks merged into one), every other under 1%."""
+    ids = [0] + [1] + [0, 1] * 100 + [2] + [2] * 15 + [0] * 100  # landmark 2: too few to count
+    outcomes = [I, I] + [A, A] * 100 + [I] + [R] * 9 + [A] * 6 + [A] * 100  # 2: not misplaced
+    for k in range(30):
+        outcomes[3 + 2 * k] = R  # landmark 1 rejects 30 of its 100
+    h = _history(outcomes, ids=ids)
+    assert dg.worst_landmark(h) == (pytest.approx(0.3), 1)
+    assert dg.worst_landmark(h, least=10) == (pytest.approx(0.6), 2)
+    assert dg.worst_landmark(_history([I, I], ids=[0, 1])) == (0.0, None)
+    strict = dg.AssociationThresholds(outlier_share=1.0, landmark_outlier_share=0.25)
+    d = dg.diagnose(h, association=_log(len(ids), 0), thresholds=strict)
+    assert (d.landmark_outlier_share, d.worst_landmark) == (pytest.approx(0.3), 1)
+    assert d.verdict == "suspect"
+    assert d.association_reasons == (
+        "landmark 1 has 30% of its sightings beyond the χ² 99% bound (two landmarks merged "
+        "into one?)",
+    )
+    loose = dataclasses.replace(strict, landmark_outlier_share=0.35)
+    assert dg.diagnose(h, association=_log(len(ids), 0), thresholds=loose).verdict == "ok"
+    known = dg.diagnose(h)  # with the ids known: not asked
+    assert (known.landmark_outlier_share, known.worst_landmark) == (None, None)
 
 
 def _placed(outcomes, ids, positions, cov) -> History:

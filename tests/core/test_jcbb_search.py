@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from ekfslam.core.association import AssociationConfig, individual_nis, jcbb
+from ekfslam.core.filter import mht
 from ekfslam.core.filter.associating import AssociatingFilter, free_nis
 from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.models import observation, observation_noise
@@ -67,3 +68,36 @@ def test_the_filters_predictions_are_h_sigma_ht(backend):
     got = f.ekf.predictions(zs, Q)
     np.testing.assert_allclose(got.nu, nu, rtol=0, atol=1e-12)
     np.testing.assert_allclose(got.P, P, rtol=1e-9, atol=1e-15)
+
+
+@pytest.mark.parametrize("backend", ["python", "numba"])
+def test_the_option_likelihoods_are_mhts_joint_gaussian_and_free_nis(backend):
+    """Issue 39: mht scores all of a hypothesis' options in one compiled call; each is the
+    readable `mht.log_likelihood` (the stacked pairs' covariance factored by numpy) and
+    `free_nis` with the threshold rule, on random options of random cases."""
+    rng = np.random.default_rng(3)
+    for seed in range(20):
+        f, zs, Q = random_case(seed, backend=backend)
+        predicted = f._predict_all(zs, Q)
+        nu, P, nis = predicted
+        m, n = nis.shape
+        options = rng.integers(-2, n, size=(6, m))
+        for row in options:  # each landmark at most once in an option, as mht's options are
+            _, first = np.unique(row, return_index=True)
+            keep = np.zeros(m, dtype=bool)
+            keep[first] = True
+            row[~keep & (row >= 0)] = -1
+        options[0] = -1  # no pair at all
+        Qs = np.empty((m, 2, 2))
+        Qs[:] = Q
+        scores, free = np.empty((len(options), 2)), np.empty((len(options), m))
+        f.ekf.steps.option_likelihoods(tuple(predicted), Qs, options, scores, free)
+        threshold = dataclasses.replace(f.config, new_rule="threshold")
+        for b, option in enumerate(options):
+            pairs = [(i, int(j)) for i, j in enumerate(option) if j >= 0]
+            ll, d2 = mht.log_likelihood(pairs, nu, P, Q)
+            assert scores[b, 0] == pytest.approx(ll, rel=1e-10, abs=1e-10), (seed, b)
+            assert scores[b, 1] == pytest.approx(d2, rel=1e-10, abs=1e-10), (seed, b)
+            want = free_nis(nis, P, Q, option, threshold)
+            np.testing.assert_array_equal(free[b], want)
+    assert tuple(scores[0]) == (0.0, 0.0)

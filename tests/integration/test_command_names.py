@@ -67,6 +67,7 @@ def test_the_study_and_benchmark_commands_left_the_package() -> None:
         "budget",
         "vision-eval",
         "association-auto",
+        "noise-fit",
         "team-mrclam",
     }
     assert set(BENCHMARKS) == {"bench", "loop", "tune", "grading"}

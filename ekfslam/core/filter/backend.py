@@ -40,6 +40,7 @@ ROOTS: dict[str, Callable] = {
     "nearest": predictions.nearest,
     "predict_all": predictions.predict_all,
     "search": jcbb_search.search,
+    "option_likelihoods": jcbb_search.option_likelihoods,
 }
 
 #: The backends (`ekfslam.core.filter.config.FilterConfig.backend` chooses).

@@ -180,3 +180,58 @@ def search(
             if not used[j] and nis[s, j] < unclaimed[s]:
                 unclaimed[s] = nis[s, j]
     return best_value, nodes, hit
+
+
+_LOG_2PI = math.log(2.0 * math.pi)
+
+
+def option_likelihoods(
+    predicted: Predicted, Qs: Array, options: NDArray[np.int64], out: Array, free: Array
+) -> None:
+    """Score each of a hypothesis' options for ``mht`` (`ekfslam.core.filter.mht`), one factor
+    grown pair by pair as the search grows it (`_extend`).
+
+    options (B, m): each sighting's landmark index, negative for none. Writes out (B, 2): the
+    joint Gaussian log-likelihood of the option's pairs, -½(νᵀS⁻¹ν + log det 2πS) with S the
+    pairs' joint covariance plus each sighting's Qs[i] (eq. 13's ν stacked), and its joint NIS
+    νᵀS⁻¹ν ((0, 0) for no pair; (-inf, inf) when S is not positive definite); and free (B, m):
+    each sighting's smallest NIS over the landmarks the option leaves free (inf: none), what the
+    "threshold" new-landmark rule reads (`ekfslam.core.filter.associating.free_nis`).
+    """
+    nis = predicted[2]
+    m, n = nis.shape
+    factor = Factor(
+        np.zeros((2 * m, 2 * m)), np.zeros(2 * m), np.zeros((2 * m, 2)), np.zeros(m, np.int64)
+    )
+    L, pair_land = factor[0], factor[3]
+    used = np.zeros(n, dtype=np.bool_)
+    for b in range(options.shape[0]):
+        k, d2, log_diagonal, positive = 0, 0.0, 0.0, True
+        for i in range(m):
+            j = options[b, i]
+            if j < 0:
+                continue
+            step = _extend(factor, k, i, j, predicted, Qs)
+            if not step < math.inf:
+                positive = False
+                break
+            d2 += step
+            log_diagonal += math.log(L[2 * k, 2 * k]) + math.log(L[2 * k + 1, 2 * k + 1])
+            pair_land[k] = j
+            k += 1
+        if positive:
+            out[b, 0] = -0.5 * d2 - log_diagonal - k * _LOG_2PI
+            out[b, 1] = d2
+        else:
+            out[b, 0], out[b, 1] = -math.inf, math.inf
+        for j in range(n):
+            used[j] = False
+        for i in range(m):
+            if options[b, i] >= 0:
+                used[options[b, i]] = True
+        for i in range(m):
+            smallest = math.inf
+            for j in range(n):
+                if not used[j] and nis[i, j] < smallest:
+                    smallest = nis[i, j]
+            free[b, i] = smallest

@@ -77,13 +77,22 @@ def _free_nis(nis: Array, P: Array, Q: Array, option: tuple[int, ...], config) -
     return [math.inf if j == NEW else float(f) for j, f in zip(option, free, strict=True)]
 
 
-def _same(a: AssociatingFilter, b: AssociatingFilter, radius: float) -> bool:
+def _same(
+    a: AssociatingFilter,
+    b: AssociatingFilter,
+    radius: float,
+    a_mu: Array | None = None,
+    b_mu: Array | None = None,
+) -> bool:
     """Do two hypotheses hold one state: the same landmarks and tentatives, every mean within
     `radius` (m; rad for the heading)? A sighting made a tentative and one dropped leave the
-    same filter state, yet only the first can found a landmark: they are different."""
-    if len(a.ekf.mu) != len(b.ekf.mu) or len(a._tentative) != len(b._tentative):
+    same filter state, yet only the first can found a landmark: they are different. a_mu, b_mu:
+    their means, when the caller has them (``a.ekf.mu``, ``b.ekf.mu`` otherwise)."""
+    a_mu = a.ekf.mu if a_mu is None else a_mu
+    b_mu = b.ekf.mu if b_mu is None else b_mu
+    if len(a_mu) != len(b_mu) or len(a._tentative) != len(b._tentative):
         return False
-    if np.abs(a.ekf.mu - b.ekf.mu).max() > radius:
+    if np.abs(a_mu - b_mu).max() > radius:
         return False
     return all(
         np.abs(p[1] - q[1]).max() <= radius for p, q in zip(a._tentative, b._tentative, strict=True)
@@ -139,6 +148,7 @@ class HypothesisBank:
                 children.append((score + gain, h, option, free))
         children.sort(key=lambda c: -c[0])  # stable: ties keep the bank's and options' order
         kept: list[tuple[float, AssociatingFilter, tuple | None]] = []
+        means: list[Array] = []  # each kept one's mean (views: a kept child changes no more)
         radius = self.config.duplicate_radius
         for score, h, option, free in children:
             if len(kept) == self.config.hypotheses:
@@ -146,9 +156,14 @@ class HypothesisBank:
             _, parent, node = self._bank[h]
             child = parent.clone() if self.config.hypotheses > 1 else parent
             child._apply(zs, Qs, t, _pairing(option), free)
-            if any(_same(child, k, radius) for _, k, _ in kept):
+            mu = child.ekf.mu
+            if any(
+                _same(child, k, radius, mu, k_mu)
+                for (_, k, _), k_mu in zip(kept, means, strict=True)
+            ):
                 continue
             kept.append((score, child, (node, option)))
+            means.append(mu)
         self._bank = kept
 
     def _options(self, af: AssociatingFilter, zs: Array, Q: Array, t: float, rate=None):
@@ -176,14 +191,24 @@ class HypothesisBank:
                     option = (*best[:i], j, *best[i + 1 :])
                     options.setdefault(option, [])
         chi2 = af.joint_gates(m)
+        # every option's `log_likelihood` and free NIS in one compiled call (`option_likelihoods`)
+        table = np.array(list(options), dtype=np.int64).reshape(len(options), m)
+        scores, free_of = np.empty((len(options), 2)), np.empty((len(options), m))
+        Qs = np.empty((m, 2, 2))
+        Qs[:] = Q
+        af.ekf.steps.option_likelihoods((nu, P, nis), Qs, table, scores, free_of)
         out = []
-        for option, free in options.items():
-            pairs = [(i, j) for i, j in enumerate(option) if j >= 0]
-            ll, d2 = log_likelihood(pairs, nu, P, Q)
-            if option != best and pairs and d2 > chi2[len(pairs)]:
+        for b, (option, free) in enumerate(options.items()):
+            pairs = sum(j >= 0 for j in option)
+            ll, d2 = float(scores[b, 0]), float(scores[b, 1])
+            if option != best and pairs and d2 > chi2[pairs]:
                 continue
-            gain = ll + cfg.new_log_density * (m - len(pairs))
-            free = free if option == best else _free_nis(nis, P, Q, option, cfg)
+            gain = ll + cfg.new_log_density * (m - pairs)
+            if option != best and cfg.new_rule == "threshold":  # `_free_nis`'s, compiled
+                smallest = free_of[b].tolist()
+                free = [math.inf if j == NEW else f for j, f in zip(option, smallest, strict=True)]
+            elif option != best:
+                free = _free_nis(nis, P, Q, option, cfg)
             out.append((gain, option, free))
         return out
 
