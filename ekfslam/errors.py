@@ -55,6 +55,9 @@ class InputError(EkfSlamError, ValueError):
         where = f"{self.path}:{line}" if line is not None else self.path
         super().__init__(f"{where}: {self.problem}")
 
+    def __reduce__(self) -> tuple:  # across processes (a study's --jobs): its own three fields
+        return type(self), (self.path, self.line, self.problem)
+
 
 class OutputError(EkfSlamError, OSError):
     """A result cannot be written to the path the user gave; the message names that path.
@@ -72,6 +75,9 @@ class OutputError(EkfSlamError, OSError):
 
     def __str__(self) -> str:  # OSError's own would add nothing, but say it plainly
         return f"{self.path}: {self.problem}"
+
+    def __reduce__(self) -> tuple:  # across processes: OSError's own pickles its errno fields
+        return type(self), (self.path, self.problem)
 
 
 def one_line(text: str, limit: int = MAX_PROBLEM) -> str:
@@ -150,3 +156,6 @@ class Interrupted(KeyboardInterrupt):
     def __init__(self, signum: int) -> None:
         self.signum = signum
         super().__init__(signal.Signals(signum).name)
+
+    def __reduce__(self) -> tuple:
+        return type(self), (self.signum,)
