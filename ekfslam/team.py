@@ -14,10 +14,27 @@ aligned onto the joint map (least squares), and it enters the joint state at its
 with its own pose covariance turned into the joint frame plus the alignment's residual spread
 (`Entry` records when, how and from which landmarks). Its sightings before entry built its own
 map only, and are counted as such.
+
+Or it enters from robots already placed, whichever comes first: each sighting between it and a
+placed robot (it sees the placed robot's barcode, or the placed robot sees its own) gives one
+point in two frames: in the joint frame (the placed robot's centre, or the placed robot's pose
+and the sighting, eq. 12's g) and in a local frame the unplaced robot dead-reckons from its own
+odometry since its first such sighting (its own centre, or g of its local pose and the
+sighting). The rigid transform between the frames is fitted to the points by weighted least
+squares (Gauss-Newton from `weighted_kabsch`, each point weighted by the inverse covariance of
+its sighting noise and of the local pose), and the robot enters at that transform of its local
+pose once `ENTRY_ROBOT_SIGHTINGS` sightings within `ENTRY_WINDOW` s fit (χ² 99%) and fix its
+pose to `ENTRY_POSITION_SIGMA` and `ENTRY_HEADING_SIGMA`. Its covariance is the fit's, to first
+order: the sightings' and the dead reckoning's noise, and, through eq. 12's form, the placed
+robots' pose errors, so it enters correlated with them and, through them, with the map
+(`ekfslam.core.filter.team.TeamEKF.add_robot`'s ``depends``).
 """
 
 from __future__ import annotations
 
+import functools
+import importlib
+import math
 import time
 from collections import Counter
 from collections.abc import Iterable, Mapping
@@ -33,7 +50,7 @@ from ekfslam.core.filter.team import TeamEKF
 from ekfslam.core.noise import NoiseConfig, default_config, default_noise
 from ekfslam.core.recovery import Recovery, RecoveryConfig
 from ekfslam.errors import ConfigError
-from ekfslam.geometry import compose, rotation, weighted_kabsch
+from ekfslam.geometry import compose, rotation, weighted_kabsch, wrap_angle
 from ekfslam.logs.team import TeamLog, check_team
 
 Array = NDArray[np.float64]
@@ -50,17 +67,35 @@ ENTRY_SPREAD = 1.0
 #: m: the largest rms distance of the shared landmarks after the alignment for the robot to
 #: enter; a worse fit waits for more landmarks (its own map is still settling).
 ENTRY_RESIDUAL = 0.15
+#: Sightings between an unplaced robot and placed ones before it may enter from them (3: the
+#: fit of a 3-parameter pose to 2 numbers each has 3 degrees of freedom left to test it with).
+ENTRY_ROBOT_SIGHTINGS = 3
+#: s: the sightings an entry from robots uses are the last ones within this time (the placed
+#: robots' errors are taken as one error each over it; the dead reckoning drifts beyond it).
+ENTRY_WINDOW = 20.0
+#: m and rad: how well the sightings must fix the entering pose (its σ: the largest of the
+#: position's axes, and the heading's).
+ENTRY_POSITION_SIGMA = 0.1
+ENTRY_HEADING_SIGMA = 0.05
+#: The χ² probability the entry fit's residual must pass (else the oldest sighting is dropped).
+ENTRY_FIT_PROBABILITY = 0.99
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Entry:
     """How a robot entered the joint state.
 
     t : s on the team's clock. seconds : s after the team's first control row.
     how : "start" (its known start, with the others'), "anchor" (its nominal start defines the
-        frame) or "landmarks" (its own map aligned onto the joint map).
+        frame), "landmarks" (its own map aligned onto the joint map) or "robots" (sightings
+        between it and robots already placed, module docstring).
     landmarks : the shared landmarks' ids (for "landmarks").
-    residual : m, rms distance of the shared landmarks after the alignment (for "landmarks").
+    residual : m, rms distance of the shared landmarks, or of the sightings' points, after the
+        alignment (for "landmarks", "robots").
+    robots : the placed robots whose sightings placed it (for "robots").
+    sightings : how many sightings placed it (for "robots").
+    pose : (3,) where it entered, in the joint frame. covariance : (3, 3) its pose covariance
+        then (for "robots" with its correlation to the placed robots besides, module docstring).
     """
 
     t: float
@@ -68,6 +103,10 @@ class Entry:
     how: str
     landmarks: tuple[int, ...] = ()
     residual: float = 0.0
+    robots: tuple[int, ...] = ()
+    sightings: int = 0
+    pose: Array = field(default_factory=lambda: np.full(3, np.nan))
+    covariance: Array = field(default_factory=lambda: np.full((3, 3), np.nan))
 
     def describe(self) -> str:
         """One phrase: when and how."""
@@ -75,6 +114,13 @@ class Entry:
             return "at its known start"
         if self.how == "anchor":
             return "at its nominal start, which defines the map's frame"
+        if self.how == "robots":
+            names = ", ".join(map(str, self.robots))
+            return (
+                f"after {self.seconds:.1f} s, placed by {self.sightings} sightings between it "
+                f"and robot{'s' if len(self.robots) > 1 else ''} {names} (residual "
+                f"{self.residual:.3f} m)"
+            )
         ids = ", ".join(map(str, self.landmarks))
         return (
             f"after {self.seconds:.1f} s, placed by its own map's landmarks {ids} (residual "
@@ -173,6 +219,8 @@ class _Robot:
     recovery: Recovery | None = None
     rejected_in_a_row: int = 0
     sighted: list = field(default_factory=list)  # (t, landmark, NIS, Outcome) for the diagnosis
+    local: TeamEKF | None = None  # unplaced: dead reckoning since its first sighting of a placed
+    ties: list = field(default_factory=list)  # ... robot, and those sightings' points (`_Tie`)
 
 
 #: Rejected sightings in a row at the end of a run that mark a robot as lost (`RobotTrack`).
@@ -188,6 +236,7 @@ def replay_team(
     anchor: int | None = None,
     recovery: RecoveryConfig | None = DEFAULT_RECOVERY,
     known_starts: bool | None = None,
+    robot_entry: bool = True,
 ) -> TeamResult:
     """Replay a team through one joint filter (module docstring).
 
@@ -207,6 +256,8 @@ def replay_team(
         says, even with ground truth (a study of the placement on Dataset 7).
     recovery : each robot's pose covariance widened after a run of its landmark sightings are
         rejected (`ekfslam.core.recovery`, as a single replay's ``recovery``); None: never.
+    robot_entry : a robot whose start is unknown may enter from its sightings with robots
+        already placed (module docstring); False: from its own map's landmarks only.
 
     Raises
     ------
@@ -235,7 +286,13 @@ def replay_team(
         if known_starts or robot == anchor:
             joint.add_robot(robot, run.meta.nominal_start)
             how = "start" if known_starts else "anchor"
-            entries[robot] = Entry(t=float(run.controls.t[0]), seconds=0.0, how=how)
+            entries[robot] = Entry(
+                t=float(run.controls.t[0]),
+                seconds=0.0,
+                how=how,
+                pose=joint.pose(robot),
+                covariance=joint.pose_covariance(robot),
+            )
         else:
             alone[robot] = TeamEKF(gate=config.gate)
             alone[robot].add_robot(robot, run.meta.nominal_start)
@@ -275,12 +332,24 @@ def replay_team(
                 if entry is not None:
                     entries[a] = entry
                     del alone[a]
+                    state[a].local, state[a].ties = None, []
                     _record(state[a], t, joint.pose(a))
         else:  # robot a sees robot b: sighting k of the team's
             if a not in joint.rows or b not in joint.rows:
-                _predict_to(state[a], t, alone.get(a), a)
-                _predict_to(state[b], t, alone.get(b), b)
+                placed_a, placed_b = a in joint.rows, b in joint.rows
+                ok_a = _predict_to(state[a], t, joint if placed_a else alone.get(a), a)
+                ok_b = _predict_to(state[b], t, joint if placed_b else alone.get(b), b)
                 state[a].skipped += 1
+                if robot_entry and ok_a and ok_b and placed_a != placed_b:
+                    u, p = (int(b), int(a)) if placed_a else (int(a), int(b))
+                    z = (sightings.range[k], sightings.bearing[k])
+                    _tie(state[u], joint, _Tie(t, u, p, observer=a, z=z, Q=Q_of[a]))
+                    entry = _try_robot_entry(state[u], joint, u, t, t0)
+                    if entry is not None:
+                        entries[u] = entry
+                        del alone[u]
+                        state[u].local, state[u].ties = None, []
+                        _record(state[u], t, joint.pose(u))
                 continue
             ok_a = _predict_to(state[a], t, joint, a)
             ok_b = _predict_to(state[b], t, joint, b)
@@ -376,7 +445,10 @@ def _predict_to(robot: _Robot, t: float, filt: TeamEKF | None, number: int) -> b
         return False
     k = int(np.searchsorted(robot.breaks, t, side="left"))
     if k > robot.done:
-        filt.predict_many(number, robot.u[robot.done : k], robot.dt[robot.done : k], robot.N)
+        us, dts = robot.u[robot.done : k], robot.dt[robot.done : k]
+        filt.predict_many(number, us, dts, robot.N)
+        if robot.local is not None:  # its dead reckoning toward an entry from robots
+            robot.local.predict_many(number, us, dts, robot.N)
         robot.done = k
     return True
 
@@ -428,8 +500,174 @@ def _try_entry(own: TeamEKF, joint: TeamEKF, robot: int, t: float, t0: float) ->
     P += np.diag([rms**2, rms**2, (rms / spread) ** 2]) * (1.0 + 1.0 / len(shared))
     joint.add_robot(robot, pose, P)
     return Entry(
-        t=float(t), seconds=float(t - t0), how="landmarks", landmarks=tuple(shared), residual=rms
+        t=float(t),
+        seconds=float(t - t0),
+        how="landmarks",
+        landmarks=tuple(shared),
+        residual=rms,
+        pose=joint.pose(robot),
+        covariance=joint.pose_covariance(robot),
     )
+
+
+@dataclass(frozen=True)
+class _Tie:
+    """A sighting between unplaced robot `unplaced` and placed robot `placed`, at time t."""
+
+    t: float
+    unplaced: int
+    placed: int
+    observer: int
+    z: tuple[float, float]
+    Q: Array
+
+
+@dataclass(frozen=True)
+class _Point:
+    """One sighting's point in the two frames: X (2,) in the unplaced robot's local frame with
+    covariance C_X, Y (2,) in the joint frame with covariance C_Y (its sighting noise), and B
+    (2, 3) = ∂Y/∂(the placed robot's pose)."""
+
+    t: float
+    placed: int
+    X: Array
+    C_X: Array
+    Y: Array
+    C_Y: Array
+    B: Array
+
+
+def _tie(robot: _Robot, joint: TeamEKF, tie: _Tie) -> None:
+    """Add a sighting's point (`_Point`) to the unplaced robot's list, after dropping those older
+    than `ENTRY_WINDOW`; with none left, its local frame starts again at its pose now."""
+    robot.ties = [p for p in robot.ties if tie.t - p.t <= ENTRY_WINDOW]
+    u = tie.unplaced
+    if not robot.ties or robot.local is None:
+        robot.local = TeamEKF(gate=None, capacity=3)
+        robot.local.add_robot(u, np.zeros(3))
+    local, local_P = robot.local.pose(u), robot.local.pose_covariance(u)
+    placed = joint.pose(tie.placed)
+    z, Q, sensor = np.asarray(tie.z, dtype=float), tie.Q, joint.sensor
+    if tie.observer == u:  # it sees the placed robot's centre: eq. (12) in its local frame
+        G_r, G_z = sensor.G(local, z)
+        X, C_X = sensor.g(local, z), G_r @ local_P @ G_r.T + G_z @ Q @ G_z.T
+        Y, C_Y, B = placed[:2].copy(), np.zeros((2, 2)), np.eye(2, 3)
+    else:  # the placed robot sees it: eq. (12) in the joint frame
+        G_r, G_z = sensor.G(placed, z)
+        X, C_X = local[:2].copy(), local_P[:2, :2]
+        Y, C_Y, B = sensor.g(placed, z), G_z @ Q @ G_z.T, G_r
+    robot.ties.append(_Point(tie.t, tie.placed, X, C_X, Y, C_Y, B))
+
+
+def _try_robot_entry(robot: _Robot, joint: TeamEKF, u: int, t: float, t0: float) -> Entry | None:
+    """Enter unplaced robot `u` from its sightings' points (module docstring), or None."""
+    points = robot.ties
+    if len(points) < ENTRY_ROBOT_SIGHTINGS:
+        return None
+    fit = _fit_frames(points)
+    if fit is None:
+        return None
+    if fit.chi2 > _chi2_quantile(2 * len(points) - 3, ENTRY_FIT_PROBABILITY):
+        robot.ties = points[1:]  # an outlier among them: let the oldest go
+        return None
+    T = fit.T
+    local, local_P = robot.local.pose(u), robot.local.pose_covariance(u)
+    pose = compose(T, local)
+    J_T = np.eye(3)  # ∂(T ⊕ local)/∂T
+    J_T[:2] = _fit_jacobian(T, local[None, :2])[0]
+    J_local = np.eye(3)  # ∂(T ⊕ local)/∂local
+    J_local[:2, :2] = rotation(T[2])
+    cov_T = np.linalg.inv(fit.information)
+    noise = J_T @ cov_T @ J_T.T + J_local @ local_P @ J_local.T
+    # δT = cov_T Σ_k J_kᵀ W_k (δY_k - R δX_k), δY_k = B_k δ(its placed robot's pose) + noise
+    placed = np.array([p.placed for p in points])
+    B = np.array([p.B for p in points])
+    JtWB = np.einsum("kji,kjl,klm->kim", fit.J, fit.W, B)
+    depends = {int(q): J_T @ cov_T @ JtWB[placed == q].sum(axis=0) for q in np.unique(placed)}
+    Sigma = joint.Sigma
+    P = noise.copy()
+    for q, A_q in depends.items():
+        for w, A_w in depends.items():
+            rq, rw = joint.rows[q], joint.rows[w]
+            P += A_q @ Sigma[rq : rq + 3, rw : rw + 3] @ A_w.T
+    position = math.sqrt(max(np.linalg.eigvalsh(P[:2, :2])))
+    if position > ENTRY_POSITION_SIGMA or math.sqrt(P[2, 2]) > ENTRY_HEADING_SIGMA:
+        return None
+    joint.add_robot(u, pose, noise, depends=depends)
+    return Entry(
+        t=float(t),
+        seconds=float(t - t0),
+        how="robots",
+        residual=fit.rms,
+        robots=tuple(sorted(depends)),
+        sightings=len(points),
+        pose=joint.pose(u),
+        covariance=joint.pose_covariance(u),
+    )
+
+
+def _fit_jacobian(T: Array, X: Array) -> Array:
+    """∂(R(α) X_k + t)/∂(t, α) of each point X (K, 2): (K, 2, 3)."""
+    c, s = math.cos(T[2]), math.sin(T[2])
+    J = np.zeros((len(X), 2, 3))
+    J[:, 0, 0] = J[:, 1, 1] = 1.0
+    J[:, 0, 2] = -s * X[:, 0] - c * X[:, 1]
+    J[:, 1, 2] = c * X[:, 0] - s * X[:, 1]
+    return J
+
+
+@dataclass(frozen=True)
+class _Fit:
+    """`_fit_frames`' answer: T (x, y, α), its information Σ Jᵀ W J (3, 3), the χ² Σ rᵀ W r,
+    the rms |r| (m), and each point's J (K, 2, 3) and W (K, 2, 2) at T."""
+
+    T: Array
+    information: Array
+    chi2: float
+    rms: float
+    J: Array
+    W: Array
+
+
+def _fit_frames(points: list[_Point], iterations: int = 4) -> _Fit | None:
+    """The transform T (x, y, α) from the local frame to the joint frame that minimises
+    Σ rᵀ W r, r = R X + t - Y, W = (R C_X Rᵀ + C_Y)⁻¹ (Gauss-Newton from `weighted_kabsch`),
+    or None when the points do not fix it (the information is singular)."""
+    X = np.array([p.X for p in points])
+    Y = np.array([p.Y for p in points])
+    C_X = np.array([p.C_X for p in points])
+    C_Y = np.array([p.C_Y for p in points])
+    w = 1.0 / (np.trace(C_X, axis1=1, axis2=2) + np.trace(C_Y, axis1=1, axis2=2))
+    T = weighted_kabsch(X, Y, w)
+    for k in range(iterations + 1):
+        R = rotation(T[2])
+        C = np.einsum("ij,kjl,ml->kim", R, C_X, R) + C_Y
+        det = C[:, 0, 0] * C[:, 1, 1] - C[:, 0, 1] * C[:, 1, 0]
+        W = np.stack([C[:, 1, 1], -C[:, 0, 1], -C[:, 1, 0], C[:, 0, 0]], axis=1)
+        W = W.reshape(-1, 2, 2) / det[:, None, None]
+        r = X @ R.T + T[:2] - Y
+        J = _fit_jacobian(T, X)
+        JtW = np.einsum("kji,kjl->kil", J, W)
+        info = np.einsum("kil,klm->im", JtW, J)
+        # singular: the points leave the rotation (or all of it) free
+        if not np.all(det > 0.0) or np.linalg.det(info) <= 1e-12 * np.trace(info) ** 3:
+            return None
+        step = np.linalg.solve(info, np.einsum("kil,kl->i", JtW, r))
+        if k == iterations or np.max(np.abs(step)) < 1e-10:
+            break
+        T = T - step
+        T[2] = wrap_angle(T[2])
+    chi2 = float(np.einsum("ki,kij,kj->", r, W, r))
+    rms = float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+    return _Fit(T=T, information=info, chi2=chi2, rms=rms, J=J, W=W)
+
+
+@functools.cache
+def _chi2_quantile(dof: int, p: float) -> float:
+    """χ² quantile at probability p (scipy's incomplete gamma; scipy.special is loaded when a
+    robot first tries to enter from robots, not with this module)."""
+    special = importlib.import_module("scipy.special")
+    return float(2.0 * special.gammaincinv(dof / 2.0, p))
 
 
 def _pairs(points: Array) -> Iterable[tuple[Array, Array]]:

@@ -2,11 +2,13 @@
 robots replayed through one joint filter (`ekfslam.team.replay_team`).
 
 Prints the joint map's Table 1 row (eq. 17 against the true landmarks) and, per robot, how it
-entered the map, its trajectory error against Vicon where there is one, the sightings it used
-(landmarks, robots) and its diagnosis, a single replay's (`ekfslam.core.diagnosis`: does its
-replay agree with its data; a robot that does not says so on stderr, as ``run`` does), with
-whether its filter lost it at the end and how often recovery widened its pose; ``--json``
-carries the same, ``--plot FILE`` draws the robots' trajectories and the one map.
+entered the map (at its start, from its own map's landmarks, or from its sightings with robots
+already placed: `ekfslam.team`), its trajectory error against Vicon where there is one, the
+sightings it used (landmarks, robots) and its diagnosis, a single replay's
+(`ekfslam.core.diagnosis`: does its replay agree with its data; a robot that does not says so on
+stderr, as ``run`` does), with whether its filter lost it at the end and how often recovery
+widened its pose; ``--json`` carries the same, ``--plot FILE`` draws the robots' trajectories
+and the one map.
 """
 
 from __future__ import annotations
@@ -129,7 +131,10 @@ def team_dict(team, result: TeamResult, report) -> dict:
                 "how": entry.how,
                 "seconds": round(entry.seconds, 3),
                 "landmarks": list(entry.landmarks),
+                "robots": list(entry.robots),
+                "robot_sightings": entry.sightings,
                 "residual_m": entry.residual,
+                "sigma": _entry_sigma(entry),
                 "described": entry.describe(),
             },
             "trajectory": {
@@ -159,6 +164,14 @@ def team_dict(team, result: TeamResult, report) -> dict:
         "seconds": result.seconds,
         "loaded": report.as_dict(),
     }
+
+
+def _entry_sigma(entry) -> dict | None:
+    """The σ of a robot's pose as it entered (m, m, rad), or None where it is not known."""
+    sigma = np.sqrt(np.clip(np.diag(entry.covariance), 0.0, None))
+    if not np.all(np.isfinite(sigma)):
+        return None
+    return {"x": float(sigma[0]), "y": float(sigma[1]), "theta": float(sigma[2])}
 
 
 def _diagnosis(track, t0: float) -> dict:
@@ -215,7 +228,10 @@ def team_lines(out: dict) -> str:
 
 
 #: Why a robot never entered the joint map.
-NEVER = "never: its own map did not share 3 landmarks, spread 1 m or more, with the joint map"
+NEVER = (
+    "never: its own map did not share 3 landmarks, spread 1 m or more, with the joint map, nor "
+    "did its sightings with placed robots fix its pose"
+)
 
 
 def _counts(counts: dict) -> str:

@@ -36,7 +36,7 @@ from __future__ import annotations
 import functools
 import importlib
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -140,22 +140,47 @@ class TeamEKF:
         return {i: self._Sigma[l : l + 2, l : l + 2].copy() for i, l in self.slot.items()}
 
     # -------------------------------------------------------------------------- growing
-    def add_robot(self, robot: int, pose: ArrayLike, covariance: ArrayLike | None = None) -> None:
-        """Put robot `robot` into the state at `pose`, with `covariance` (3x3, zero by default)
-        and no correlation with what is already there."""
+    def add_robot(
+        self,
+        robot: int,
+        pose: ArrayLike,
+        covariance: ArrayLike | None = None,
+        depends: Mapping[int, ArrayLike] | None = None,
+    ) -> None:
+        """Put robot `robot` into the state at `pose`, with `covariance` (3x3, zero by default).
+
+        depends : {placed robot: A (3x3)}: the new pose's first-order dependence on those robots'
+            poses (δpose = Σ_p A_p δp_p + an independent error of covariance `covariance`), as a
+            new landmark depends on its observer (eq. 12): Σ[new, :] = Σ_p A_p Σ[p, :] and
+            Σ[new, new] = Σ_p Σ_q A_p Σ[p, q] A_qᵀ + covariance. None: no correlation with what
+            is already there.
+        """
         if robot in self.rows:
             raise ValueError(f"robot {robot} is already in the team's state")
         pose = np.asarray(pose, dtype=float)
         P = np.zeros((3, 3)) if covariance is None else np.asarray(covariance, dtype=float)
         if pose.shape != (3,) or P.shape != (3, 3) or not np.all(np.isfinite(pose)):
             raise ValueError(f"robot {robot}: pose must be (3,) finite, covariance (3, 3)")
+        links = {p: np.asarray(A, dtype=float) for p, A in (depends or {}).items()}
+        for p, A in links.items():
+            if p not in self.rows or A.shape != (3, 3):
+                raise ValueError(f"robot {robot}: depends on robot {p}, not placed or A not 3x3")
         self._settle()
         r = self._grow(3)
+        S = self._Sigma
         self._mu[r : r + 3] = pose
         self._mu[r + 2] = wrap_angle(float(pose[2]))
-        self._Sigma[r : r + 3, :] = 0.0
-        self._Sigma[:, r : r + 3] = 0.0
-        self._Sigma[r : r + 3, r : r + 3] = 0.5 * (P + P.T)
+        S[r : r + 3, :] = 0.0
+        S[:, r : r + 3] = 0.0
+        cross = np.zeros((3, r))
+        for p, A in links.items():
+            cross += A @ S[self.rows[p] : self.rows[p] + 3, :r]
+        block = P.copy()
+        for p, A in links.items():
+            block += cross[:, self.rows[p] : self.rows[p] + 3] @ A.T
+        S[r : r + 3, :r] = cross
+        S[:r, r : r + 3] = cross.T
+        S[r : r + 3, r : r + 3] = 0.5 * (block + block.T)
         self.rows[robot] = r
         self._headings = np.append(self._headings, r + 2)
 
