@@ -32,24 +32,27 @@ robots' pose errors, so it enters correlated with them and, through them, with t
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import importlib
 import math
 import time
 from collections import Counter
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ekfslam.core.association import UNPAIRED, AssociationConfig
 from ekfslam.core.diagnosis import Diagnosis, diagnose_sightings
+from ekfslam.core.filter.associating import AssociatingFilter
 from ekfslam.core.filter.config import FilterConfig
 from ekfslam.core.filter.history import Outcome
-from ekfslam.core.filter.team import TeamEKF
+from ekfslam.core.filter.team import RobotView, TeamEKF
 from ekfslam.core.noise import NoiseConfig, default_config, default_noise
 from ekfslam.core.recovery import Recovery, RecoveryConfig
-from ekfslam.errors import ConfigError
+from ekfslam.errors import AlignmentError, ConfigError
 from ekfslam.geometry import compose, rotation, weighted_kabsch, wrap_angle
 from ekfslam.logs.team import TeamLog, check_team
 
@@ -79,6 +82,9 @@ ENTRY_POSITION_SIGMA = 0.1
 ENTRY_HEADING_SIGMA = 0.05
 #: The χ² probability the entry fit's residual must pass (else the oldest sighting is dropped).
 ENTRY_FIT_PROBABILITY = 0.99
+#: s: with hidden ids, how often an unplaced robot's own map is matched to the joint map again
+#: when it has not grown (`replay_team`'s ``match_maps``).
+MATCH_EVERY = 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,6 +148,10 @@ class RobotTrack:
     diagnosis : does its replay agree with its data (`ekfslam.core.diagnosis.diagnose_sightings`:
         a single replay's diagnosis, over its landmark sightings, alone before it entered and in
         the joint filter after), its times from its first control.
+    estimated : hidden ids: (M,) the joint map's landmark id each of its M detections was used
+        for (`ekfslam.core.association.UNPAIRED`: none, or it had not entered), for scoring
+        (`ekfslam.analysis.association.score_team`); None with the ids known.
+    association : hidden ids: its `AssociationCounts` (alone and in the joint map), else None.
     """
 
     t: Array
@@ -154,6 +164,8 @@ class RobotTrack:
     recoveries: tuple[float, ...] = ()
     lost_at_end: bool = False
     diagnosis: Diagnosis | None = None
+    estimated: Array | None = None
+    association: dict[str, int] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -163,6 +175,8 @@ class TeamResult:
     name : the team's. robots : their numbers. landmarks : {id: (x, y)} the joint map, and its
     covariances. mu, Sigma : the final joint state (robots in `rows` order, then landmarks).
     tracks : {robot: `RobotTrack`}. entries : {robot: `Entry`}. seconds : wall time of the loop.
+    decided : with hidden ids and a ``map_noise``, the deciding pass's result (this one is the
+        mapping pass's, its tracks carrying the deciding pass's decisions); else None.
     """
 
     name: str
@@ -175,6 +189,7 @@ class TeamResult:
     tracks: dict[int, RobotTrack]
     entries: dict[int, Entry]
     seconds: float
+    decided: TeamResult | None = None
 
 
 class _OneRobot:
@@ -219,6 +234,10 @@ class _Robot:
     recovery: Recovery | None = None
     rejected_in_a_row: int = 0
     sighted: list = field(default_factory=list)  # (t, landmark, NIS, Outcome) for the diagnosis
+    chooser: AssociatingFilter | None = None  # hidden ids: decides its sightings (`RobotView`)
+    estimated: Array | None = None  # hidden ids: the joint map's id each detection was used for
+    association: Counter = field(default_factory=Counter)  # hidden ids: the choosers' counts
+    tried: tuple = (-1, -math.inf)  # hidden ids: own map's size and the time of the last match
     local: TeamEKF | None = None  # unplaced: dead reckoning since its first sighting of a placed
     ties: list = field(default_factory=list)  # ... robot, and those sightings' points (`_Tie`)
 
@@ -237,6 +256,10 @@ def replay_team(
     recovery: RecoveryConfig | None = DEFAULT_RECOVERY,
     known_starts: bool | None = None,
     robot_entry: bool = True,
+    association: AssociationConfig | None = None,
+    match_maps: Callable | None = None,
+    map_noise: NoiseConfig | Mapping[int, NoiseConfig] | None = None,
+    backend: str = "numba",
 ) -> TeamResult:
     """Replay a team through one joint filter (module docstring).
 
@@ -258,6 +281,23 @@ def replay_team(
         rejected (`ekfslam.core.recovery`, as a single replay's ``recovery``); None: never.
     robot_entry : a robot whose start is unknown may enter from its sightings with robots
         already placed (module docstring); False: from its own map's landmarks only.
+    association : None (or method "known"): the sightings' landmark ids. "nn" or "jcbb"
+        (`ekfslam.core.association.AssociationConfig`): the landmark ids hidden, each robot's
+        sightings of one time associated against the joint map (before it entered, against its
+        own) by `ekfslam.core.filter.associating.AssociatingFilter`, as a single replay's are;
+        the robots' barcodes stay known (they name robots, not landmarks). One filter decides
+        and maps (no second mapping filter, as a single MRCLAM replay has).
+    match_maps : with hidden ids, how a robot's own map is matched to the joint map for its
+        entry from landmarks: (own {id: (x, y)}, joint {id: (x, y)}) -> an object whose
+        ``mapping`` is {own id: joint id} (`ekfslam.analysis.alignment_unlabelled.
+        match_by_position`); None: a robot whose start is unknown enters from robots only.
+    map_noise : with hidden ids, the noise of a second, mapping pass that replays the
+        decisions (each sighting named by the joint map's id it was used for), as a single
+        hidden-id replay's mapping filter does (`ekfslam.pipeline.replay`'s ``map_noise``;
+        MRCLAM's: `ekfslam.logs.hidden_ids.HiddenIdDefaults.map_noise`); None: the deciding
+        filter maps.
+    backend : the association's step functions ("numba", compiled, the default: JCBB's
+        predictions interpreted cost 20x; or "python").
 
     Raises
     ------
@@ -268,6 +308,12 @@ def replay_team(
         of driving), or an anchor not in the team.
     """
     check_team(team)
+    hidden = association is not None and association.method != "known"
+    if hidden and association.method not in ("nn", "jcbb"):
+        raise ConfigError(
+            f"replay_team: association {association.method!r} is not available for a team "
+            "(nn or jcbb)"
+        )
     robots = team.robots
     noises = _noises(team, noise)
     config = config or default_config(team.runs[robots[0]])
@@ -303,38 +349,72 @@ def replay_team(
         for r in robots
     }
     Q_of = {r: noises[r].Q for r in robots}
+    for r in robots:
+        if hidden:
+            state[r].estimated = np.full(len(team.runs[r].detections.t), UNPAIRED, np.int64)
     sightings = team.sightings
 
-    for t, kind, (a, b), k in zip(times, kinds, who, index, strict=True):
-        if kind == 0:  # robot a sees landmark k of its run
-            det = team.runs[a].detections
-            z = (det.range[k], det.bearing[k])
-            if not _predict_to(state[a], t, joint if a in joint.rows else alone.get(a), a):
-                state[a].skipped += 1
+    def use(robot: int, landmark_id: int, z, Q: Array, t: float) -> Outcome:
+        """Correct with one landmark sighting of `robot`: the joint filter's (with recovery),
+        or, before it entered, its own filter's; counted for its diagnosis."""
+        s = state[robot]
+        if robot in joint.rows:
+            if s.recovery is None and recovery is not None:
+                s.recovery = Recovery(_OneRobot(joint, robot), recovery)
+            outcome = (s.recovery or _OneRobot(joint, robot)).update(landmark_id, z, Q, t)
+            s.sighted.append((t, landmark_id, joint.last_nis, int(outcome)))
+            s.landmarks[outcome.label] += 1
+            if outcome == Outcome.REJECTED:
+                s.rejected_in_a_row += 1
+            elif outcome == Outcome.ACCEPTED:
+                s.rejected_in_a_row = 0
+        else:
+            outcome = alone[robot].update(robot, z, landmark_id, Q)
+            s.sighted.append((t, landmark_id, alone[robot].last_nis, int(outcome)))
+            s.alone += 1
+        return outcome
+
+    n_events, i = len(times), 0
+    while i < n_events:
+        t, kind, (a, b), k = times[i], kinds[i], who[i], index[i]
+        if kind == 0:  # robot a sees landmark k of its run (hidden ids: all it saw at t)
+            j = i + 1
+            while hidden and j < n_events and kinds[j] == 0 and times[j] == t and who[j, 0] == a:
+                j += 1
+            ks, i, a = index[i:j], j, int(a)
+            s = state[a]
+            if not _predict_to(s, t, joint if a in joint.rows else alone.get(a), a):
+                s.skipped += len(ks)
                 continue
-            if a in joint.rows:
-                if state[a].recovery is None and recovery is not None:
-                    state[a].recovery = Recovery(_OneRobot(joint, a), recovery)
-                stepper = state[a].recovery or _OneRobot(joint, a)
-                outcome = stepper.update(int(det.tag_id[k]), z, Q_of[a], t)
-                state[a].sighted.append((t, int(det.tag_id[k]), joint.last_nis, int(outcome)))
-                state[a].landmarks[outcome.label] += 1
-                if outcome == Outcome.REJECTED:
-                    state[a].rejected_in_a_row += 1
-                elif outcome == Outcome.ACCEPTED:
-                    state[a].rejected_in_a_row = 0
-                _record(state[a], t, joint.pose(a))
+            det = team.runs[a].detections
+            if hidden:  # associated against the map as a single replay's are
+                if s.chooser is None:
+                    view = RobotView(
+                        joint if a in joint.rows else alone[a],
+                        a,
+                        functools.partial(_use_as_view, use, a),
+                        backend,
+                    )
+                    s.chooser = AssociatingFilter(view, association)
+                zs = np.column_stack([det.range[ks], det.bearing[ks]])
+                used = s.chooser.observe(zs, Q_of[a], t, *_body_rate(s, t))
+                if a in joint.rows:
+                    s.estimated[ks] = used
             else:
-                outcome = alone[a].update(a, z, int(det.tag_id[k]), Q_of[a])
-                state[a].sighted.append((t, int(det.tag_id[k]), alone[a].last_nis, int(outcome)))
-                state[a].alone += 1
-                entry = _try_entry(alone[a], joint, a, t, t0)
-                if entry is not None:
-                    entries[a] = entry
-                    del alone[a]
-                    state[a].local, state[a].ties = None, []
-                    _record(state[a], t, joint.pose(a))
-        else:  # robot a sees robot b: sighting k of the team's
+                use(a, int(det.tag_id[k]), (det.range[k], det.bearing[k]), Q_of[a], t)
+            if a in joint.rows:
+                _record(s, t, joint.pose(a))
+                continue
+            entry = _try_entry(alone[a], joint, a, t, t0, s, match_maps if hidden else None)
+            if entry is not None:
+                entries[a] = entry
+                del alone[a]
+                s.local, s.ties = None, []
+                _finish_chooser(s)
+                _record(s, t, joint.pose(a))
+            continue
+        i += 1
+        if kind == 1:  # robot a sees robot b: sighting k of the team's
             if a not in joint.rows or b not in joint.rows:
                 placed_a, placed_b = a in joint.rows, b in joint.rows
                 ok_a = _predict_to(state[a], t, joint if placed_a else alone.get(a), a)
@@ -349,6 +429,7 @@ def replay_team(
                         entries[u] = entry
                         del alone[u]
                         state[u].local, state[u].ties = None, []
+                        _finish_chooser(state[u])
                         _record(state[u], t, joint.pose(u))
                 continue
             ok_a = _predict_to(state[a], t, joint, a)
@@ -362,6 +443,8 @@ def replay_team(
             state[b].seen_by += outcome == Outcome.ACCEPTED
             _record(state[a], t, joint.pose(a))
             _record(state[b], t, joint.pose(b))
+    for robot in robots:
+        _finish_chooser(state[robot])
     for robot in robots:  # the rest of each robot's controls
         filt = joint if robot in joint.rows else alone[robot]
         _predict_to(state[robot], state[robot].breaks[-1], filt, robot)
@@ -369,7 +452,7 @@ def replay_team(
     seconds = time.perf_counter() - started
 
     tracks = {r: _track(state[r]) for r in robots}
-    return TeamResult(
+    decided = TeamResult(
         name=team.name,
         robots=robots,
         landmarks=joint.landmark_map(),
@@ -381,6 +464,50 @@ def replay_team(
         entries=entries,
         seconds=seconds,
     )
+    if not hidden or map_noise is None:
+        return decided
+    # the decisions replayed with the ids they gave, by a filter with the mapping noise
+    mapped = replay_team(
+        _as_decided(team, decided),
+        map_noise,
+        config,
+        robot_sightings=robot_sightings,
+        anchor=anchor,
+        recovery=recovery,
+        known_starts=known_starts,
+        robot_entry=robot_entry,
+    )
+    kept = {
+        r: dataclasses.replace(
+            mapped.tracks[r], estimated=tracks[r].estimated, association=tracks[r].association
+        )
+        for r in robots
+    }
+    return dataclasses.replace(
+        mapped, tracks=kept, seconds=time.perf_counter() - started, decided=decided
+    )
+
+
+def _as_decided(team: TeamLog, decided: TeamResult) -> TeamLog:
+    """The team with each robot's detections named by the joint map's ids its decisions gave
+    them, those used for none left out: the mapping pass of a hidden-id replay."""
+    runs = {}
+    for robot, run in team.runs.items():
+        d, used = run.detections, decided.tracks[robot].estimated
+        keep = used != UNPAIRED
+        sigmas = {}
+        if d.has_sigmas:
+            sigmas = {"sigma_range": d.sigma_range[keep], "sigma_bearing": d.sigma_bearing[keep]}
+        detections = dataclasses.replace(
+            d,
+            t=d.t[keep],
+            tag_id=used[keep],
+            range=d.range[keep],
+            bearing=d.bearing[keep],
+            **sigmas,
+        )
+        runs[robot] = dataclasses.replace(run, detections=detections)
+    return TeamLog(team.name, runs, team.sightings)
 
 
 # ------------------------------------------------------------------------------- plumbing
@@ -474,17 +601,36 @@ def _track(robot: _Robot) -> RobotTrack:
         recoveries=recoveries,
         lost_at_end=robot.rejected_in_a_row >= LOST_AFTER,
         diagnosis=diagnose_sightings(span, sighted[:, 0], ids, sighted[:, 2], outcomes, recoveries),
+        estimated=robot.estimated,
+        association=dict(robot.association) if robot.estimated is not None else None,
     )
 
 
-def _try_entry(own: TeamEKF, joint: TeamEKF, robot: int, t: float, t0: float) -> Entry | None:
-    """Enter `robot` into the joint state when its own map shares enough spread landmarks."""
-    shared = sorted(own.slot.keys() & joint.slot.keys())
-    if len(shared) < ENTRY_LANDMARKS:
+def _try_entry(
+    own: TeamEKF, joint: TeamEKF, robot: int, t: float, t0: float, s: _Robot, match_maps=None
+) -> Entry | None:
+    """Enter `robot` into the joint state when its own map shares enough spread landmarks: by
+    id, or, with hidden ids, as `match_maps` matches the maps (tried when its own map grew, or
+    a second after the last try)."""
+    if match_maps is None:
+        pairs = [(i, i) for i in sorted(own.slot.keys() & joint.slot.keys())]
+    else:
+        if len(own.slot) < ENTRY_LANDMARKS or len(joint.slot) < ENTRY_LANDMARKS:
+            return None
+        if s.tried[0] == len(own.slot) and t - s.tried[1] < MATCH_EVERY:
+            return None
+        s.tried = (len(own.slot), t)
+        try:
+            mapping = match_maps(own.landmark_map(), joint.landmark_map()).mapping
+        except AlignmentError:
+            return None
+        pairs = sorted(mapping.items())
+    if len(pairs) < ENTRY_LANDMARKS:
         return None
+    shared = [j for _, j in pairs]
     mine, theirs = own.landmark_map(), joint.landmark_map()
-    X = np.array([mine[i] for i in shared])
-    Y = np.array([theirs[i] for i in shared])
+    X = np.array([mine[i] for i, _ in pairs])
+    Y = np.array([theirs[j] for _, j in pairs])
     spread = max(float(np.hypot(*(p - q))) for p, q in _pairs(Y))
     if spread < ENTRY_SPREAD:
         return None
@@ -668,6 +814,29 @@ def _chi2_quantile(dof: int, p: float) -> float:
     robot first tries to enter from robots, not with this module)."""
     special = importlib.import_module("scipy.special")
     return float(2.0 * special.gammaincinv(dof / 2.0, p))
+
+
+def _use_as_view(use: Callable, robot: int, landmark_id: int, z, Q, t) -> Outcome:
+    """`RobotView`'s update: the replay's `use` for this robot."""
+    return use(robot, landmark_id, z, Q, t)
+
+
+def _finish_chooser(s: _Robot) -> None:
+    """Keep a robot's association counts and let its chooser go (it entered, or the run ended):
+    the next one decides against the joint map."""
+    if s.chooser is not None:
+        s.association.update(dataclasses.asdict(s.chooser.finish().counts))
+        s.chooser = None
+
+
+def _body_rate(robot: _Robot, t: float) -> tuple[float, tuple[float, float]]:
+    """rad/s and the body velocity (m/s) of the piece that ends at t (a time-stamp error moves
+    the pose the sightings were taken from: `ekfslam.schedule.body_rate`'s)."""
+    k = int(np.searchsorted(robot.breaks, t, side="left"))
+    if k > 0 and robot.dt[k - 1] > 0:
+        vx, vy, w = (robot.u[k - 1] / robot.dt[k - 1]).tolist()
+        return w, (vx, vy)
+    return 0.0, (0.0, 0.0)
 
 
 def _pairs(points: Array) -> Iterable[tuple[Array, Array]]:

@@ -43,8 +43,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.filter import steps
+from ekfslam.core.filter.backend import steps_for
 from ekfslam.core.filter.config import CHI2_2DOF_99
 from ekfslam.core.filter.history import Outcome
+from ekfslam.core.filter.predictions import Predicted, Rate, nearest_of, predictions_of
 from ekfslam.core.filter.rebinding import interpreted, rebind
 from ekfslam.core.models import (
     MIN_RANGE_SQUARED,
@@ -352,6 +354,77 @@ class TeamEKF:
         S[l : l + 2, l : l + 2] = 0.5 * (block + block.T)
         self.slot[landmark_id] = l
         return Outcome.INITIALISED
+
+
+class RobotView:
+    """One robot's part of a `TeamEKF` (its pose and the map) under the single filter's names
+    (`ekfslam.core.filter.ekf.EKFSLAM`'s ``mu``, ``Sigma``, ``nearest``, ``predictions``,
+    ``update`` ...), so that `ekfslam.core.filter.associating.AssociatingFilter` decides the
+    robot's sightings with hidden ids against the joint map exactly as it decides a single
+    robot's: the predictions of every landmark (eqs. 13-15) depend on that robot's pose and the
+    landmarks only, so they are the single filter's step functions run on that sub-state.
+
+    update : (landmark id, z, Q, t) -> Outcome, how the team's replay corrects the joint
+        filter with a paired sighting (with its recovery and its counts).
+    backend : the step functions' ("python" or "numba", `ekfslam.core.filter.backend`).
+    """
+
+    def __init__(
+        self, joint: TeamEKF, robot: int, update: Callable, backend: str = "python"
+    ) -> None:
+        self.joint, self.robot, self._update = joint, robot, update
+        self.sensor = joint.sensor
+        self.steps = steps_for(joint.motion, joint.sensor, backend)
+
+    @property
+    def landmark_ids(self) -> list[int]:
+        """The joint map's landmark ids, in slot (row) order."""
+        return list(self.joint.slot)
+
+    @property
+    def n_landmarks(self) -> int:
+        return len(self.joint.slot)
+
+    def _rows(self) -> NDArray[np.int64]:
+        r = self.joint.rows[self.robot]
+        rows = [r, r + 1, r + 2]
+        for l in self.joint.slot.values():
+            rows += [l, l + 1]
+        return np.array(rows, dtype=np.int64)
+
+    @property
+    def mu(self) -> Array:
+        """(3 + 2n,) the robot's pose, then the landmarks (a copy)."""
+        return self.joint.mu[self._rows()]
+
+    @property
+    def Sigma(self) -> Array:
+        """Their covariance (3 + 2n, 3 + 2n), a copy."""
+        rows = self._rows()
+        return self.joint.Sigma[np.ix_(rows, rows)]
+
+    @property
+    def pose_covariance(self) -> Array:
+        return self.joint.pose_covariance(self.robot)
+
+    def _arrays(self) -> tuple[tuple, int]:
+        mu, Sigma = self.mu, np.ascontiguousarray(self.Sigma)
+        lin = int(steps.Linearization.STANDARD)
+        return tuple(steps.Storage(mu, Sigma, mu.copy(), np.zeros(2), lin)), len(mu)
+
+    def predictions(self, zs: Array, Q: Array, rate: Rate | None = None) -> Predicted:
+        """`EKFSLAM.predictions` on the robot's sub-state (`predictions_of`)."""
+        arrays, d = self._arrays()
+        return predictions_of(self.steps, arrays, d, zs, Q, rate)
+
+    def nearest(self, zs: Array, Q: Array, gate: float) -> tuple[list[int], list[float]]:
+        """`EKFSLAM.nearest` on the robot's sub-state (`nearest_of`)."""
+        arrays, d = self._arrays()
+        return nearest_of(self.steps, arrays, d, zs, Q, gate)
+
+    def update(self, landmark_id: int, z, Q, t: float | None = None, validate: bool = True):
+        """A paired sighting: the replay's correction of the joint filter (``update``)."""
+        return self._update(int(landmark_id), z, Q, t)
 
 
 @functools.cache
