@@ -54,6 +54,7 @@ from ekfslam.core.noise import NoiseConfig, default_config, default_noise
 from ekfslam.core.recovery import Recovery, RecoveryConfig
 from ekfslam.errors import AlignmentError, ConfigError
 from ekfslam.geometry import compose, rotation, weighted_kabsch, wrap_angle
+from ekfslam.logs.mrclam import defaults as mrclam_defaults
 from ekfslam.logs.team import TeamLog, check_team
 
 Array = NDArray[np.float64]
@@ -242,6 +243,9 @@ class _Robot:
     ties: list = field(default_factory=list)  # ... robot, and those sightings' points (`_Tie`)
 
 
+#: A source's `replay_team` ``robot_noise_scale`` by `RunMeta.defaults` name (else 1).
+ROBOT_NOISE_SCALES = {mrclam_defaults.NAME: mrclam_defaults.MRCLAM_ROBOT_NOISE_SCALE}
+
 #: Rejected sightings in a row at the end of a run that mark a robot as lost (`RobotTrack`).
 LOST_AFTER = RecoveryConfig().after
 
@@ -260,6 +264,7 @@ def replay_team(
     match_maps: Callable | None = None,
     map_noise: NoiseConfig | Mapping[int, NoiseConfig] | None = None,
     backend: str = "numba",
+    robot_noise_scale: float | None = None,
 ) -> TeamResult:
     """Replay a team through one joint filter (module docstring).
 
@@ -296,6 +301,10 @@ def replay_team(
         hidden-id replay's mapping filter does (`ekfslam.pipeline.replay`'s ``map_noise``;
         MRCLAM's: `ekfslam.logs.hidden_ids.HiddenIdDefaults.map_noise`); None: the deciding
         filter maps.
+    robot_noise_scale : the σ_r and σ_φ of a sighting of a robot, as a multiple of the
+        observer's landmark sightings'; None (the default): the source's (MRCLAM's
+        `ekfslam.logs.mrclam.defaults.MRCLAM_ROBOT_NOISE_SCALE`, 0.5), else 1 (the same camera,
+        the same noise: a simulated team's).
     backend : the association's step functions ("numba", compiled, the default: JCBB's
         predictions interpreted cost 20x; or "python").
 
@@ -308,6 +317,12 @@ def replay_team(
         of driving), or an anchor not in the team.
     """
     check_team(team)
+    if robot_noise_scale is None:
+        robot_noise_scale = ROBOT_NOISE_SCALES.get(team.runs[team.robots[0]].meta.defaults, 1.0)
+    if not (math.isfinite(robot_noise_scale) and robot_noise_scale > 0):
+        raise ConfigError(
+            f"replay_team: robot_noise_scale must be positive and finite, got {robot_noise_scale}"
+        )
     hidden = association is not None and association.method != "known"
     if hidden and association.method not in ("nn", "jcbb"):
         raise ConfigError(
@@ -349,6 +364,7 @@ def replay_team(
         for r in robots
     }
     Q_of = {r: noises[r].Q for r in robots}
+    Q_robot = {r: Q * robot_noise_scale**2 for r, Q in Q_of.items()}
     for r in robots:
         if hidden:
             state[r].estimated = np.full(len(team.runs[r].detections.t), UNPAIRED, np.int64)
@@ -423,7 +439,7 @@ def replay_team(
                 if robot_entry and ok_a and ok_b and placed_a != placed_b:
                     u, p = (int(b), int(a)) if placed_a else (int(a), int(b))
                     z = (sightings.range[k], sightings.bearing[k])
-                    _tie(state[u], joint, _Tie(t, u, p, observer=a, z=z, Q=Q_of[a]))
+                    _tie(state[u], joint, _Tie(t, u, p, observer=a, z=z, Q=Q_robot[a]))
                     entry = _try_robot_entry(state[u], joint, u, t, t0)
                     if entry is not None:
                         entries[u] = entry
@@ -438,7 +454,7 @@ def replay_team(
                 state[a].skipped += 1
                 continue
             z = (sightings.range[k], sightings.bearing[k])
-            outcome = joint.update_robot(a, b, z, Q_of[a])
+            outcome = joint.update_robot(a, b, z, Q_robot[a])
             state[a].robots_seen[outcome.label] += 1
             state[b].seen_by += outcome == Outcome.ACCEPTED
             _record(state[a], t, joint.pose(a))
@@ -476,6 +492,7 @@ def replay_team(
         recovery=recovery,
         known_starts=known_starts,
         robot_entry=robot_entry,
+        robot_noise_scale=robot_noise_scale,
     )
     kept = {
         r: dataclasses.replace(
