@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.analysis.alignment_unlabelled import MATCHED_BY_NEAREST, match_by_position
 from ekfslam.core.association import AssociationConfig, Confusion, confusion
@@ -22,6 +23,8 @@ from ekfslam.core.noise import NoiseConfig, default_noise
 from ekfslam.logs.hidden_ids import hidden_id_defaults
 from ekfslam.logs.runlog import RunLog
 from ekfslam.pipeline import ReplayResult
+
+Array = NDArray[np.float64]
 
 #: How eq. (17) matched landmarks, said in the output.
 MATCHED_THROUGH_MAPPING = "estimated landmarks matched to true ids through the association mapping"
@@ -100,13 +103,9 @@ def score(
     truth = np.asarray(run.detections.tag_id, dtype=int)
     if len(truth) != len(log.estimated):
         raise ValueError(f"{len(log.estimated)} decisions for {len(truth)} detections")
-    found = confusion(log.estimated, truth)
-    if match == "position":
-        if not run.meta.tag_map or len(result.landmarks) < 2:
-            return dataclasses.replace(result, landmarks={}, landmark_covariances={}), found
-        mapping = match_by_position(result.landmarks, run.meta.tag_map).mapping
-    else:
-        mapping = {e: t for e, t in found.mapping.items() if e not in found.duplicates}
+    mapping, found = true_ids(log.estimated, truth, result.landmarks, run.meta.tag_map, match)
+    if match == "position" and not mapping:
+        return dataclasses.replace(result, landmarks={}, landmark_covariances={}), found
     keep = [e for e in result.landmarks if e in mapping]
     relabelled = dataclasses.replace(
         result,
@@ -114,6 +113,41 @@ def score(
         landmark_covariances={mapping[e]: result.landmark_covariances[e] for e in keep},
     )
     return relabelled, found
+
+
+def true_ids(
+    estimated: ArrayLike, truth: ArrayLike, landmarks: dict, tag_map: dict | None, match: str
+) -> tuple[dict[int, int], Confusion]:
+    """{estimated id: true id} for a map built with hidden ids, and the confusion of the
+    decisions (estimated (N,), truth (N,), `confusion`): through the decisions' mapping
+    (duplicates left out), or, with match "position", by matching the map to the tag map
+    (`match_by_position`; {} without a tag map or with fewer than 2 landmarks)."""
+    found = confusion(estimated, truth)
+    if match == "position":
+        if not tag_map or len(landmarks) < 2:
+            return {}, found
+        return match_by_position(landmarks, tag_map).mapping, found
+    return {e: t for e, t in found.mapping.items() if e not in found.duplicates}, found
+
+
+def score_team(team, result, match: str = "mapping") -> tuple[dict[int, Array], Confusion]:
+    """The joint map of a team replayed with hidden ids (`ekfslam.team.replay_team`'s
+    ``association``), keyed by true id as `score` keys a single replay's, and the confusion of
+    every robot's decisions together (each robot's detections in its own order, then the next
+    robot's): eq. (17) of the joint map is then `align` of it against the team's tag map."""
+    if match not in MATCHINGS:
+        raise ValueError(f"match must be one of {', '.join(MATCHINGS)}, got {match!r}")
+    estimated, truth = [], []
+    for robot in result.robots:
+        track = result.tracks[robot]
+        if track.estimated is None:
+            raise ValueError("this team replay used the known ids: there is nothing to score")
+        estimated.append(track.estimated)
+        truth.append(np.asarray(team.runs[robot].detections.tag_id, dtype=int))
+    mapping, found = true_ids(
+        np.concatenate(estimated), np.concatenate(truth), result.landmarks, team.tag_map, match
+    )
+    return {mapping[e]: p for e, p in result.landmarks.items() if e in mapping}, found
 
 
 _SIGMAS = ("sigma_x", "sigma_y", "sigma_theta", "sigma_range", "sigma_bearing")

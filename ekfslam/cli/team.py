@@ -2,11 +2,13 @@
 robots replayed through one joint filter (`ekfslam.team.replay_team`).
 
 Prints the joint map's Table 1 row (eq. 17 against the true landmarks) and, per robot, how it
-entered the map, its trajectory error against Vicon where there is one, the sightings it used
-(landmarks, robots) and its diagnosis, a single replay's (`ekfslam.core.diagnosis`: does its
-replay agree with its data; a robot that does not says so on stderr, as ``run`` does), with
-whether its filter lost it at the end and how often recovery widened its pose; ``--json``
-carries the same, ``--plot FILE`` draws the robots' trajectories and the one map.
+entered the map (at its start, from its own map's landmarks, or from its sightings with robots
+already placed: `ekfslam.team`), its trajectory error against Vicon where there is one, the
+sightings it used (landmarks, robots) and its diagnosis, a single replay's
+(`ekfslam.core.diagnosis`: does its replay agree with its data; a robot that does not says so on
+stderr, as ``run`` does), with whether its filter lost it at the end and how often recovery
+widened its pose; ``--json`` carries the same, ``--plot FILE`` draws the robots' trajectories
+and the one map.
 """
 
 from __future__ import annotations
@@ -19,9 +21,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ekfslam.analysis import association as assoc
 from ekfslam.analysis.alignment import align
+from ekfslam.analysis.alignment_unlabelled import match_by_position
 from ekfslam.analysis.evaluation import interpolate_poses
 from ekfslam.cli import args as ca
+from ekfslam.cli.common import time_shared_of
 from ekfslam.errors import InputError
 from ekfslam.files import save_figure
 from ekfslam.logs.mrclam.load import BARCODES, ROBOTS, find_dataset
@@ -46,7 +51,10 @@ def add_team_argument(p: argparse.ArgumentParser) -> None:
         metavar="N",
         help="MRCLAM only: replay these robots (all, or numbers 1-5) together in one joint "
         "filter, each robot's sightings of the others correcting both poses; prints the joint "
-        "map's Table 1 row and each robot's entry, trajectory error and sightings",
+        "map's Table 1 row and each robot's entry, trajectory error and sightings; with "
+        "--hide-ids the landmarks' ids are hidden (each robot's sightings associated against "
+        "the joint map by jcbb, or --association nn) while the robots' barcodes stay known: "
+        "they name robots, not landmarks",
     )
 
 
@@ -64,32 +72,50 @@ def chosen_robots(folder: Path, values: list) -> tuple[int, ...]:
 
 def cmd_team(args: argparse.Namespace) -> int:
     """The team replay of ``run DATASET --robots ...``."""
-    for option, default in (
-        ("hide_ids", False),
-        ("association", "known"),
-        ("noise", "auto"),
-        ("animate", None),
-    ):
+    for option, default in (("noise", "auto"), ("animate", None)):
         if getattr(args, option, default) != default:
             name = option.replace("_", "-")
             raise InputError(
                 args.run,
                 None,
-                f"--{name} is not available with --robots yet (a team replays "
-                "with the landmarks' ids and each robot's documented noise)",
+                f"--{name} is not available with --robots yet (a team replays with each "
+                "robot's documented noise)",
             )
+    method = getattr(args, "association", "known")
+    if method == "mht":
+        raise InputError(
+            args.run,
+            None,
+            "--association mht is not available with --robots (a team associates with nn or "
+            "jcbb; --hide-ids gives jcbb)",
+        )
     if getattr(args, "robot", None) is not None:
         raise InputError(args.run, None, "give --robot N (one robot) or --robots (a team)")
     folder = _dataset_folder(args.run)
     team, report = load_mrclam_team(
         folder, chosen_robots(folder, args.robots), max_range=getattr(args, "max_range", None)
     )
-    result = replay_team(team)
-    out = team_dict(team, result, report)
+    if method == "known":
+        result, config = replay_team(team), None
+    else:  # --hide-ids is auto: jcbb (a team has no mht to escalate to)
+        first = team.runs[team.robots[0]]
+        config = assoc.association_config(
+            first, "jcbb" if method == "auto" else method, time_shared=time_shared_of(args)
+        )
+        noise = {robot: assoc.association_noise(run) for robot, run in team.runs.items()}
+        mapping = {robot: assoc.association_map_noise(run) for robot, run in team.runs.items()}
+        result = replay_team(
+            team,
+            noise,
+            association=config,
+            match_maps=match_by_position,
+            map_noise=None if None in mapping.values() else mapping,
+        )
+    out = team_dict(team, result, report, config, getattr(args, "match", "mapping"))
     if args.plot is not None:
         # matplotlib only for a figure (about 0.3 s)
         plotting = importlib.import_module("ekfslam.viz.team_plot")
-        fig = plotting.team_figure(team, result, align(result.landmarks, team.tag_map))
+        fig = plotting.team_figure(team, result, _alignment(team, result, out))
         out["plot"] = str(save_figure(fig, args.plot))
     if args.json:
         print(json.dumps(out, indent=2, allow_nan=False))
@@ -110,10 +136,47 @@ def _dataset_folder(path: Path) -> Path:
     return folder
 
 
-def team_dict(team, result: TeamResult, report) -> dict:
+def _alignment(team, result: TeamResult, out: dict):
+    """Eq. (17) of the joint map: by id, or, with hidden ids, through `score_team`."""
+    landmarks = result.landmarks
+    if "association" in out:
+        landmarks = assoc.score_team(team, result, out["association"]["match"])[0]
+    return align(landmarks, team.tag_map)
+
+
+def team_dict(team, result: TeamResult, report, config=None, match: str = "mapping") -> dict:
     """The JSON of a team replay: the joint map's alignment at the top level (as a single
-    run's), ``robots`` keyed by number, ``seconds``, and what was loaded and dropped."""
-    a = align(result.landmarks, team.tag_map)
+    run's), ``robots`` keyed by number, ``seconds``, and what was loaded and dropped; with
+    hidden ids (`config`, the `AssociationConfig`), ``association``: the decisions of every
+    robot against the true ids (`ekfslam.analysis.association.score_team`) and their counts,
+    the map scored as a single hidden-id run's is (through the decisions' mapping, or
+    ``match`` "position")."""
+    block = None
+    if config is not None:
+        landmarks, found = assoc.score_team(team, result, match)
+        counts: dict[str, int] = {}
+        for robot in result.robots:
+            for name, n in (result.tracks[robot].association or {}).items():
+                counts[name] = counts.get(name, 0) + n
+        block = {
+            "method": config.method,
+            "match": match,
+            "correct": found.correct,
+            "wrong": found.wrong,
+            "missed": found.missed,
+            "correct_fraction": found.correct_fraction,
+            "duplicates": len(found.duplicates),
+            "landmarks_mapped": len(result.landmarks),
+            "counts": counts,
+            "time_error": {
+                "sigma": config.time_sigma,
+                "form": "shared" if config.time_shared else "independent",
+            },
+            "barcodes": "robots' barcodes known (they name robots, not landmarks)",
+        }
+        a = align(landmarks, team.tag_map)
+    else:
+        a = align(result.landmarks, team.tag_map)
     robots = {}
     for robot in result.robots:
         run, track, entry = team.runs[robot], result.tracks[robot], result.entries.get(robot)
@@ -129,7 +192,10 @@ def team_dict(team, result: TeamResult, report) -> dict:
                 "how": entry.how,
                 "seconds": round(entry.seconds, 3),
                 "landmarks": list(entry.landmarks),
+                "robots": list(entry.robots),
+                "robot_sightings": entry.sightings,
                 "residual_m": entry.residual,
+                "sigma": _entry_sigma(entry),
                 "described": entry.describe(),
             },
             "trajectory": {
@@ -155,10 +221,19 @@ def team_dict(team, result: TeamResult, report) -> dict:
             "rmse": a.rmse,
             "landmarks_matched": len(a.ids),
         },
+        **({"association": block} if block is not None else {}),
         "robots": robots,
         "seconds": result.seconds,
         "loaded": report.as_dict(),
     }
+
+
+def _entry_sigma(entry) -> dict | None:
+    """The σ of a robot's pose as it entered (m, m, rad), or None where it is not known."""
+    sigma = np.sqrt(np.clip(np.diag(entry.covariance), 0.0, None))
+    if not np.all(np.isfinite(sigma)):
+        return None
+    return {"x": float(sigma[0]), "y": float(sigma[1]), "theta": float(sigma[2])}
 
 
 def _diagnosis(track, t0: float) -> dict:
@@ -194,6 +269,14 @@ def team_lines(out: dict) -> str:
     )
     row = table1_row(out["name"], (a["x0"], a["y0"], a["theta0"], a["mean_error"]), layout)
     lines = [head, row, ""]
+    if "association" in out:
+        b = out["association"]
+        lines[-1:] = [
+            f"landmark ids hidden ({b['method']}; the robots' barcodes known): "
+            f"{b['correct']} sightings paired right, {b['wrong']} wrong, {b['missed']} missed; "
+            f"{b['landmarks_mapped']} landmarks mapped, {b['duplicates']} of them duplicates",
+            "",
+        ]
     for robot, r in out["robots"].items():
         entry = r["entry"]["described"] if r["entry"] else NEVER
         ate = r["trajectory"]["ate_rmse"]
@@ -215,7 +298,10 @@ def team_lines(out: dict) -> str:
 
 
 #: Why a robot never entered the joint map.
-NEVER = "never: its own map did not share 3 landmarks, spread 1 m or more, with the joint map"
+NEVER = (
+    "never: its own map did not share 3 landmarks, spread 1 m or more, with the joint map, nor "
+    "did its sightings with placed robots fix its pose"
+)
 
 
 def _counts(counts: dict) -> str:

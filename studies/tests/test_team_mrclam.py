@@ -31,7 +31,11 @@ def test_dataset_7_maps_better_together(mrclam7: Path, capsys):
     assert row["joint_map"] <= row["joint_map_no_robot_sightings"]
     assert all(r["joint_ate"] < r["alone_ate"] for r in row["robots"])
     assert all(r["entry"] == "start" for r in row["robots"])
+    # the ids hidden: still a map of every landmark, worse than with the ids, timed
+    assert row["joint_map"] < row["joint_map_hidden"] < 0.1  # measured 0.028 m
+    assert row["hidden_seconds"] > 0 and row["joint_seconds"] > 0
     capsys.readouterr()
     assert studies_main(["team-mrclam", str(mrclam7)]) == 0
     table = capsys.readouterr().out
     assert "| 7 | 5 |" in table and "joint map (m)" in table
+    assert "joint, ids hidden (m)" in table and "median of 3" in table

@@ -258,3 +258,35 @@ def test_a_motion_model_with_a_branch_runs_advance_as_written():
     pose, P, _ = _stepped([0.0, 0.0, 0.5], np.eye(3) * 1e-4, us, dts, M, branching)
     assert np.allclose(team.pose(1), pose, atol=1e-14)
     assert np.allclose(team.pose_covariance(1), P, atol=1e-15)
+
+
+def test_a_robot_placed_from_others_is_correlated_as_eq_12_says():
+    """`add_robot(..., depends={p: A_p})`: the new rows are Σ_p A_p (the placed robots' rows),
+    as a landmark's are G_r (its observer's): Σ' = J Σ Jᵀ + blockdiag(0, P) with the new rows
+    of J the lifted A's, as the literal form writes it."""
+    rng = np.random.default_rng(5)
+    team, literal = TeamEKF(gate=None, capacity=4), LiteralTeam()
+    for robot in (1, 2):
+        pose = rng.normal(size=3)
+        A = rng.normal(size=(3, 3)) * 0.1
+        team.add_robot(robot, pose, A @ A.T)
+        literal.add_robot(robot, pose.copy(), A @ A.T)
+    team.update(1, (1.0, 0.3), 4, Q)
+    literal.update(1, np.array([1.0, 0.3]), 4, Q, math.inf)
+    team.update_robot(2, 1, (1.5, -0.2), Q)  # so robots 1 and 2 are correlated
+    literal.update_robot(2, 1, np.array([1.5, -0.2]), Q, math.inf)
+    team.predict_many(2, np.array([[0.1, 0.0, 0.2]]), [1.0], M)  # a pending prediction
+    literal.predict(2, np.array([0.1, 0.0, 0.2]), M)
+    A1, A2 = rng.normal(size=(3, 3)), rng.normal(size=(3, 3))
+    P = np.diag([0.01, 0.02, 0.003])
+    team.add_robot(3, [0.2, 0.4, 3.0], P, depends={1: A1, 2: A2})
+    d = len(literal.mu)
+    J = np.vstack([np.eye(d), A1 @ literal._lift(0, 3) + A2 @ literal._lift(3, 3)])
+    want = J @ literal.Sigma @ J.T
+    want[d:, d:] += P
+    assert literal.rows == {1: 0, 2: 3}
+    assert np.allclose(team.Sigma, want, rtol=1e-10, atol=1e-12)
+    assert np.array_equal(team.Sigma, team.Sigma.T)
+    assert np.linalg.eigvalsh(team.Sigma).min() > -1e-12
+    with pytest.raises(ValueError, match="depends on robot 9"):
+        team.add_robot(4, np.zeros(3), depends={9: np.eye(3)})

@@ -43,7 +43,7 @@ from ekfslam.core.filter.history import (
     Outcome,
     obs_width,
 )
-from ekfslam.core.filter.predictions import Predicted, Rate
+from ekfslam.core.filter.predictions import Predicted, Rate, nearest_of, predictions_of
 from ekfslam.core.filter.state import FilterState
 from ekfslam.core.filter.steps import (
     AT_DETECTION,
@@ -553,22 +553,14 @@ class EKFSLAM(FilterState):
         """ν (m, n, 2), P = H Σ Hᵀ (2n, 2n) and the NIS (m, n) of the sightings zs (m, 2) of one
         time against every mapped landmark (`ekfslam.core.filter.predictions.predict_all`);
         with a `Rate`, P holds the image's shared time-stamp term too."""
-        m, n = len(zs), self.n_landmarks
-        out = Predicted(np.empty((m, n, 2)), np.empty((2 * n, 2 * n)), np.empty((m, n)))
         self.settle()  # the invariant filter's owed heading noise, before Σ is read
-        rate = tuple(rate or Rate(np.zeros(2), 0.0, 0.0))
-        sightings = (_rows(zs, 2), _matrix(Q, 2, "observation noise"))  # `Sightings`
-        self._steps.predict_all(self._arrays, self._dim, sightings, rate, tuple(out))
-        return out
+        return predictions_of(self._steps, self._arrays, self._dim, zs, Q, rate)
 
     def nearest(self, zs: Array, Q: Array, gate: float) -> tuple[list[int], list[float]]:
         """Each sighting's landmark slot of smallest NIS within the gate (-1: none), and that
         smallest NIS (`ekfslam.core.filter.predictions.nearest`, O(m n))."""
-        pairing, smallest = np.empty(len(zs), dtype=np.int64), np.empty(len(zs))
         self.settle()
-        sightings = (_rows(zs, 2), _matrix(Q, 2, "observation noise"))  # `Sightings`
-        self._steps.nearest(self._arrays, self._dim, sightings, float(gate), pairing, smallest)
-        return pairing.tolist(), smallest.tolist()
+        return nearest_of(self._steps, self._arrays, self._dim, zs, Q, gate)
 
     def accepted_sightings(self) -> tuple[int, ...]:
         """How many sightings each landmark has accepted, in slot order (its placing counts)."""

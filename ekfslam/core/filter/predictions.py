@@ -141,3 +141,33 @@ def predict_all(storage: Storage, d: int, sightings: Sightings, rate: Rate, out:
         S = P[2 * j : 2 * j + 2, 2 * j : 2 * j + 2] + Q
         for i in range(m):
             nis[i, j] = nis_of(nu[i, j], S) if seen[j] else math.inf
+
+
+def _sightings(zs, Q) -> Sightings:
+    """zs (m, 2) and Q (2, 2) as the steps take them (C-ordered floats), Q's shape checked."""
+    Q = np.ascontiguousarray(Q, dtype=float)
+    if Q.shape != (2, 2):
+        raise ValueError(f"observation noise must be 2x2, got shape {Q.shape}")
+    return Sightings(np.ascontiguousarray(zs, dtype=float).reshape(-1, 2), Q)
+
+
+def predictions_of(steps, arrays: tuple, d: int, zs, Q, rate: Rate | None = None) -> Predicted:
+    """`predict_all` of the state in `arrays` (a `Storage` tuple, its first d rows the pose
+    then the landmarks) by the step functions `steps` (`FilterState.steps`, compiled or not),
+    into new arrays: `EKFSLAM.predictions`, and what a team's robot asks of the joint map
+    (`ekfslam.core.filter.team.RobotView`)."""
+    sightings = _sightings(zs, Q)
+    m, n = len(sightings.z), (d - 3) // 2
+    out = Predicted(np.empty((m, n, 2)), np.empty((2 * n, 2 * n)), np.empty((m, n)))
+    rate = tuple(rate or Rate(np.zeros(2), 0.0, 0.0))
+    steps.predict_all(arrays, d, tuple(sightings), rate, tuple(out))
+    return out
+
+
+def nearest_of(steps, arrays: tuple, d: int, zs, Q, gate: float) -> tuple[list[int], list[float]]:
+    """`nearest` of the state in `arrays`, as `predictions_of` is `predict_all`: each
+    sighting's landmark slot of smallest NIS within the gate (-1: none), and that NIS."""
+    sightings = _sightings(zs, Q)
+    pairing, smallest = np.empty(len(sightings.z), dtype=np.int64), np.empty(len(sightings.z))
+    steps.nearest(arrays, d, tuple(sightings), float(gate), pairing, smallest)
+    return pairing.tolist(), smallest.tolist()

@@ -36,15 +36,17 @@ from __future__ import annotations
 import functools
 import importlib
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ekfslam.core.filter import steps
+from ekfslam.core.filter.backend import steps_for
 from ekfslam.core.filter.config import CHI2_2DOF_99
 from ekfslam.core.filter.history import Outcome
+from ekfslam.core.filter.predictions import Predicted, Rate, nearest_of, predictions_of
 from ekfslam.core.filter.rebinding import interpreted, rebind
 from ekfslam.core.models import (
     MIN_RANGE_SQUARED,
@@ -140,22 +142,47 @@ class TeamEKF:
         return {i: self._Sigma[l : l + 2, l : l + 2].copy() for i, l in self.slot.items()}
 
     # -------------------------------------------------------------------------- growing
-    def add_robot(self, robot: int, pose: ArrayLike, covariance: ArrayLike | None = None) -> None:
-        """Put robot `robot` into the state at `pose`, with `covariance` (3x3, zero by default)
-        and no correlation with what is already there."""
+    def add_robot(
+        self,
+        robot: int,
+        pose: ArrayLike,
+        covariance: ArrayLike | None = None,
+        depends: Mapping[int, ArrayLike] | None = None,
+    ) -> None:
+        """Put robot `robot` into the state at `pose`, with `covariance` (3x3, zero by default).
+
+        depends : {placed robot: A (3x3)}: the new pose's first-order dependence on those robots'
+            poses (δpose = Σ_p A_p δp_p + an independent error of covariance `covariance`), as a
+            new landmark depends on its observer (eq. 12): Σ[new, :] = Σ_p A_p Σ[p, :] and
+            Σ[new, new] = Σ_p Σ_q A_p Σ[p, q] A_qᵀ + covariance. None: no correlation with what
+            is already there.
+        """
         if robot in self.rows:
             raise ValueError(f"robot {robot} is already in the team's state")
         pose = np.asarray(pose, dtype=float)
         P = np.zeros((3, 3)) if covariance is None else np.asarray(covariance, dtype=float)
         if pose.shape != (3,) or P.shape != (3, 3) or not np.all(np.isfinite(pose)):
             raise ValueError(f"robot {robot}: pose must be (3,) finite, covariance (3, 3)")
+        links = {p: np.asarray(A, dtype=float) for p, A in (depends or {}).items()}
+        for p, A in links.items():
+            if p not in self.rows or A.shape != (3, 3):
+                raise ValueError(f"robot {robot}: depends on robot {p}, not placed or A not 3x3")
         self._settle()
         r = self._grow(3)
+        S = self._Sigma
         self._mu[r : r + 3] = pose
         self._mu[r + 2] = wrap_angle(float(pose[2]))
-        self._Sigma[r : r + 3, :] = 0.0
-        self._Sigma[:, r : r + 3] = 0.0
-        self._Sigma[r : r + 3, r : r + 3] = 0.5 * (P + P.T)
+        S[r : r + 3, :] = 0.0
+        S[:, r : r + 3] = 0.0
+        cross = np.zeros((3, r))
+        for p, A in links.items():
+            cross += A @ S[self.rows[p] : self.rows[p] + 3, :r]
+        block = P.copy()
+        for p, A in links.items():
+            block += cross[:, self.rows[p] : self.rows[p] + 3] @ A.T
+        S[r : r + 3, :r] = cross
+        S[:r, r : r + 3] = cross.T
+        S[r : r + 3, r : r + 3] = 0.5 * (block + block.T)
         self.rows[robot] = r
         self._headings = np.append(self._headings, r + 2)
 
@@ -327,6 +354,77 @@ class TeamEKF:
         S[l : l + 2, l : l + 2] = 0.5 * (block + block.T)
         self.slot[landmark_id] = l
         return Outcome.INITIALISED
+
+
+class RobotView:
+    """One robot's part of a `TeamEKF` (its pose and the map) under the single filter's names
+    (`ekfslam.core.filter.ekf.EKFSLAM`'s ``mu``, ``Sigma``, ``nearest``, ``predictions``,
+    ``update`` ...), so that `ekfslam.core.filter.associating.AssociatingFilter` decides the
+    robot's sightings with hidden ids against the joint map exactly as it decides a single
+    robot's: the predictions of every landmark (eqs. 13-15) depend on that robot's pose and the
+    landmarks only, so they are the single filter's step functions run on that sub-state.
+
+    update : (landmark id, z, Q, t) -> Outcome, how the team's replay corrects the joint
+        filter with a paired sighting (with its recovery and its counts).
+    backend : the step functions' ("python" or "numba", `ekfslam.core.filter.backend`).
+    """
+
+    def __init__(
+        self, joint: TeamEKF, robot: int, update: Callable, backend: str = "python"
+    ) -> None:
+        self.joint, self.robot, self._update = joint, robot, update
+        self.sensor = joint.sensor
+        self.steps = steps_for(joint.motion, joint.sensor, backend)
+
+    @property
+    def landmark_ids(self) -> list[int]:
+        """The joint map's landmark ids, in slot (row) order."""
+        return list(self.joint.slot)
+
+    @property
+    def n_landmarks(self) -> int:
+        return len(self.joint.slot)
+
+    def _rows(self) -> NDArray[np.int64]:
+        r = self.joint.rows[self.robot]
+        rows = [r, r + 1, r + 2]
+        for l in self.joint.slot.values():
+            rows += [l, l + 1]
+        return np.array(rows, dtype=np.int64)
+
+    @property
+    def mu(self) -> Array:
+        """(3 + 2n,) the robot's pose, then the landmarks (a copy)."""
+        return self.joint.mu[self._rows()]
+
+    @property
+    def Sigma(self) -> Array:
+        """Their covariance (3 + 2n, 3 + 2n), a copy."""
+        rows = self._rows()
+        return self.joint.Sigma[np.ix_(rows, rows)]
+
+    @property
+    def pose_covariance(self) -> Array:
+        return self.joint.pose_covariance(self.robot)
+
+    def _arrays(self) -> tuple[tuple, int]:
+        mu, Sigma = self.mu, np.ascontiguousarray(self.Sigma)
+        lin = int(steps.Linearization.STANDARD)
+        return tuple(steps.Storage(mu, Sigma, mu.copy(), np.zeros(2), lin)), len(mu)
+
+    def predictions(self, zs: Array, Q: Array, rate: Rate | None = None) -> Predicted:
+        """`EKFSLAM.predictions` on the robot's sub-state (`predictions_of`)."""
+        arrays, d = self._arrays()
+        return predictions_of(self.steps, arrays, d, zs, Q, rate)
+
+    def nearest(self, zs: Array, Q: Array, gate: float) -> tuple[list[int], list[float]]:
+        """`EKFSLAM.nearest` on the robot's sub-state (`nearest_of`)."""
+        arrays, d = self._arrays()
+        return nearest_of(self.steps, arrays, d, zs, Q, gate)
+
+    def update(self, landmark_id: int, z, Q, t: float | None = None, validate: bool = True):
+        """A paired sighting: the replay's correction of the joint filter (``update``)."""
+        return self._update(int(landmark_id), z, Q, t)
 
 
 @functools.cache
