@@ -41,6 +41,7 @@ UPDATES_ORDER = (
     Outcome.INITIALISED,
     Outcome.REINITIALISED,
     Outcome.SINGULAR,
+    Outcome.DEFERRED,
 )
 
 

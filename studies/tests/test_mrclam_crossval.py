@@ -31,6 +31,7 @@ from studies.mrclam_crossval import (
     tune,
 )
 from studies.mrclam_tuning import TUNING_GRID
+from tests.approx import approx_tree
 
 GRID = {"sigma_x": (0.01, 0.02, 0.04), "sigma_theta": (0.05, 0.1)}
 
@@ -169,18 +170,6 @@ def test_cli_cross_validates_a_recorded_table() -> None:
     assert out["grid_points"] == 81 and out["replays"] == 1215
 
 
-def _floats_approx(tree):
-    """`tree` with every float a `pytest.approx` of it: a sum's last bit may differ on another CPU;
-    names, counts and the chosen grid points must not."""
-    if isinstance(tree, dict):
-        return {key: _floats_approx(value) for key, value in tree.items()}
-    if isinstance(tree, list):
-        return [_floats_approx(value) for value in tree]
-    if isinstance(tree, float):
-        return pytest.approx(tree, rel=1e-12, abs=1e-15)
-    return tree
-
-
 def test_the_stored_folds_notebook_10_shows_are_what_the_study_computes_now() -> None:
     """Notebook 10 prints `STORED` instead of importing this study: it must not go stale.
 
@@ -189,7 +178,9 @@ def test_the_stored_folds_notebook_10_shows_are_what_the_study_computes_now() ->
     """
     stored = json.loads(STORED.read_text())
     now = json.loads(json.dumps(report(read_table(RECORDED))))
-    assert _floats_approx(stored) == now  # means of recorded errors: equal to well within 1e-12
+    assert (
+        approx_tree(stored, rel=1e-12) == now
+    )  # means of recorded errors: their last bit may differ
     chosen = dataclasses.replace(NoiseConfig(sigma_y=0.005), **stored["default"]["noise"])
     assert chosen == MRCLAM_NOISE  # the notebook's "shipped: True"
 

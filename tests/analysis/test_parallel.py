@@ -12,6 +12,7 @@ from ekfslam.analysis.consistency import compare
 from ekfslam.analysis.mrclam_consistency import mrclam_consistency
 from ekfslam.analysis.parallel import run_tasks
 from ekfslam.errors import ConfigError
+from tests.approx import ABS, REL, approx_tree
 
 
 def _square_plus(x: int, y: int) -> int:
@@ -62,7 +63,7 @@ def test_stress_study_is_the_same_on_one_and_two_processes():
     assert sorted(two.wrong) == ["jcbb", "nn"]
     for m in two.wrong:
         np.testing.assert_array_equal(one.wrong[m], two.wrong[m])
-    np.testing.assert_array_equal(one.path, two.path)
+    np.testing.assert_allclose(one.path, two.path, rtol=REL, atol=ABS)
 
 
 @pytest.mark.slow
@@ -91,7 +92,8 @@ def test_mrclam_robots_are_the_same_on_one_and_two_processes(mrclam7):
         (4, "standard"),
         (4, "fej"),
     ]
-    assert one.as_dict() == two.as_dict()
+    # each process may run other steps (compiled or Python, by its compile cache): equal to 1e-9
+    assert approx_tree(one.as_dict()) == two.as_dict()
     for a, b in zip(one.runs, two.runs, strict=True):
-        np.testing.assert_array_equal(a.nees, b.nees)
-        np.testing.assert_array_equal(a.error, b.error)
+        np.testing.assert_allclose(a.nees, b.nees, rtol=REL, atol=ABS)
+        np.testing.assert_allclose(a.error, b.error, rtol=REL, atol=ABS)

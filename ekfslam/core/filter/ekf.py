@@ -347,8 +347,8 @@ class EKFSLAM(FilterState):
             singular or not finite: the noise is too small or too large). Each is counted
             (`counts`, under its `Outcome.label`).
         """
-        if validate and not check_update(landmark_id, z, Q, t, self._size):
-            z, Q = _contiguous(z), _contiguous(Q)  # not as the steps take them
+        if not (validate and check_update(landmark_id, z, Q, t, self._size)):
+            z, Q = _contiguous(z), _contiguous(Q)  # not (known to be) as the steps take them
         if t is not None:
             self._t = float(t)
         self._events += 1
