@@ -274,7 +274,8 @@ def team_lines(out: dict) -> str:
         lines[-1:] = [
             f"landmark ids hidden ({b['method']}; the robots' barcodes known): "
             f"{b['correct']} sightings paired right, {b['wrong']} wrong, {b['missed']} missed; "
-            f"{b['landmarks_mapped']} landmarks mapped, {b['duplicates']} of them duplicates",
+            f"{b['landmarks_mapped']} landmarks in the joint map; {b['duplicates']} landmarks "
+            "(the robots' own maps counted) founded for a tag another already stood for",
             "",
         ]
     for robot, r in out["robots"].items():
