@@ -3,6 +3,7 @@ legends, annotations) is at least 11 pt, and the camera overlay's labels are whi
 
 from __future__ import annotations
 
+import ast
 import json
 import re
 from pathlib import Path
@@ -48,10 +49,42 @@ def test_the_detector_is_a_working_detector() -> None:
     assert small_texts(fig) == ["'tag 3' (7 pt)"]
 
 
+#: the calls whose ``size=`` is no text's: a sensor's measurement size (`SensorModel(size=1)`)
+NOT_TEXT = frozenset({"SensorModel", "MotionModel", "RelativeModel"})
+
+
+def text_sizes(code: str) -> list[float]:
+    """The numbers a notebook's code gives ``fontsize=``, ``labelsize=`` or ``size=`` (a
+    matplotlib text's alias), except where the call is a model record's (`NOT_TEXT`)."""
+    cleaned = "\n".join(
+        "" if line.lstrip().startswith(("%", "!")) else line for line in code.splitlines()
+    )
+    sizes = []
+    for node in ast.walk(ast.parse(cleaned)):
+        if not isinstance(node, ast.Call):
+            continue
+        func = node.func
+        name = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", "")
+        for keyword in node.keywords:
+            if keyword.arg == "size" and name in NOT_TEXT:
+                continue
+            if keyword.arg in ("fontsize", "size", "labelsize") and isinstance(
+                keyword.value, ast.Constant
+            ):
+                if isinstance(keyword.value.value, int | float):
+                    sizes.append(float(keyword.value.value))
+    return sizes
+
+
+def test_the_size_reader_finds_text_sizes_and_not_a_sensors() -> None:
+    code = "ax.legend(fontsize=9)\nm = SensorModel(h=h, size=1)\nax.text(0, 0, 'a', size=12)"
+    assert text_sizes(code) == [9.0, 12.0]
+
+
 def test_no_notebook_asks_for_a_size_below_11_pt_and_each_sets_11_pt() -> None:
     for path in NOTEBOOKS:
         code = code_of(path)
-        sizes = [float(s) for s in re.findall(r"\b(?:fontsize|size|labelsize)=(\d+\.?\d*)", code)]
+        sizes = text_sizes(code)
         assert all(s >= PROJECTOR_PT for s in sizes), f"{path.name}: text sizes {sizes}"
         if path.name != "08-live-tuning.ipynb":
             assert '"font.size": 11' in code, f"{path.name} does not set font.size to 11"
