@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from ekfslam import checks
 from ekfslam.core.association import UNPAIRED, AssociationConfig
 from ekfslam.core.diagnosis import Diagnosis, diagnose_sightings
 from ekfslam.core.filter.associating import AssociatingFilter
@@ -317,12 +318,26 @@ def replay_team(
         of driving), or an anchor not in the team.
     """
     check_team(team)
+    name = "replay_team"
+    robot_sightings = checks.flag(robot_sightings, f"{name}: robot_sightings")
+    robot_entry = checks.flag(robot_entry, f"{name}: robot_entry")
+    if known_starts is not None:
+        known_starts = checks.flag(known_starts, f"{name}: known_starts")
+    if anchor is not None:
+        anchor = checks.whole(anchor, f"{name}: anchor")
+    backend = checks.choice(backend, f"{name}: backend", ("numba", "python"))
+    for what, value, kind in (
+        ("config", config, FilterConfig),
+        ("recovery", recovery, RecoveryConfig),
+        ("association", association, AssociationConfig),
+    ):
+        if value is not None:
+            checks.instance(value, kind, f"{name}: {what}")
     if robot_noise_scale is None:
         robot_noise_scale = ROBOT_NOISE_SCALES.get(team.runs[team.robots[0]].meta.defaults, 1.0)
-    if not (math.isfinite(robot_noise_scale) and robot_noise_scale > 0):
-        raise ConfigError(
-            f"replay_team: robot_noise_scale must be positive and finite, got {robot_noise_scale}"
-        )
+    robot_noise_scale = checks.real(
+        robot_noise_scale, f"{name}: robot_noise_scale", lo=0.0, lo_open=True, hi=1e6
+    )
     hidden = association is not None and association.method != "known"
     if hidden and association.method not in ("nn", "jcbb"):
         raise ConfigError(
@@ -533,8 +548,10 @@ def _noises(team: TeamLog, noise) -> dict[int, NoiseConfig]:
         chosen = {r: default_noise(run) for r, run in team.runs.items()}
     elif isinstance(noise, NoiseConfig):
         chosen = dict.fromkeys(team.runs, noise)
-    else:
+    elif isinstance(noise, Mapping):
         chosen = {r: noise.get(r) or default_noise(team.runs[r]) for r in team.runs}
+    else:
+        checks.instance(noise, (NoiseConfig, Mapping), "replay_team: noise")
     for robot, n in chosen.items():
         if not isinstance(n, NoiseConfig):
             raise ConfigError(f"replay_team: robot {robot}'s noise is not a NoiseConfig: {n!r}")

@@ -32,6 +32,7 @@ from hypothesis.extra import numpy as hnp
 import ekfslam
 from ekfslam.core.association import AssociationConfig
 from ekfslam.logs.edit import truncate
+from ekfslam.sim.team import simulate_team
 
 REPO = Path(__file__).resolve().parents[1]
 SEED_RUN = REPO / "data" / "runs" / "square-2laps"
@@ -61,6 +62,14 @@ class _Inputs:
         self.run = truncate(ekfslam.simulate(ekfslam.SimulationConfig(laps=1, seed=2)), 8.0)
         self.result = ekfslam.replay(self.run)
         self.geometry = ekfslam.MecanumGeometry()
+        team = simulate_team((0.5, 1.0), ekfslam.SimulationConfig(laps=1, seed=2))
+        s, end = team.sightings, 8.0  # the team's first 8 s: its runs and robot sightings
+        kept = s.t <= end
+        self.team = dataclasses.replace(
+            team,
+            runs={k: truncate(run, end) for k, run in team.runs.items()},
+            sightings=type(s)(**{f.name: getattr(s, f.name)[kept] for f in dataclasses.fields(s)}),
+        )
 
 
 INPUTS: list[_Inputs] = []
@@ -129,6 +138,20 @@ SPECS = [
         arrays=("start",),
         result=lambda r: _finite(r.mu, r.Sigma),
         forms=("start",),
+    ),
+    Spec(
+        "replay_team",
+        ekfslam.replay_team,
+        {
+            "team": lambda: _in().team,
+            "noise": lambda: ekfslam.NoiseConfig(),
+            "config": lambda: ekfslam.FilterConfig(),
+            "anchor": lambda: 1,
+            "known_starts": lambda: True,
+            "robot_noise_scale": lambda: 0.5,
+            "backend": lambda: "python",
+        },
+        result=lambda r: _finite(*(r.tracks[k].pose for k in r.robots)),
     ),
     Spec(
         "Start.replay",

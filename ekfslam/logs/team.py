@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ekfslam import checks
 from ekfslam.logs.runlog import RunLog
 
 Array = NDArray[np.float64]
@@ -103,6 +104,12 @@ def check_team(team: TeamLog) -> None:
         of time order, not finite, with a negative range or a bearing outside [-π, π); a robot
         sighting itself or a robot not in the team; a sighting outside its observer's controls.
     """
+    checks.instance(
+        team,
+        TeamLog,
+        "replay_team: team",
+        "load one (ekfslam.logs.mrclam.team.load_mrclam_team, ekfslam.sim.team.simulate_team)",
+    )
     if not team.runs:
         raise ValueError(f"team {team.name!r} has no robots")
     for robot in team.runs:
@@ -140,6 +147,6 @@ def check_team(team: TeamLog) -> None:
         if bad.size:
             k = int(bad[0])
             raise ValueError(
-                f"team {team.name!r}: robot sighting {k} (t {s.t[k]!r} s, robot {s.observer[k]} "
-                f"sees {s.target[k]}) {what}"
+                f"team {team.name!r}: robot sighting {k} (t {float(s.t[k]):g} s, robot "
+                f"{int(s.observer[k])} sees {int(s.target[k])}) {what}"
             )

@@ -196,7 +196,7 @@ def test_robot_sightings_can_be_left_out_and_bad_choices_are_refused():
     with pytest.raises(ConfigError, match="anchor robot 9"):
         replay_team(team, anchor=9)
     for scale in (0.0, -1.0, float("nan")):
-        with pytest.raises(ConfigError, match="robot_noise_scale must be positive"):
+        with pytest.raises(ConfigError, match="replay_team: robot_noise_scale must be"):
             replay_team(team, robot_noise_scale=scale)
     bad = RobotSightings(np.array([1.0]), np.array([1]), np.array([1]), np.ones(1), np.zeros(1))
     with pytest.raises(ValueError, match="sighting itself"):
