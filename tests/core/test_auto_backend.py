@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from ekfslam.core.filter import backend, state
-from ekfslam.core.filter import compile as compiler
 from ekfslam.core.filter.ekf import EKFSLAM, FilterConfig
 from ekfslam.core.models import ODOMETRY, RANGE_BEARING
 
@@ -37,7 +36,7 @@ def drive(f: EKFSLAM, first: int, last: int) -> None:
 
 
 def test_a_direct_filter_takes_the_compiled_steps_once_they_pay(fresh, monkeypatch) -> None:
-    monkeypatch.setattr(compiler, "warm_stamp", lambda roots, models: _Exists(True))
+    monkeypatch.setattr(backend, "_warm_stamp", lambda motion, sensor: _Exists(True))
     python = backend.steps_for(ODOMETRY, RANGE_BEARING, "python")
     numba = backend.steps_for(ODOMETRY, RANGE_BEARING, "numba")
     f = EKFSLAM(np.zeros(3), config=FilterConfig(gate=None))
@@ -58,7 +57,7 @@ def test_a_cold_cache_compiles_elsewhere_while_the_python_steps_run(
     fresh, monkeypatch, capsys
 ) -> None:
     stamp = _Exists(False)
-    monkeypatch.setattr(compiler, "warm_stamp", lambda roots, models: stamp)
+    monkeypatch.setattr(backend, "_warm_stamp", lambda motion, sensor: stamp)
     started = []
     monkeypatch.setattr(backend.subprocess, "Popen", lambda argv, **kw: started.append(argv))
     python = backend.steps_for(ODOMETRY, RANGE_BEARING, "python")
@@ -74,7 +73,7 @@ def test_a_cold_cache_compiles_elsewhere_while_the_python_steps_run(
 
 
 def test_a_named_backend_never_changes(fresh, monkeypatch) -> None:
-    monkeypatch.setattr(compiler, "warm_stamp", lambda roots, models: _Exists(True))
+    monkeypatch.setattr(backend, "_warm_stamp", lambda motion, sensor: _Exists(True))
     f = EKFSLAM(np.zeros(3), config=FilterConfig(gate=None, backend="python"))
     drive(f, 1, 41)
     assert f.steps is backend.steps_for(ODOMETRY, RANGE_BEARING, "python")

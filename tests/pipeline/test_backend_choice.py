@@ -7,7 +7,6 @@ Python steps unless compiling would cost less than it (`backend.for_replay`)."""
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import sys
 
 import pytest
@@ -75,8 +74,7 @@ def test_a_cold_cache_starts_the_seed_models_compiling_once_in_another_process(
     monkeypatch.setattr(backend, "_loaded", set())
     monkeypatch.setattr(backend, "_warming", set())
     monkeypatch.setattr(backend.subprocess, "Popen", lambda argv, **kw: started.append(argv))
-    compiler = importlib.import_module(backend.COMPILER)
-    monkeypatch.setattr(compiler, "warm_stamp", lambda roots, models: tmp_path / "cold.stamp")
+    monkeypatch.setattr(backend, "_warm_stamp", lambda motion, sensor: tmp_path / "cold.stamp")
     assert not backend.compiled_ready(ODOMETRY, RANGE_BEARING)
     assert not backend.compiled_ready(ODOMETRY, RANGE_BEARING)
     assert started == [[sys.executable, *backend.WARMER]]  # once, not per replay
@@ -176,8 +174,7 @@ def test_a_users_models_on_a_cold_cache_say_once_how_to_compile_them(
     monkeypatch.setattr(backend, "_loaded", set())
     monkeypatch.setattr(backend, "_warming", set())
     monkeypatch.setattr(backend.subprocess, "Popen", lambda argv, **kw: started.append(argv))
-    compiler = importlib.import_module(backend.COMPILER)
-    monkeypatch.setattr(compiler, "warm_stamp", lambda roots, models: tmp_path / "cold.stamp")
+    monkeypatch.setattr(backend, "_warm_stamp", lambda motion, sensor: tmp_path / "cold.stamp")
     sensor = dataclasses.replace(RANGE_BEARING, name="my camera")
     assert not backend.compiled_ready(ODOMETRY, sensor)
     assert not backend.compiled_ready(ODOMETRY, sensor)

@@ -19,6 +19,7 @@ import subprocess
 import sys
 import types
 from collections.abc import Callable
+from pathlib import Path
 
 from ekfslam.core.filter import iterated, jcbb_search, predictions, steps
 from ekfslam.core.filter.config import FilterConfig, backend_for
@@ -124,8 +125,7 @@ def compiled_ready(motion: MotionModel, sensor: SensorModel) -> bool:
     key = (motion, sensor)
     if key in _loaded:
         return True
-    compiler = importlib.import_module(COMPILER)
-    if compiler.warm_stamp(ROOTS, models_of(motion, sensor)).exists():
+    if _warm_stamp(motion, sensor).exists():
         _loaded.add(key)
         return True
     if key == (ODOMETRY, RANGE_BEARING) and key not in _warming:
@@ -150,6 +150,13 @@ def compiled_ready(motion: MotionModel, sensor: SensorModel) -> bool:
             file=sys.stderr,
         )
     return False
+
+
+@functools.cache
+def _warm_stamp(motion: MotionModel, sensor: SensorModel) -> Path:
+    """`compile.warm_stamp` of these models, named once a process: naming it digests every
+    source the steps run (about 50 ms), asked again at each long replay while the cache is cold."""
+    return importlib.import_module(COMPILER).warm_stamp(ROOTS, models_of(motion, sensor))
 
 
 @functools.cache
