@@ -31,7 +31,7 @@ from studies.mrclam_crossval import (
     tune,
 )
 from studies.mrclam_tuning import TUNING_GRID
-from tests.approx import approx_tree
+from tests.approx import ABS, REL, approx_tree
 
 GRID = {"sigma_x": (0.01, 0.02, 0.04), "sigma_theta": (0.05, 0.1)}
 
@@ -225,7 +225,8 @@ def test_the_grid_is_the_same_on_two_processes(mrclam7: Path) -> None:
     one = measure_grid({"7": mrclam7}, grid, robots=(2, 5), jobs=1)
     two = measure_grid({"7": mrclam7}, grid, robots=(2, 5), jobs=2)
     assert one.points == two.points and one.errors.shape == (2, 1, 2)
-    np.testing.assert_array_equal(one.errors, two.errors)
+    # each process may run the compiled or the Python steps (its compile cache): to 1e-9
+    np.testing.assert_allclose(one.errors, two.errors, rtol=REL, atol=ABS)
 
 
 def test_cli_without_cross_validation_ranks_the_grid_in_sample() -> None:
@@ -246,4 +247,4 @@ def test_the_grid_is_the_same_on_a_dask_cluster(mrclam7: Path) -> None:
     ) as cluster:
         on_dask = measure_grid({"7": mrclam7}, grid, robots=(2,), dask=cluster.scheduler_address)
     here = measure_grid({"7": mrclam7}, grid, robots=(2,), jobs=1)
-    np.testing.assert_array_equal(on_dask.errors, here.errors)
+    np.testing.assert_allclose(on_dask.errors, here.errors, rtol=REL, atol=ABS)
